@@ -102,6 +102,11 @@ class Catalogue {
 
   explicit Catalogue(std::vector<MessageDesc> messages);
 
+  // A message is identified by (CAN ID, function code, n): the spec reuses one function code
+  // for two messages exactly once (0x763: read 0x7000 and "SHUTDOWN" 0x7008).
+  const MessageDesc* find(uint16_t can_id, uint8_t function, uint8_t length) const;
+  // First message with this ID and function, whatever its length (nullptr when none). decode()
+  // uses it to tell "unknown" from "known, but the length differs".
   const MessageDesc* find(uint16_t can_id, uint8_t function) const;
   // First message with this name on this ID (for encoding by name).
   const MessageDesc* find(std::string_view name, uint16_t can_id) const;
@@ -109,7 +114,8 @@ class Catalogue {
 
  private:
   std::vector<MessageDesc> messages_;
-  std::vector<std::pair<uint32_t, uint32_t>> index_;  // (id << 8 | function) -> position
+  // (id << 16 | function << 8 | length) -> position, sorted.
+  std::vector<std::pair<uint32_t, uint32_t>> index_;
 };
 
 }  // namespace motinova

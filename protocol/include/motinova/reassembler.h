@@ -7,7 +7,10 @@
 //    collected, then tail, n == LENGTH - 2 and CRC are checked. Surplus bytes in the last segment
 //    are ignored (padding to DLC 8).
 //  * A partial message is dropped when the next segment arrives more than `gap_timeout` later,
-//    or when a new 55 AA start arrives on the same ID mid-way (the new start is kept).
+//    or when a segment that starts with a plausible header (55 AA, valid MODE, LENGTH >= 2,
+//    n == LENGTH - 2) arrives on the same ID mid-way: the sender restarted, the new start is kept.
+//    (A data segment that merely begins with 55 AA is continued: a plausible header by chance
+//    has a probability below 1e-9.)
 //  * Every dropped byte sequence is reported to the sink once, with its kind, and counted.
 #pragma once
 
@@ -27,6 +30,7 @@ enum class ReassemblyError : uint8_t {
   kLengthMismatch,  // n != LENGTH - 2
   kBadTail,         // byte LENGTH + 8 is not F0
   kBadCrc,          // CRC mismatch
+  kTruncated,       // a short (final) segment arrived before LENGTH + 9 bytes were collected
   kGapTimeout,      // partial message abandoned: next segment too late (or flushed by expire())
   kRestarted,       // partial message abandoned: a new 55 AA start arrived on the same ID
   kForeignId,       // CAN ID outside 0x700-0x7FF, or extended/remote/error frame (ignored)

@@ -1,0 +1,50 @@
+#include "motinova/crc32.h"
+
+#include <array>
+
+namespace motinova {
+namespace {
+
+// The appendix's table is the MSB-first table for polynomial 0x04C11DB7.
+constexpr std::array<uint32_t, 256> make_table() {
+  std::array<uint32_t, 256> table{};
+  for (uint32_t i = 0; i < 256; ++i) {
+    uint32_t reg = i << 24;
+    for (int bit = 0; bit < 8; ++bit) {
+      reg = (reg & 0x80000000u) ? (reg << 1) ^ 0x04C11DB7u : (reg << 1);
+    }
+    table[i] = reg;
+  }
+  return table;
+}
+constexpr auto kTable = make_table();
+
+// Each input byte is XORed into the low 8 bits and followed by four table steps, i.e. the
+// register is multiplied by x^32: exactly what the STM32 CRC unit does with a 32-bit word.
+inline uint32_t step(uint32_t reg, uint8_t byte) {
+  reg ^= byte;
+  reg = (reg << 8) ^ kTable[reg >> 24];
+  reg = (reg << 8) ^ kTable[reg >> 24];
+  reg = (reg << 8) ^ kTable[reg >> 24];
+  reg = (reg << 8) ^ kTable[reg >> 24];
+  return reg;
+}
+
+}  // namespace
+
+uint32_t crc32_update(uint32_t state, std::span<const uint8_t> data) {
+  for (uint8_t b : data) state = step(state, b);
+  return state;
+}
+
+uint32_t frame_crc(uint16_t can_id, std::span<const uint8_t> frame_body) {
+  uint32_t reg = kCrcInit;
+  if (frame_body.size() < 2) return crc32_update(reg, frame_body);
+  reg = step(reg, frame_body[0]);
+  reg = step(reg, frame_body[1]);
+  reg = step(reg, static_cast<uint8_t>(can_id >> 8));
+  reg = step(reg, static_cast<uint8_t>(can_id & 0xFF));
+  return crc32_update(reg, frame_body.subspan(2));
+}
+
+}  // namespace motinova

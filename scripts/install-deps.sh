@@ -1,0 +1,37 @@
+#!/usr/bin/env bash
+# Installs the Debian 12 packages fleetgw needs to build, test and run its demo.
+# Idempotent: packages already installed are skipped, and apt is not touched when none is missing.
+set -euo pipefail
+
+PACKAGES=(
+  build-essential cmake pkg-config git
+  libpaho-mqttpp-dev libpaho-mqtt-dev libssl-dev openssl
+  libprotobuf-dev protobuf-compiler
+  libsqlite3-dev sqlite3
+  libspdlog-dev libfmt-dev
+  libgtest-dev libgmock-dev libbenchmark-dev
+  mosquitto mosquitto-clients
+  can-utils iproute2
+  libtomlplusplus-dev libcli11-dev nlohmann-json3-dev libasio-dev
+  libsystemd-dev
+  clang libclang-rt-14-dev
+  qemu-system-x86 busybox-static cpio xz-utils kmod
+)
+
+missing=()
+for p in "${PACKAGES[@]}"; do
+  if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then
+    missing+=("$p")
+  fi
+done
+
+if [ ${#missing[@]} -eq 0 ]; then
+  echo "install-deps: all ${#PACKAGES[@]} packages present"
+  exit 0
+fi
+
+echo "install-deps: installing ${missing[*]}"
+SUDO=""
+if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
+$SUDO apt-get update -qq
+DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
