@@ -1,0 +1,123 @@
+#include "gateway/app/cli.h"
+
+#include <CLI/CLI.hpp>
+#include <fmt/format.h>
+
+#include <iostream>
+
+#include "gateway/config/config.h"
+#include "gateway/decode/decode_command.h"
+
+namespace fleetgw::app {
+namespace {
+
+// Protocol options shared by every subcommand that decodes: flags override the config file.
+struct ProtocolFlags {
+  std::string config_file;
+  std::string crc_order, byte_order, mc_fault_layout, bms_fault_layout, other_fault_layout,
+      mc_vi_order, bms_current_sign, lock_kinds;
+  bool mc_current_signed = false;
+
+  void add_to(CLI::App& cmd) {
+    cmd.add_option("--config", config_file, "take the [protocol] options from this config file");
+    cmd.add_option("--crc-order", crc_order, "U1: CRC byte order")
+        ->check(CLI::IsMember({"be", "le", "auto"}));
+    cmd.add_option("--byte-order", byte_order, "U2: data byte order")
+        ->check(CLI::IsMember({"be", "le"}));
+    const auto layouts = CLI::IsMember({"documented", "swapped", "two_words_low_first"});
+    cmd.add_option("--mc-fault-layout", mc_fault_layout, "U3: MC fault word layout")->check(layouts);
+    cmd.add_option("--bms-fault-layout", bms_fault_layout, "U3: BMS fault word layout")
+        ->check(layouts);
+    cmd.add_option("--other-fault-layout", other_fault_layout, "U3: OBC/IOT/lock fault words")
+        ->check(layouts);
+    cmd.add_option("--mc-voltage-current", mc_vi_order, "U9: MC voltage/current order")
+        ->check(CLI::IsMember({"voltage_first", "current_first", "auto"}));
+    cmd.add_option("--bms-current-sign", bms_current_sign, "U4: which BMS current is positive")
+        ->check(CLI::IsMember({"charge_positive", "discharge_positive"}));
+    cmd.add_flag("--mc-current-signed", mc_current_signed, "U4: MC bus current is signed");
+    cmd.add_option("--lock-kinds", lock_kinds,
+                   "U21: comma-separated lock kinds of LOCK 1..5, e.g. seat,frame,steering,battery,other");
+  }
+
+  motinova::DecodeOptions resolve() const {
+    motinova::DecodeOptions p =
+        config_file.empty() ? motinova::DecodeOptions{} : config::load_config(config_file).protocol;
+    if (!crc_order.empty()) p.crc_order = config::parse_crc_order(crc_order);
+    if (!byte_order.empty()) p.data_order = config::parse_byte_order(byte_order);
+    if (!mc_fault_layout.empty()) p.mc_fault_layout = config::parse_fault_layout(mc_fault_layout);
+    if (!bms_fault_layout.empty()) p.bms_fault_layout = config::parse_fault_layout(bms_fault_layout);
+    if (!other_fault_layout.empty()) {
+      p.other_fault_layout = config::parse_fault_layout(other_fault_layout);
+    }
+    if (!mc_vi_order.empty()) p.mc_voltage_current_order = config::parse_mc_vi_order(mc_vi_order);
+    if (!bms_current_sign.empty()) p.bms_current_charge_positive = bms_current_sign == "charge_positive";
+    if (mc_current_signed) p.mc_current_signed = true;
+    if (!lock_kinds.empty()) {
+      std::array<std::string, 5> kinds{};
+      std::size_t i = 0, start = 0;
+      while (start <= lock_kinds.size()) {
+        const auto comma = lock_kinds.find(',', start);
+        const auto end = comma == std::string::npos ? lock_kinds.size() : comma;
+        if (i >= kinds.size()) throw CLI::ValidationError("--lock-kinds", "at most 5 lock kinds");
+        kinds[i++] = lock_kinds.substr(start, end - start);
+        if (comma == std::string::npos) break;
+        start = comma + 1;
+      }
+      p.lock_kinds = kinds;
+    }
+    return p;
+  }
+};
+
+}  // namespace
+
+int run_cli(int argc, char** argv) {
+  CLI::App app{"fleetgw: MOTINOVA e-bike fleet telemetry gateway"};
+  app.require_subcommand(1);
+  app.set_version_flag("--version", std::string("fleetgw ") + FLEETGW_VERSION);
+
+  // decode
+  auto* decode_cmd = app.add_subcommand("decode", "decode a candump -L log into JSON lines");
+  decode::DecodeCommandOptions decode_options;
+  ProtocolFlags decode_flags;
+  int gap_ms = 100;
+  decode_cmd->add_option("file", decode_options.input, "candump -L log, or - for stdin");
+  decode_cmd->add_flag("--errors", decode_options.print_errors, "also print one JSON line per error");
+  decode_cmd->add_option("--gap-ms", gap_ms, "drop a partial message after this gap (U15)")
+      ->check(CLI::Range(1, 60'000));
+  decode_flags.add_to(*decode_cmd);
+
+  // check-config
+  auto* check_cmd = app.add_subcommand("check-config", "validate a configuration file");
+  std::string check_file;
+  check_cmd->add_option("file", check_file, "configuration file")->required();
+
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  }
+
+  try {
+    if (decode_cmd->parsed()) {
+      decode_options.protocol = decode_flags.resolve();
+      decode_options.gap_timeout = motinova::Micros(int64_t{gap_ms} * 1000);
+      return decode::run_decode(decode_options, std::cout, std::cerr);
+    }
+    if (check_cmd->parsed()) {
+      config::load_config(check_file);
+      std::cout << check_file << ": OK\n";
+      return 0;
+    }
+  } catch (const config::ConfigError& e) {
+    for (const auto& p : e.problems) std::cerr << p << '\n';
+    std::cerr << e.problems.size() << " problem(s) in the configuration\n";
+    return 1;
+  } catch (const std::exception& e) {
+    std::cerr << "fleetgw: " << e.what() << '\n';
+    return 1;
+  }
+  return 0;
+}
+
+}  // namespace fleetgw::app

@@ -1,0 +1,378 @@
+#include "gateway/config/config.h"
+
+#include <fmt/format.h>
+
+#include <fstream>
+#include <set>
+#include <sstream>
+#include <toml++/toml.h>
+
+namespace fleetgw::config {
+namespace {
+
+std::string join(const std::vector<std::string>& lines) {
+  std::string out;
+  for (const auto& l : lines) {
+    if (!out.empty()) out += "\n";
+    out += l;
+  }
+  return out;
+}
+
+// Reads one [table] of the file, remembering which keys were consumed so that the rest can be
+// reported as unknown.
+class Section {
+ public:
+  Section(const toml::table* table, std::string path, std::string file,
+          std::vector<std::string>& problems)
+      : table_(table), path_(std::move(path)), file_(std::move(file)), problems_(problems) {}
+
+  ~Section() { report_unknown(); }
+  Section(const Section&) = delete;
+  Section& operator=(const Section&) = delete;
+
+  // A nested [a.b] table.
+  Section sub(std::string_view key) {
+    seen_.insert(std::string(key));
+    const toml::table* t = nullptr;
+    if (table_) {
+      if (const toml::node* n = table_->get(key)) {
+        t = n->as_table();
+        if (!t) problem(*n, key, "expected a table");
+      }
+    }
+    return Section(t, qualify(key), file_, problems_);
+  }
+
+  void string(std::string_view key, std::string& out) {
+    if (const toml::node* n = find(key)) {
+      if (auto v = n->value<std::string>(); v && n->is_string()) {
+        out = *v;
+      } else {
+        problem(*n, key, "expected a string");
+      }
+    }
+  }
+
+  void choice(std::string_view key, std::string& out, std::initializer_list<std::string_view> allowed) {
+    std::string value = out;
+    const toml::node* n = find(key);
+    if (!n) return;
+    string(key, value);
+    for (auto a : allowed) {
+      if (a == value) {
+        out = value;
+        return;
+      }
+    }
+    std::string list;
+    for (auto a : allowed) list += (list.empty() ? "" : ", ") + std::string(a);
+    problem(*n, key, fmt::format("expected one of {}, got \"{}\"", list, value));
+  }
+
+  template <typename Int>
+  void integer(std::string_view key, Int& out, int64_t min, int64_t max) {
+    if (const toml::node* n = find(key)) {
+      if (!n->is_integer()) {
+        problem(*n, key, "expected an integer");
+        return;
+      }
+      const int64_t v = *n->value<int64_t>();
+      if (v < min || v > max) {
+        problem(*n, key, fmt::format("{} is out of range [{}, {}]", v, min, max));
+        return;
+      }
+      out = static_cast<Int>(v);
+    }
+  }
+
+  void number(std::string_view key, double& out, double min, double max) {
+    if (const toml::node* n = find(key)) {
+      if (!n->is_number()) {
+        problem(*n, key, "expected a number");
+        return;
+      }
+      const double v = *n->value<double>();
+      if (v < min || v > max) {
+        problem(*n, key, fmt::format("{} is out of range [{}, {}]", v, min, max));
+        return;
+      }
+      out = v;
+    }
+  }
+
+  void boolean(std::string_view key, bool& out) {
+    if (const toml::node* n = find(key)) {
+      if (!n->is_boolean()) {
+        problem(*n, key, "expected true or false");
+        return;
+      }
+      out = *n->value<bool>();
+    }
+  }
+
+  template <std::size_t N>
+  void string_array(std::string_view key, std::array<std::string, N>& out, bool allow_empty) {
+    const toml::node* n = find(key);
+    if (!n) return;
+    const toml::array* a = n->as_array();
+    if (!a || a->size() != N) {
+      problem(*n, key, fmt::format("expected an array of {} strings", N));
+      return;
+    }
+    std::array<std::string, N> values;
+    for (std::size_t i = 0; i < N; ++i) {
+      const auto* s = (*a)[i].as_string();
+      if (!s || (!allow_empty && s->get().empty())) {
+        problem(*n, key, fmt::format("element {} must be a{} string", i, allow_empty ? "" : " non-empty"));
+        return;
+      }
+      values[i] = s->get();
+    }
+    out = values;
+  }
+
+  // Every key of a free-form table of strings (e.g. trusted keys).
+  void string_map(std::map<std::string, std::string>& out) {
+    if (!table_) return;
+    for (const auto& [k, v] : *table_) {
+      seen_.insert(std::string(k.str()));
+      if (!v.is_string()) {
+        problem(v, k.str(), "expected a string");
+        continue;
+      }
+      out[std::string(k.str())] = *v.value<std::string>();
+    }
+  }
+
+  // Reports a problem with a value that passed the type check but is inconsistent.
+  void invalid(std::string_view key, std::string_view what) {
+    if (const toml::node* n = table_ ? table_->get(key) : nullptr) problem(*n, key, what);
+  }
+
+ private:
+  const toml::node* find(std::string_view key) {
+    seen_.insert(std::string(key));
+    return table_ ? table_->get(key) : nullptr;
+  }
+  std::string qualify(std::string_view key) const {
+    return path_.empty() ? std::string(key) : path_ + "." + std::string(key);
+  }
+  void problem(const toml::node& n, std::string_view key, std::string_view what) {
+    problems_.push_back(
+        fmt::format("{}:{}: {}: {}", file_, n.source().begin.line, qualify(key), what));
+  }
+  void report_unknown() {
+    if (!table_) return;
+    for (const auto& [k, v] : *table_) {
+      if (!seen_.count(std::string(k.str()))) {
+        problems_.push_back(fmt::format("{}:{}: {}: unknown key", file_, v.source().begin.line,
+                                        qualify(k.str())));
+      }
+    }
+  }
+
+  const toml::table* table_;
+  std::string path_;
+  std::string file_;
+  std::vector<std::string>& problems_;
+  std::set<std::string> seen_;
+};
+
+void read_protocol(Section& s, motinova::DecodeOptions& p, std::vector<std::string>& problems) {
+  std::string crc = "be", data = "be", mc = "documented", bms = "documented", other = "documented",
+              vi = "voltage_first";
+  s.choice("crc_order", crc, {"be", "le", "auto"});
+  s.choice("data_order", data, {"be", "le"});
+  s.choice("mc_fault_layout", mc, {"documented", "swapped", "two_words_low_first"});
+  s.choice("bms_fault_layout", bms, {"documented", "swapped", "two_words_low_first"});
+  s.choice("other_fault_layout", other, {"documented", "swapped", "two_words_low_first"});
+  s.choice("mc_voltage_current_order", vi, {"voltage_first", "current_first", "auto"});
+  p.crc_order = parse_crc_order(crc);
+  p.data_order = parse_byte_order(data);
+  p.mc_fault_layout = parse_fault_layout(mc);
+  p.bms_fault_layout = parse_fault_layout(bms);
+  p.other_fault_layout = parse_fault_layout(other);
+  p.mc_voltage_current_order = parse_mc_vi_order(vi);
+  s.boolean("bms_current_charge_positive", p.bms_current_charge_positive);
+  s.boolean("mc_current_signed", p.mc_current_signed);
+  s.string_array("lock_state_names", p.lock_state_names, false);
+  s.string_array("lock_kinds", p.lock_kinds, true);
+  (void)problems;
+}
+
+Config parse_root(const toml::table& root, const std::string& name) {
+  std::vector<std::string> problems;
+  Config c;
+  {
+    Section top(&root, "", name, problems);
+    {
+      auto s = top.sub("vehicle");
+      s.string("id", c.vehicle.id);
+      if (c.vehicle.id.empty() || c.vehicle.id.find_first_of("/+#") != std::string::npos) {
+        s.invalid("id", "must be non-empty and contain no MQTT wildcard or '/'");
+      }
+    }
+    {
+      auto s = top.sub("log");
+      s.choice("level", c.log.level, {"trace", "debug", "info", "warn", "error", "critical", "off"});
+    }
+    {
+      auto s = top.sub("can");
+      s.choice("transport", c.can.transport, {"socketcan", "replay", "udp", "sim"});
+      s.string("interface", c.can.interface);
+      s.string("replay_file", c.can.replay_file);
+      s.number("replay_speed", c.can.replay_speed, 0.0, 1e6);
+      s.string("udp_local", c.can.udp_local);
+      s.string("udp_remote", c.can.udp_remote);
+      s.integer("reassembly_gap_ms", c.can.reassembly_gap_ms, 10, 10'000);
+    }
+    {
+      auto s = top.sub("protocol");
+      read_protocol(s, c.protocol, problems);
+    }
+    {
+      auto s = top.sub("node");
+      s.string("model", c.node.identity.model);
+      s.string("serial", c.node.identity.serial);
+      s.string("hw", c.node.identity.hw);
+      for (auto [key, value] : {std::pair{"model", &c.node.identity.model},
+                                std::pair{"serial", &c.node.identity.serial},
+                                std::pair{"hw", &c.node.identity.hw}}) {
+        if (value->size() > 16) s.invalid(key, "at most 16 ASCII characters (model-info block)");
+      }
+      s.integer("offline_timeout_ms", c.node.offline_timeout_ms, 200, 600'000);
+      s.integer("fault_stale_ms", c.node.fault_stale_ms, 200, 600'000);
+      s.integer("request_retry_ms", c.node.request_retry_ms, 10, 10'000);
+      s.integer("request_timeout_ms", c.node.request_timeout_ms, 50, 60'000);
+      s.integer("model_info_period_ms", c.node.model_info_period_ms, 100, 3'600'000);
+      s.integer("lock_status_poll_ms", c.node.lock_status_poll_ms, 100, 3'600'000);
+      s.integer("bms_poll_ms", c.node.bms_poll_ms, 100, 3'600'000);
+      s.integer("pack_stats_poll_ms", c.node.pack_stats_poll_ms, 1000, 86'400'000);
+      s.boolean("answer_mc_handshake", c.node.answer_mc_handshake);
+    }
+    {
+      auto s = top.sub("sim");
+      s.string("scenario", c.sim.scenario);
+      s.number("speed", c.sim.speed, 0.01, 100'000);
+      s.integer("seed", c.sim.seed, 0, INT64_MAX);
+    }
+    {
+      auto s = top.sub("storage");
+      s.string("path", c.storage.path);
+      s.integer("max_mb", c.storage.max_mb, 1, 1'000'000);
+      s.choice("synchronous", c.storage.synchronous, {"normal", "full"});
+      s.integer("flush_ms", c.storage.flush_ms, 10, 60'000);
+    }
+    {
+      auto s = top.sub("mqtt");
+      s.boolean("enabled", c.mqtt.enabled);
+      s.string("uri", c.mqtt.uri);
+      s.string("topic_prefix", c.mqtt.topic_prefix);
+      s.string("ca_file", c.mqtt.ca_file);
+      s.string("cert_file", c.mqtt.cert_file);
+      s.string("key_file", c.mqtt.key_file);
+      s.string("username", c.mqtt.username);
+      s.string("password", c.mqtt.password);
+      s.boolean("verify_server", c.mqtt.verify_server);
+      s.integer("keepalive_s", c.mqtt.keepalive_s, 5, 3600);
+      s.integer("max_inflight", c.mqtt.max_inflight, 1, 10'000);
+      s.integer("telemetry_qos", c.mqtt.telemetry_qos, 0, 1);
+      s.integer("batch_max_samples", c.mqtt.batch_max_samples, 1, 10'000);
+      s.integer("batch_max_ms", c.mqtt.batch_max_ms, 0, 3'600'000);
+      s.integer("reconnect_min_ms", c.mqtt.reconnect_min_ms, 10, 3'600'000);
+      s.integer("reconnect_max_ms", c.mqtt.reconnect_max_ms, 10, 3'600'000);
+      if (c.mqtt.uri.rfind("tcp://", 0) != 0 && c.mqtt.uri.rfind("ssl://", 0) != 0 &&
+          c.mqtt.uri.rfind("mqtts://", 0) != 0 && c.mqtt.uri.rfind("mqtt://", 0) != 0) {
+        s.invalid("uri", "must start with tcp://, mqtt://, ssl:// or mqtts://");
+      }
+      if ((c.mqtt.cert_file.empty()) != (c.mqtt.key_file.empty())) {
+        s.invalid(c.mqtt.cert_file.empty() ? "key_file" : "cert_file",
+                  "cert_file and key_file go together (mutual TLS)");
+      }
+    }
+    {
+      auto s = top.sub("telemetry");
+      s.integer("riding_interval_ms", c.telemetry.riding_interval_ms, 100, 3'600'000);
+      s.integer("parked_interval_ms", c.telemetry.parked_interval_ms, 1000, 86'400'000);
+    }
+    {
+      auto s = top.sub("ride");
+      s.number("moving_speed_kmh", c.ride.moving_speed_kmh, 0.1, 50);
+      s.integer("stationary_end_s", c.ride.stationary_end_s, 10, 86'400);
+    }
+    {
+      auto s = top.sub("faults");
+      s.integer("debounce_ms", c.faults.debounce_ms, 0, 600'000);
+    }
+    {
+      auto s = top.sub("command");
+      s.integer("clock_skew_s", c.command.clock_skew_s, 0, 3600);
+      s.number("interlock_speed_kmh", c.command.interlock_speed_kmh, 0, 50);
+      s.integer("interlock_motor_s", c.command.interlock_motor_s, 0, 600);
+      s.integer("confirm_timeout_ms", c.command.confirm_timeout_ms, 200, 60'000);
+      s.integer("retries", c.command.retries, 0, 10);
+      auto keys = s.sub("trusted_keys");
+      keys.string_map(c.command.trusted_keys);
+    }
+  }
+  if (!problems.empty()) throw ConfigError(std::move(problems));
+  return c;
+}
+
+}  // namespace
+
+ConfigError::ConfigError(std::vector<std::string> p)
+    : std::runtime_error(join(p)), problems(std::move(p)) {}
+
+Config parse_config(std::string_view text, const std::string& name) {
+  toml::table root;
+  try {
+    root = toml::parse(text, name);
+  } catch (const toml::parse_error& e) {
+    throw ConfigError({fmt::format("{}:{}:{}: {}", name, e.source().begin.line,
+                                   e.source().begin.column, e.description())});
+  }
+  return parse_root(root, name);
+}
+
+Config load_config(const std::filesystem::path& file) {
+  std::ifstream in(file, std::ios::binary);
+  if (!in) throw ConfigError({fmt::format("{}: cannot open configuration file", file.string())});
+  std::stringstream buffer;
+  buffer << in.rdbuf();
+  Config c = parse_config(buffer.str(), file.string());
+  c.source = file;
+  return c;
+}
+
+motinova::CrcOrder parse_crc_order(std::string_view s) {
+  if (s == "be") return motinova::CrcOrder::kBig;
+  if (s == "le") return motinova::CrcOrder::kLittle;
+  if (s == "auto") return motinova::CrcOrder::kAuto;
+  throw std::invalid_argument(fmt::format("crc order must be be, le or auto, got \"{}\"", s));
+}
+
+motinova::ByteOrder parse_byte_order(std::string_view s) {
+  if (s == "be") return motinova::ByteOrder::kBig;
+  if (s == "le") return motinova::ByteOrder::kLittle;
+  throw std::invalid_argument(fmt::format("byte order must be be or le, got \"{}\"", s));
+}
+
+motinova::FaultWordLayout parse_fault_layout(std::string_view s) {
+  if (s == "documented") return motinova::FaultWordLayout::kDocumented;
+  if (s == "swapped") return motinova::FaultWordLayout::kSwappedGroups;
+  if (s == "two_words_low_first") return motinova::FaultWordLayout::kTwoWordsLowFirst;
+  throw std::invalid_argument(fmt::format(
+      "fault layout must be documented, swapped or two_words_low_first, got \"{}\"", s));
+}
+
+motinova::McVoltageCurrentOrder parse_mc_vi_order(std::string_view s) {
+  if (s == "voltage_first") return motinova::McVoltageCurrentOrder::kVoltageFirst;
+  if (s == "current_first") return motinova::McVoltageCurrentOrder::kCurrentFirst;
+  if (s == "auto") return motinova::McVoltageCurrentOrder::kAuto;
+  throw std::invalid_argument(fmt::format(
+      "MC voltage/current order must be voltage_first, current_first or auto, got \"{}\"", s));
+}
+
+}  // namespace fleetgw::config

@@ -1,0 +1,147 @@
+// fleetgw's configuration: the schema of config/fleetgw.toml as plain value types, and its
+// loader.
+//
+// Contract: load_config() either returns a fully validated Config or throws ConfigError listing
+// EVERY problem found, each naming file, line and key ("fleetgw.toml:12: can.transport: expected
+// one of socketcan, replay, udp, sim, got \"cam\""). Unknown keys, wrong types and out-of-range
+// values are all errors: a typo must never silently fall back to a default. Every option has a
+// default, so an empty file is a valid configuration.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <filesystem>
+#include <map>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "motinova/options.h"
+
+namespace fleetgw::config {
+
+struct ConfigError : std::runtime_error {
+  explicit ConfigError(std::vector<std::string> problems);
+  std::vector<std::string> problems;
+};
+
+struct VehicleConfig {
+  std::string id = "bike-0001";
+};
+
+struct LogConfig {
+  std::string level = "info";  // trace, debug, info, warn, error, critical, off
+};
+
+struct CanConfig {
+  std::string transport = "sim";  // socketcan | replay | udp | sim
+  std::string interface = "can0";
+  std::string replay_file;
+  double replay_speed = 0.0;  // 0 = as fast as possible, 1 = recorded speed
+  std::string udp_local = "127.0.0.1:20000";
+  std::string udp_remote = "127.0.0.1:20001";
+  int reassembly_gap_ms = 100;
+};
+
+struct NodeIdentity {
+  std::string model = "FLEETGW-IOT";
+  std::string serial = "SN0000000001";
+  std::string hw = "V1.0.0_20261101";
+};
+
+struct NodeSection {
+  NodeIdentity identity;
+  int offline_timeout_ms = 3000;
+  int fault_stale_ms = 2000;
+  int request_retry_ms = 200;
+  int request_timeout_ms = 1000;
+  int model_info_period_ms = 10000;
+  int lock_status_poll_ms = 2000;
+  int bms_poll_ms = 5000;
+  int pack_stats_poll_ms = 60000;
+  bool answer_mc_handshake = false;  // U13
+};
+
+struct SimConfig {
+  std::string scenario = "config/scenarios/demo.toml";
+  double speed = 1.0;  // time acceleration
+  int64_t seed = 0;    // 0 = use the scenario's seed
+};
+
+struct StorageConfig {
+  std::string path = "/var/lib/fleetgw/fleetgw.db";
+  int max_mb = 256;
+  std::string synchronous = "normal";  // normal | full
+  int flush_ms = 200;
+};
+
+struct MqttConfig {
+  bool enabled = false;
+  std::string uri = "ssl://localhost:8883";
+  std::string topic_prefix = "fleet/v1";
+  std::string ca_file;
+  std::string cert_file;
+  std::string key_file;
+  std::string username;
+  std::string password;
+  bool verify_server = true;
+  int keepalive_s = 30;
+  int max_inflight = 64;
+  int telemetry_qos = 0;
+  int batch_max_samples = 200;
+  int batch_max_ms = 5000;
+  int reconnect_min_ms = 1000;
+  int reconnect_max_ms = 60000;
+};
+
+struct TelemetryConfig {
+  int riding_interval_ms = 1000;
+  int parked_interval_ms = 60000;
+};
+
+struct RideConfig {
+  double moving_speed_kmh = 3.0;
+  int stationary_end_s = 600;
+};
+
+struct FaultConfig {
+  int debounce_ms = 3000;
+};
+
+struct CommandConfig {
+  std::map<std::string, std::string> trusted_keys;  // key id -> base64 Ed25519 public key
+  int clock_skew_s = 30;
+  double interlock_speed_kmh = 1.0;
+  int interlock_motor_s = 5;
+  int confirm_timeout_ms = 3000;
+  int retries = 1;
+};
+
+struct Config {
+  std::filesystem::path source;  // file it was loaded from (empty for defaults)
+  VehicleConfig vehicle;
+  LogConfig log;
+  CanConfig can;
+  motinova::DecodeOptions protocol;
+  NodeSection node;
+  SimConfig sim;
+  StorageConfig storage;
+  MqttConfig mqtt;
+  TelemetryConfig telemetry;
+  RideConfig ride;
+  FaultConfig faults;
+  CommandConfig command;
+};
+
+// Loads and validates a TOML file.
+Config load_config(const std::filesystem::path& file);
+// Parses TOML text; `name` is used in messages.
+Config parse_config(std::string_view toml_text, const std::string& name);
+
+// Protocol option spellings shared with the decode tool's command-line flags.
+motinova::CrcOrder parse_crc_order(std::string_view s);      // be | le | auto
+motinova::ByteOrder parse_byte_order(std::string_view s);    // be | le
+motinova::FaultWordLayout parse_fault_layout(std::string_view s);  // documented | swapped | two_words_low_first
+motinova::McVoltageCurrentOrder parse_mc_vi_order(std::string_view s);  // voltage_first | current_first | auto
+
+}  // namespace fleetgw::config
