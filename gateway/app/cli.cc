@@ -7,6 +7,9 @@
 
 #include "gateway/config/config.h"
 #include "gateway/decode/decode_command.h"
+#include "gateway/runtime/service.h"
+#include "gateway/sim/sim_command.h"
+#include "gateway/app/logging.h"
 
 namespace fleetgw::app {
 namespace {
@@ -92,6 +95,40 @@ int run_cli(int argc, char** argv) {
   std::string check_file;
   check_cmd->add_option("file", check_file, "configuration file")->required();
 
+  // run
+  auto* run_cmd = app.add_subcommand("run", "run the gateway service");
+  std::string run_config;
+  double run_duration = 0;
+  bool run_live = false;
+  std::string run_transport, run_scenario, run_replay;
+  double run_sim_speed = 0;
+  run_cmd->add_option("--config", run_config, "configuration file (TOML)")->required();
+  run_cmd->add_option("--duration", run_duration, "stop after this many seconds")
+      ->check(CLI::PositiveNumber);
+  run_cmd->add_flag("--live", run_live, "print a live view of the bike every second");
+  run_cmd->add_option("--transport", run_transport, "override can.transport")
+      ->check(CLI::IsMember({"socketcan", "replay", "udp", "sim"}));
+  run_cmd->add_option("--scenario", run_scenario, "override sim.scenario");
+  run_cmd->add_option("--sim-speed", run_sim_speed, "override sim.speed (time acceleration)")
+      ->check(CLI::PositiveNumber);
+  run_cmd->add_option("--replay", run_replay, "replay this candump -L log (sets transport)");
+
+  // sim
+  auto* sim_cmd = app.add_subcommand("sim", "run the simulated e-bike on a bus or into a log");
+  sim::SimCliOptions sim_options;
+  double sim_duration = 0;
+  uint64_t sim_seed = 0;
+  sim_cmd->add_option("--scenario", sim_options.scenario, "scenario file (TOML)")->required();
+  sim_cmd->add_option("--speed", sim_options.speed, "time acceleration (1 = real time)")
+      ->check(CLI::PositiveNumber);
+  sim_cmd->add_option("--seed", sim_seed, "override the scenario's seed");
+  sim_cmd->add_option("--duration", sim_duration, "seconds of scenario time to run")
+      ->check(CLI::PositiveNumber);
+  sim_cmd->add_option("--bus", sim_options.bus,
+                      "udp:<local port>:<remote port>, udp:<laddr>:<lport>:<raddr>:<rport> or "
+                      "socketcan:<ifname>");
+  sim_cmd->add_option("--record", sim_options.record, "write a candump -L log instead");
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -103,6 +140,29 @@ int run_cli(int argc, char** argv) {
       decode_options.protocol = decode_flags.resolve();
       decode_options.gap_timeout = motinova::Micros(int64_t{gap_ms} * 1000);
       return decode::run_decode(decode_options, std::cout, std::cerr);
+    }
+    if (run_cmd->parsed()) {
+      config::Config cfg = config::load_config(run_config);
+      if (!run_transport.empty()) cfg.can.transport = run_transport;
+      if (!run_scenario.empty()) cfg.sim.scenario = run_scenario;
+      if (run_sim_speed > 0) cfg.sim.speed = run_sim_speed;
+      if (!run_replay.empty()) {
+        cfg.can.transport = "replay";
+        cfg.can.replay_file = run_replay;
+      }
+      setup_logging(cfg.log.level);
+      runtime::ServiceOptions opts;
+      if (run_duration > 0) {
+        opts.duration = std::chrono::milliseconds(static_cast<int64_t>(run_duration * 1000));
+      }
+      opts.live_view = run_live;
+      return runtime::run_service(cfg, opts);
+    }
+    if (sim_cmd->parsed()) {
+      if (sim_seed) sim_options.seed = sim_seed;
+      if (sim_duration > 0) sim_options.duration_s = sim_duration;
+      setup_logging("info");
+      return sim::run_sim(sim_options);
     }
     if (check_cmd->parsed()) {
       config::load_config(check_file);

@@ -52,11 +52,11 @@ struct EnumEntry {
 struct FieldDesc {
   std::string_view name;  // product vocabulary, unit in the name: "speed_kmh", "voltage_v"
   uint8_t offset = 0;
-  uint8_t size = 1;       // bytes (per element for kArray)
+  uint8_t size = 1;  // bytes (per element for kArray)
   FieldKind kind = FieldKind::kUnsigned;
   double scale = 1.0;
-  double bias = 0.0;      // e.g. -40 for temperatures
-  uint8_t count = 1;      // elements, for kArray
+  double bias = 0.0;         // e.g. -40 for temperatures
+  uint8_t count = 1;         // elements, for kArray
   int64_t invalid_raw = -1;  // raw value meaning "invalid" (decoded as null); -1 = none
   uint32_t bool_mask = 0;    // kBool: bit to test; 0 = compare with true_raw
   int64_t true_raw = 1;      // kBool with bool_mask 0: raw value meaning true (e.g. 0xF1)
@@ -64,7 +64,7 @@ struct FieldDesc {
   std::span<const EnumEntry> enum_names{};
   EnumStyle enum_style = EnumStyle::kRawThenName;
   Quirk quirk = Quirk::kNone;
-  std::string_view unit{};   // human unit for docs ("km/h", "mV"...)
+  std::string_view unit{};  // human unit for docs ("km/h", "mV"...)
 };
 
 enum class MessageKind : uint8_t {
@@ -77,17 +77,17 @@ enum class MessageKind : uint8_t {
 enum class SpecVersion : uint8_t { kV462, kV30 };
 
 struct MessageDesc {
-  std::string_view name;   // "mc_status", "bms_cells", "device_info", "ready"...
+  std::string_view name;  // "mc_status", "bms_cells", "device_info", "ready"...
   uint16_t can_id;
   uint8_t function;
-  uint8_t length;          // n, the number of DATA bytes
+  uint8_t length;  // n, the number of DATA bytes
   Mode mode;
   MessageKind kind = MessageKind::kData;
   std::span<const FieldDesc> fields{};
-  std::string_view keyword{};  // kKeyword: the ASCII text
+  std::string_view keyword{};                   // kKeyword: the ASCII text
   FaultSource fault_source = FaultSource::kMc;  // kFaultWord
   SpecVersion version = SpecVersion::kV462;
-  std::string_view title{};    // one-line description for docs and --list
+  std::string_view title{};  // one-line description for docs and --list
 
   uint16_t command() const { return static_cast<uint16_t>((function << 8) | length); }
   Node source() const { return source_of(can_id); }

@@ -3,8 +3,10 @@
 // Contract: decode() never allocates and never throws; an (ID, function) pair not in the
 // catalogue, or one whose length differs from the catalogue, decodes as message "unknown"
 // (raw data kept), never as an error. A DecodedMessage holds views into the AppFrame it came
-// from and must not outlive it. MessageWriter validates every value and throws
-// std::invalid_argument with the field name when a value does not fit.
+// from and must not outlive it; names taken from option tables (assist U7, lock state U19) are
+// views into the DecodeOptions, which must outlive it too (do not pass a temporary). MessageWriter
+// validates every value and throws std::invalid_argument with the field name when a value does not
+// fit.
 #pragma once
 
 #include <array>
@@ -33,8 +35,8 @@ struct FieldValue {
 
 enum class DecodeStatus : uint8_t {
   kOk,
-  kUnknownMessage,   // (ID, function) not in the catalogue
-  kLengthMismatch,   // in the catalogue, but n differs: decoded as unknown
+  kUnknownMessage,  // (ID, function) not in the catalogue
+  kLengthMismatch,  // in the catalogue, but n differs: decoded as unknown
 };
 
 class DecodedMessage {
@@ -42,7 +44,7 @@ class DecodedMessage {
   const AppFrame* frame = nullptr;
   const MessageDesc* desc = nullptr;  // nullptr for unknown messages
   DecodeStatus status = DecodeStatus::kUnknownMessage;
-  bool mode_matches = true;           // MODE equals the catalogue's
+  bool mode_matches = true;  // MODE equals the catalogue's
   ByteOrder data_order = ByteOrder::kBig;
 
   std::string_view name() const { return desc ? desc->name : std::string_view{"unknown"}; }
@@ -50,6 +52,7 @@ class DecodedMessage {
   const FieldValue* find(std::string_view field) const;
   // Scaled value of a valid numeric/bool/enum field; nullopt when absent or invalid.
   std::optional<double> number(std::string_view field) const;
+  // Wire integer of an integer-like field (also when it equals the "invalid" sentinel).
   std::optional<int64_t> raw(std::string_view field) const;
   std::string_view text(std::string_view field) const;
   // Element i of a kArray field, decoded in data_order.
@@ -83,8 +86,8 @@ class MessageWriter {
  public:
   MessageWriter(const MessageDesc& desc, const DecodeOptions& options);
 
-  MessageWriter& raw(std::string_view field, int64_t raw);           // wire value
-  MessageWriter& value(std::string_view field, double physical);     // scaled value
+  MessageWriter& raw(std::string_view field, int64_t raw);        // wire value
+  MessageWriter& value(std::string_view field, double physical);  // scaled value
   MessageWriter& boolean(std::string_view field, bool on);
   MessageWriter& text(std::string_view field, std::string_view ascii);  // space-padded
   MessageWriter& element(std::string_view field, std::size_t index, uint64_t raw);
@@ -94,8 +97,11 @@ class MessageWriter {
 
  private:
   const FieldDesc& field(std::string_view name) const;
+  std::string where() const;  // "message mc_status (0x710/0x1020)" for error texts
+  std::size_t offset_of(const FieldDesc& f) const;  // applies the U9 position swap
+  void put(const FieldDesc& f, int64_t raw, std::string_view what);
   const MessageDesc& desc_;
-  const DecodeOptions& options_;
+  DecodeOptions options_;  // a copy: a writer must not dangle when built from a temporary
   FixedBytes<kMaxData> data_;
 };
 

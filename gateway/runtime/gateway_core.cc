@@ -1,0 +1,98 @@
+#include "gateway/runtime/gateway_core.h"
+
+#include <spdlog/spdlog.h>
+
+#include "gateway/decode/json_format.h"
+
+namespace fleetgw::runtime {
+namespace {
+
+Micros ms(int v) { return Micros(int64_t{v} * 1000); }
+
+}  // namespace
+
+node::NodeConfig make_node_config(const config::Config& c) {
+  node::NodeConfig n;
+  n.identity.model = c.node.identity.model;
+  n.identity.serial = c.node.identity.serial;
+  n.identity.hardware = c.node.identity.hw;
+  n.offline_timeout = ms(c.node.offline_timeout_ms);
+  n.fault_stale_timeout = ms(c.node.fault_stale_ms);
+  n.requests.retry_interval = ms(c.node.request_retry_ms);
+  n.requests.timeout = ms(c.node.request_timeout_ms);
+  n.broadcasts.model_info_period = ms(c.node.model_info_period_ms);
+  n.locks.timeout = ms(c.command.confirm_timeout_ms);
+  for (std::size_t k = 0; k < n.fitted_locks.size(); ++k) {
+    n.fitted_locks[k] = !c.protocol.lock_kinds[k].empty();
+  }
+  auto table = n.effective_poll_table();
+  for (auto& e : table) {
+    if (e.period == Micros(0)) continue;  // once-entries (model info) stay as they are
+    if (e.name == "bms_pack_stats") {
+      e.period = ms(c.node.pack_stats_poll_ms);
+    } else if (e.name.starts_with("lock") && e.name.ends_with("_status")) {
+      e.period = ms(c.node.lock_status_poll_ms);
+    } else if (e.name == "bms_status" || e.name == "bms_cells" || e.name == "bms_faults") {
+      e.period = ms(c.node.bms_poll_ms);
+    }
+  }
+  n.poll_table = std::move(table);
+  return n;
+}
+
+GatewayCore::GatewayCore(const config::Config& config, node::FrameSender& sender,
+                         node::NodeHooks hooks)
+    : options_(config.protocol),
+      reassembler_(motinova::ReassemblerOptions{
+          .gap_timeout = ms(config.can.reassembly_gap_ms), .crc_order = config.protocol.crc_order}),
+      node_(std::make_unique<node::IotNode>(make_node_config(config), options_, sender,
+                                            std::move(hooks))) {}
+
+GatewayCore::~GatewayCore() = default;
+
+void GatewayCore::start(Micros now) {
+  node_->start(now);
+  next_tick_ = now + kTickInterval;
+}
+
+void GatewayCore::on_can_frame(const motinova::CanFrame& frame, Micros timestamp) {
+  if (timestamp >= next_tick_) tick(timestamp);
+  reassembler_.push(frame, timestamp, *this);
+}
+
+void GatewayCore::on_frame(const motinova::AppFrame& frame, Micros ts) {
+  motinova::decode(frame, motinova::Catalogue::standard(), options_, decoded_);
+  ++stats_.messages;
+  if (decoded_.status == motinova::DecodeStatus::kUnknownMessage) ++stats_.unknown_messages;
+  if (decoded_.status == motinova::DecodeStatus::kLengthMismatch) {
+    ++stats_.length_mismatches;
+    spdlog::warn("bus: {} function 0x{:02X} has {} data bytes, the catalogue expects another "
+                 "length; kept as unknown",
+                 decode::hex_id(frame.can_id), frame.function, frame.data.size());
+  }
+  node_->on_frame(frame, decoded_, ts);
+  live_.update(decoded_, options_);
+  for (auto* l : listeners_) l->on_message(decoded_, ts);
+}
+
+void GatewayCore::on_error(const motinova::ReassemblyErrorEvent& e) {
+  // Bus errors are data, not failures: count them, and log at most one summary per second so a
+  // noisy bus cannot flood the journal.
+  ++errors_since_log_;
+  if (e.timestamp - last_error_log_ >= Micros(1'000'000)) {
+    spdlog::warn("bus: {} frame error(s) in the last second, latest {} on {} ({} bytes dropped)",
+                 errors_since_log_, motinova::reassembly_error_name(e.kind),
+                 decode::hex_id(e.can_id), e.bytes_dropped);
+    last_error_log_ = e.timestamp;
+    errors_since_log_ = 0;
+  }
+}
+
+void GatewayCore::tick(Micros now) {
+  reassembler_.expire(now, *this);
+  node_->tick(now);
+  for (auto* l : listeners_) l->tick(now);
+  next_tick_ = now + kTickInterval;
+}
+
+}  // namespace fleetgw::runtime

@@ -1,0 +1,42 @@
+// `fleetgw run`: the long-running service. One asio event loop owns the CAN transport chosen in
+// the configuration, the GatewayCore, the periodic tick, the live view, and clean shutdown on
+// SIGINT/SIGTERM.
+//
+// Contract:
+//  * run() blocks until a signal, the optional duration, or the end of a replayed log, and
+//    returns the process exit status (0 clean, 1 when the transport could not be opened).
+//  * Time: the core runs on the transport's timeline — virtual time for the simulator and for
+//    replays (so accelerated runs behave exactly like real ones), the system clock otherwise.
+#pragma once
+
+#include <chrono>
+#include <functional>
+#include <optional>
+#include <ostream>
+
+#include "gateway/config/config.h"
+#include "gateway/runtime/gateway_core.h"
+
+namespace fleetgw::runtime {
+
+struct ServiceOptions {
+  std::optional<std::chrono::milliseconds> duration;  // stop after this much real time
+  bool live_view = false;                             // print LiveState::line() every second
+  std::ostream* live_out = nullptr;                   // default std::cout
+  // Called once with the core before the loop starts (tests and the demo attach listeners).
+  std::function<void(GatewayCore&)> on_core;
+};
+
+struct ServiceReport {
+  uint64_t can_frames = 0;
+  uint64_t messages = 0;
+  uint64_t frame_errors = 0;
+  double virtual_seconds = 0;  // bus time covered
+  double wall_seconds = 0;
+  std::string last_live_line;
+};
+
+int run_service(const config::Config& config, const ServiceOptions& options,
+                ServiceReport* report = nullptr);
+
+}  // namespace fleetgw::runtime
