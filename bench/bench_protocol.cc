@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "motinova/codec.h"
+#include "motinova/crc32.h"
 #include "motinova/frame.h"
 #include "motinova/reassembler.h"
 #include "motinova/segmenter.h"

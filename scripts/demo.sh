@@ -11,12 +11,12 @@ SPEED=${SPEED:-20}
 SCENARIO=${SCENARIO:-config/scenarios/demo.toml}
 
 ./scripts/install-deps.sh
-cmake -S . -B build-demo -DCMAKE_BUILD_TYPE=Release -DFLEETGW_BUILD_TESTS=OFF \
-  -DFLEETGW_BUILD_BENCH=OFF >/dev/null
-cmake --build build-demo --target fleetgw -j "$(nproc)"
-FLEETGW=build-demo/gateway/app/fleetgw
+# Same build directory and type as scripts/test.sh, so running both builds once.
+cmake -S . -B build -DCMAKE_BUILD_TYPE=RelWithDebInfo >/dev/null
+cmake --build build --target fleetgw -j "$(nproc)"
+FLEETGW=build/gateway/app/fleetgw
 
-DEMO=$ROOT/build-demo/demo
+DEMO=$ROOT/build/demo
 rm -rf "$DEMO"
 mkdir -p "$DEMO"
 
@@ -26,9 +26,9 @@ cat > "$DEMO/mosquitto.conf" <<CONF
 listener $PORT 127.0.0.1
 allow_anonymous true
 persistence false
-log_dest file $DEMO/mosquitto.log
+log_dest stderr
 CONF
-mosquitto -c "$DEMO/mosquitto.conf" &
+mosquitto -c "$DEMO/mosquitto.conf" 2> "$DEMO/mosquitto.log" &
 BROKER=$!
 trap 'kill $BROKER 2>/dev/null || true; kill $SUBSCRIBER 2>/dev/null || true' EXIT
 sleep 0.5

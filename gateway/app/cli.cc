@@ -10,6 +10,9 @@
 #include "gateway/runtime/service.h"
 #include "gateway/sim/sim_command.h"
 #include "gateway/app/logging.h"
+#include "gateway/app/watch_command.h"
+#include "gateway/runtime/recorder.h"
+#include "storage/store.h"
 
 namespace fleetgw::app {
 namespace {
@@ -129,6 +132,33 @@ int run_cli(int argc, char** argv) {
                       "socketcan:<ifname>");
   sim_cmd->add_option("--record", sim_options.record, "write a candump -L log instead");
 
+  // db
+  auto* db_cmd = app.add_subcommand("db", "inspect the SQLite store (technicians)");
+  db_cmd->require_subcommand(1);
+  std::string db_config = "/etc/fleetgw/fleetgw.toml", db_path, export_table;
+  int64_t export_since_us = 0;
+  auto* db_stats = db_cmd->add_subcommand("stats", "row counts, outbox depth, size, evictions");
+  auto* db_export = db_cmd->add_subcommand("export", "one JSON object per row");
+  for (auto* c : {db_stats, db_export}) {
+    c->add_option("--config", db_config, "configuration file (for storage.path)");
+    c->add_option("--db", db_path, "database file (overrides the configuration)");
+  }
+  db_export->add_option("--table", export_table, "table to export")->required();
+  db_export->add_option("--since", export_since_us, "only rows at or after this time (us since epoch)");
+
+  // watch
+  auto* watch_cmd = app.add_subcommand("watch", "print the Envelopes a broker receives, as JSON");
+  WatchOptions watch_options;
+  watch_cmd->add_option("--broker", watch_options.broker, "broker URI");
+  watch_cmd->add_option("--topic", watch_options.topic, "topic filter");
+  watch_cmd->add_option("--ca-file", watch_options.ca_file, "CA bundle (TLS)");
+  watch_cmd->add_option("--cert-file", watch_options.cert_file, "client certificate (mutual TLS)");
+  watch_cmd->add_option("--key-file", watch_options.key_file, "client key (mutual TLS)");
+  watch_cmd->add_option("--username", watch_options.username, "user name");
+  watch_cmd->add_option("--password", watch_options.password, "password");
+  watch_cmd->add_option("--count", watch_options.max_messages, "stop after this many messages");
+  watch_cmd->add_option("--duration", watch_options.duration_s, "stop after this many seconds");
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -164,6 +194,27 @@ int run_cli(int argc, char** argv) {
       setup_logging("info");
       return sim::run_sim(sim_options);
     }
+    if (db_cmd->parsed()) {
+      storage::StoreOptions o;
+      if (db_path.empty()) {
+        o = runtime::make_store_options(config::load_config(db_config));
+      } else {
+        o.path = db_path;
+      }
+      if (!std::filesystem::exists(o.path)) {
+        std::cerr << "fleetgw db: no database at " << o.path << '\n';
+        return 1;
+      }
+      storage::Store store(o);
+      if (db_stats->parsed()) {
+        std::cout << store.stats().to_json().dump(2) << '\n';
+      } else {
+        const auto rows = store.export_table(export_table, export_since_us, std::cout);
+        std::cerr << rows << " rows\n";
+      }
+      return 0;
+    }
+    if (watch_cmd->parsed()) return run_watch(watch_options, std::cout);
     if (check_cmd->parsed()) {
       config::load_config(check_file);
       std::cout << check_file << ": OK\n";

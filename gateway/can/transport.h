@@ -29,9 +29,9 @@ struct BusHealth {
   uint64_t rx_frames = 0;
   uint64_t tx_frames = 0;
   uint64_t tx_failures = 0;
-  uint64_t error_frames = 0;   // CAN error frames seen (SocketCAN CAN_ERR_FLAG)
-  uint64_t reopens = 0;        // successful re-opens after the interface went away
-  std::string detail;          // last error text, e.g. "ENETDOWN on vcan0"
+  uint64_t error_frames = 0;  // CAN error frames seen (SocketCAN CAN_ERR_FLAG)
+  uint64_t reopens = 0;       // successful re-opens after the interface went away
+  std::string detail;         // last error text, e.g. "ENETDOWN on vcan0"
 };
 
 class Transport {

@@ -57,7 +57,7 @@ struct NodeSection {
   int request_timeout_ms = 1000;
   int model_info_period_ms = 10000;
   int lock_status_poll_ms = 2000;
-  int bms_poll_ms = 5000;
+  int bms_poll_ms = 1000;
   int pack_stats_poll_ms = 60000;
   bool answer_mc_handshake = false;  // U13
 };

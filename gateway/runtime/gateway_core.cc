@@ -45,18 +45,28 @@ GatewayCore::GatewayCore(const config::Config& config, node::FrameSender& sender
     : options_(config.protocol),
       reassembler_(motinova::ReassemblerOptions{
           .gap_timeout = ms(config.can.reassembly_gap_ms), .crc_order = config.protocol.crc_order}),
-      node_(std::make_unique<node::IotNode>(make_node_config(config), options_, sender,
+      echo_(sender, *this),
+      node_(std::make_unique<node::IotNode>(make_node_config(config), options_, echo_,
                                             std::move(hooks))) {}
+
+bool GatewayCore::EchoSender::send(const motinova::AppFrame& frame) {
+  if (!inner_.send(frame)) return false;
+  motinova::decode(frame, motinova::Catalogue::standard(), core_.options_, core_.echo_decoded_);
+  for (auto* l : core_.listeners_) l->on_message(core_.echo_decoded_, core_.now_);
+  return true;
+}
 
 GatewayCore::~GatewayCore() = default;
 
 void GatewayCore::start(Micros now) {
+  now_ = now;
   node_->start(now);
   next_tick_ = now + kTickInterval;
 }
 
 void GatewayCore::on_can_frame(const motinova::CanFrame& frame, Micros timestamp) {
   if (timestamp >= next_tick_) tick(timestamp);
+  now_ = std::max(now_, timestamp);
   reassembler_.push(frame, timestamp, *this);
 }
 
@@ -89,6 +99,7 @@ void GatewayCore::on_error(const motinova::ReassemblyErrorEvent& e) {
 }
 
 void GatewayCore::tick(Micros now) {
+  now_ = std::max(now_, now);
   reassembler_.expire(now, *this);
   node_->tick(now);
   for (auto* l : listeners_) l->tick(now);

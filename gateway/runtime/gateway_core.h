@@ -43,6 +43,18 @@ struct CoreStats {
 };
 
 class GatewayCore final : private motinova::FrameSink {
+  // What the node transmits is shown to the listeners as well: the bus does not echo a
+  // sender's own frames, and the trackers need the gateway's LOCK/UNLOCK/SHUTDOWN broadcasts.
+  class EchoSender final : public node::FrameSender {
+   public:
+    EchoSender(node::FrameSender& inner, GatewayCore& core) : inner_(inner), core_(core) {}
+    bool send(const motinova::AppFrame& frame) override;
+
+   private:
+    node::FrameSender& inner_;
+    GatewayCore& core_;
+  };
+
  public:
   static constexpr Micros kTickInterval{50'000};
 
@@ -68,8 +80,13 @@ class GatewayCore final : private motinova::FrameSink {
   void on_frame(const motinova::AppFrame& frame, Micros ts) override;
   void on_error(const motinova::ReassemblyErrorEvent& error) override;
 
+  void dispatch(const motinova::AppFrame& frame, Micros ts);
+
   motinova::DecodeOptions options_;
   motinova::Reassembler reassembler_;
+  EchoSender echo_;
+  motinova::DecodedMessage echo_decoded_;
+  Micros now_{0};
   std::unique_ptr<node::IotNode> node_;
   motinova::DecodedMessage decoded_;
   LiveState live_;

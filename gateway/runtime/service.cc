@@ -11,6 +11,10 @@
 #include "gateway/can/socketcan_transport.h"
 #include "gateway/can/udp_transport.h"
 #include "gateway/node/transport_sender.h"
+#include "gateway/runtime/recorder.h"
+#include "gateway/runtime/store_outbox.h"
+#include "gateway/uplink/uplink.h"
+#include "storage/store.h"
 #include "gateway/sim/scenario.h"
 #include "gateway/sim/sim_transport.h"
 
@@ -72,6 +76,33 @@ Bus make_bus(asio::io_context& io, const config::Config& c) {
 
 }  // namespace
 
+uplink::UplinkConfig make_uplink_config(const config::Config& c) {
+  uplink::UplinkConfig u;
+  u.broker_uri = c.mqtt.uri;
+  u.vehicle_id = c.vehicle.id;
+  u.topic_prefix = c.mqtt.topic_prefix;
+  u.firmware_version = FLEETGW_VERSION;
+  const bool tls = c.mqtt.uri.rfind("ssl://", 0) == 0 || c.mqtt.uri.rfind("mqtts://", 0) == 0;
+  if (tls) {
+    uplink::TlsConfig t;
+    t.ca_file = c.mqtt.ca_file;
+    t.cert_file = c.mqtt.cert_file;
+    t.key_file = c.mqtt.key_file;
+    t.verify_server_name = c.mqtt.verify_server;
+    u.tls = t;
+  }
+  u.username = c.mqtt.username;
+  u.password = c.mqtt.password;
+  u.keep_alive = std::chrono::seconds(c.mqtt.keepalive_s);
+  u.reconnect_min = std::chrono::milliseconds(c.mqtt.reconnect_min_ms);
+  u.reconnect_max = std::chrono::milliseconds(c.mqtt.reconnect_max_ms);
+  u.max_in_flight = static_cast<std::size_t>(c.mqtt.max_inflight);
+  u.live_telemetry_qos = c.mqtt.telemetry_qos;
+  u.telemetry_batch_max_samples = static_cast<std::size_t>(c.mqtt.batch_max_samples);
+  u.telemetry_batch_max_delay = std::chrono::milliseconds(c.mqtt.batch_max_ms);
+  return u;
+}
+
 int run_service(const config::Config& config, const ServiceOptions& options,
                 ServiceReport* report) {
   asio::io_context io;
@@ -90,7 +121,20 @@ int run_service(const config::Config& config, const ServiceOptions& options,
   };
   hooks.acc_off = [](const node::ShutdownOutcome&) { spdlog::info("shutdown complete: ACC off"); };
   GatewayCore core(config, sender, hooks);
-  if (options.on_core) options.on_core(core);
+
+  std::optional<storage::Store> store;
+  try {
+    const std::filesystem::path db(config.storage.path);
+    if (db.has_parent_path()) std::filesystem::create_directories(db.parent_path());
+    store.emplace(make_store_options(config));
+  } catch (const std::exception& e) {
+    spdlog::critical("cannot open the store {}: {}", config.storage.path, e.what());
+    return 1;
+  }
+  if (store->moved_aside_path()) {
+    spdlog::error("the previous database was unreadable and was moved to {}; started a fresh one",
+                  *store->moved_aside_path());
+  }
 
   // The transport's timeline (see the header).
   Micros last_frame_ts{0};
@@ -106,6 +150,7 @@ int run_service(const config::Config& config, const ServiceOptions& options,
   asio::steady_timer tick_timer(io);
   asio::steady_timer live_timer(io);
   asio::steady_timer stop_timer(io);
+  asio::steady_timer uplink_timer(io);
   asio::signal_set signals(io, SIGINT, SIGTERM);
 
   auto stop = [&](const char* why) {
@@ -115,6 +160,7 @@ int run_service(const config::Config& config, const ServiceOptions& options,
     bus.transport->stop();
     tick_timer.cancel();
     live_timer.cancel();
+    uplink_timer.cancel();
     stop_timer.cancel();
     signals.cancel();
   };
@@ -169,12 +215,60 @@ int run_service(const config::Config& config, const ServiceOptions& options,
                      h.detail.empty() ? "" : ": ", h.detail);
       });
   const Micros start = bus.replay ? Micros(0) : now();
+  Recorder recorder(config, *store, start);
+
+  // The uplink drains the store's outbox; Paho's threads only wake the loop up.
+  StoreOutbox outbox(*store);
+  std::unique_ptr<uplink::Uplink> up;
+  std::function<void()> poll_uplink = [] {};
+  if (config.mqtt.enabled) {
+    try {
+      up = std::make_unique<uplink::Uplink>(make_uplink_config(config), outbox);
+    } catch (const std::exception& e) {
+      spdlog::critical("invalid [mqtt] configuration: {}", e.what());
+      return 1;
+    }
+    poll_uplink = [&] {
+      if (stopping) return;
+      up->poll(now());
+    };
+    up->set_wakeup([&io, &poll_uplink] { asio::post(io, [&poll_uplink] { poll_uplink(); }); });
+    recorder.set_after_flush([&] { poll_uplink(); });
+  }
+  core.add_listener(recorder);
+  if (options.on_core) options.on_core(core);
   core.start(start);
   spdlog::info("fleetgw {} running on {} ({} transport)", FLEETGW_VERSION, bus.transport->name(),
                config.can.transport);
   arm_tick();
   if (options.live_view) arm_live();
+  std::function<void()> arm_uplink = [&] {
+    uplink_timer.expires_after(std::chrono::milliseconds(200));
+    uplink_timer.async_wait([&](const std::error_code& ec) {
+      if (ec || stopping) return;
+      poll_uplink();
+      arm_uplink();
+    });
+  };
+  if (up) {
+    up->start(now());
+    arm_uplink();
+  }
   io.run();
+  recorder.flush(bus.replay ? last_frame_ts : now());
+  if (up) {
+    // Give the last records a moment to leave, then publish the retained offline status.
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(2);
+    while (std::chrono::steady_clock::now() < deadline && outbox.stats().depth > 0 &&
+           up->state() == uplink::LinkState::kConnected) {
+      up->poll(now());
+      up->wait_for_events(std::chrono::milliseconds(50));
+    }
+    up->stop(now());
+    const auto s = up->stats();
+    spdlog::info("uplink: {} records acked in {} messages, {} reconnects, {} still queued",
+                 s.acked_records, s.acked_messages, s.reconnects, outbox.stats().depth);
+  }
 
   const auto& stats = core.bus_stats();
   const double wall =

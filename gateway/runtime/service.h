@@ -16,6 +16,7 @@
 
 #include "gateway/config/config.h"
 #include "gateway/runtime/gateway_core.h"
+#include "gateway/uplink/uplink_config.h"
 
 namespace fleetgw::runtime {
 
@@ -35,6 +36,8 @@ struct ServiceReport {
   double wall_seconds = 0;
   std::string last_live_line;
 };
+
+uplink::UplinkConfig make_uplink_config(const config::Config& config);
 
 int run_service(const config::Config& config, const ServiceOptions& options,
                 ServiceReport* report = nullptr);

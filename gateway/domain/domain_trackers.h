@@ -1,0 +1,64 @@
+// DomainTrackers: the five trackers behind one entry point and one config struct.
+//
+// Contract:
+//  * Clock-free and single-threaded: on_message(msg, now) for every decoded application frame
+//    heard on the bus AND every frame the gateway transmits (0x760 LOCK/UNLOCK/SHUTDOWN drive
+//    rides and lock causes; the bus does not echo them), tick(now) at least every 200 ms (the
+//    gateway's batch flush is a good place). `now` must not go backwards.
+//  * Everything produced is appended to the caller's DomainSink (which must outlive this
+//    object); the caller writes sink.take(now) to the Store.
+//  * restore() must be called once, before the first message, with Store::open_rides(): an open
+//    ride of a previous run is resumed (see RideTracker).
+//  * The ride tracker's fault count is fed from the fault tracker's raises; telemetry follows
+//    the ride state (riding vs parked sampling).
+#pragma once
+
+#include <span>
+#include <string>
+
+#include "gateway/domain/domain_config.h"
+#include "gateway/domain/domain_sink.h"
+#include "gateway/domain/fault_tracker.h"
+#include "gateway/domain/lock_tracker.h"
+#include "gateway/domain/pack_tracker.h"
+#include "gateway/domain/ride_tracker.h"
+#include "gateway/domain/telemetry_tracker.h"
+#include "motinova/codec.h"
+#include "storage/records.h"
+
+namespace fleetgw::domain {
+
+class DomainTrackers {
+ public:
+  // Throws std::invalid_argument (DomainConfig::validate) for a nonsensical config.
+  DomainTrackers(DomainConfig config, DomainSink& sink);
+
+  void restore(std::span<const storage::Ride> open_rides, Micros now);
+  void on_message(const motinova::DecodedMessage& msg, Micros now);
+  void tick(Micros now);
+
+  // For the command service: the next state changes of `lock` (kBroadcast: all) are caused by
+  // "command:<id>".
+  void expect_lock_command(motinova::Node lock, const std::string& command_id, Micros now) {
+    locks_.expect_cause(lock, "command:" + command_id, now);
+  }
+
+  const RideTracker& rides() const { return rides_; }
+  const FaultTracker& faults() const { return faults_; }
+  const PackTracker& packs() const { return packs_; }
+  const TelemetryTracker& telemetry() const { return telemetry_; }
+  const LockTracker& locks() const { return locks_; }
+
+ private:
+  void sync(Micros now);
+
+  DomainConfig config_;
+  RideTracker rides_;
+  FaultTracker faults_;
+  PackTracker packs_;
+  TelemetryTracker telemetry_;
+  LockTracker locks_;
+  uint64_t faults_seen_ = 0;
+};
+
+}  // namespace fleetgw::domain

@@ -1,0 +1,88 @@
+#include "gateway/runtime/store_outbox.h"
+
+#include <nlohmann/json.hpp>
+
+#include <limits>
+
+#include "fleetgw/v1/eviction.pb.h"
+
+namespace fleetgw::runtime {
+
+std::string uplink_kind(storage::OutboxKind kind) {
+  switch (kind) {
+    case storage::OutboxKind::kTelemetry: return uplink::kind::kTelemetry;
+    case storage::OutboxKind::kRide: return uplink::kind::kRide;
+    case storage::OutboxKind::kFault: return uplink::kind::kFault;
+    case storage::OutboxKind::kPack: return uplink::kind::kPack;
+    case storage::OutboxKind::kLock: return uplink::kind::kLock;
+    case storage::OutboxKind::kInfo: return uplink::kind::kInfo;
+    case storage::OutboxKind::kStatus: return uplink::kind::kStatus;
+    case storage::OutboxKind::kCommandResult: return uplink::kind::kCommandResult;
+    case storage::OutboxKind::kEvictionReport: return uplink::kind::kEviction;
+  }
+  return "invalid";
+}
+
+std::string eviction_payload_from_json(std::string_view text, uint64_t seq) {
+  fleetgw::v1::EvictionReport report;
+  const auto j = nlohmann::json::parse(text, nullptr, /*allow_exceptions=*/false);
+  if (j.is_object()) {
+    const auto evicted = j.value("evicted", nlohmann::json::object());
+    const uint64_t telemetry = evicted.value("telemetry", uint64_t{0});
+    const uint64_t packs = evicted.value("pack_snapshots", uint64_t{0});
+    report.set_evicted_records(telemetry + packs);
+    (*report.mutable_evicted_by_kind())["telemetry"] = telemetry;
+    (*report.mutable_evicted_by_kind())["pack"] = packs;
+    if (j.contains("oldest_telemetry_kept_us") && j["oldest_telemetry_kept_us"].is_number()) {
+      report.set_newest_created_at_us(j["oldest_telemetry_kept_us"].get<int64_t>());
+    }
+    report.set_reason(j.value("budget_exhausted", false) ? "disk budget exhausted"
+                                                         : "disk budget reached");
+  } else {
+    report.set_reason("disk budget reached (unreadable report)");
+  }
+  report.set_last_sequence(seq);
+  return report.SerializeAsString();
+}
+
+std::vector<uplink::OutboxEntry> StoreOutbox::peek(std::size_t max_entries, std::size_t max_bytes,
+                                                   const std::set<std::uint64_t>& exclude) {
+  std::vector<uplink::OutboxEntry> out;
+  if (max_entries == 0) return out;
+  store_.release_all();
+  auto rows = store_.peek_outbox(max_entries + exclude.size(),
+                                 std::numeric_limits<std::size_t>::max());
+  store_.release_all();
+  std::size_t bytes = 0;
+  for (auto& row : rows) {
+    if (exclude.count(row.seq)) continue;
+    uplink::OutboxEntry e;
+    e.seq = row.seq;
+    e.priority = row.priority;
+    e.kind = uplink_kind(row.kind);
+    e.created_us = row.created_us;
+    if (row.kind == storage::OutboxKind::kEvictionReport) {
+      e.payload = eviction_payload_from_json(
+          std::string_view(reinterpret_cast<const char*>(row.payload.data()), row.payload.size()),
+          row.seq);
+    } else {
+      e.payload.assign(row.payload.begin(), row.payload.end());
+    }
+    if (!out.empty() && bytes + e.payload.size() > max_bytes) break;
+    bytes += e.payload.size();
+    out.push_back(std::move(e));
+    if (out.size() >= max_entries) break;
+  }
+  return out;
+}
+
+void StoreOutbox::ack(std::span<const std::uint64_t> seqs) { store_.ack(seqs); }
+
+uplink::OutboxStats StoreOutbox::stats() const {
+  uplink::OutboxStats s;
+  for (const auto& d : store_.outbox_depth()) s.depth += d.entries;
+  s.oldest_created_us = store_.oldest_unsent_us().value_or(0);
+  return s;
+}
+
+}  // namespace fleetgw::runtime

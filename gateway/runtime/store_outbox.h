@@ -1,0 +1,34 @@
+// StoreOutbox: the SQLite store's outbox seen through the uplink's OutboxSource interface.
+//
+// Contract:
+//  * peek() honours the uplink's `exclude` set (its own in-flight records) and returns entries
+//    in (priority, sequence) order; the first entry is always returned, whatever its size. The
+//    store's own in-flight marks are not used: the uplink is the single owner of "in flight".
+//  * Kind names are translated from storage's vocabulary to the uplink's; the store's JSON
+//    eviction reports become fleetgw.v1.EvictionReport payloads on the way out.
+//  * ack() deletes exactly the acknowledged rows.
+#pragma once
+
+#include "gateway/uplink/outbox_source.h"
+#include "storage/store.h"
+
+namespace fleetgw::runtime {
+
+class StoreOutbox final : public uplink::OutboxSource {
+ public:
+  explicit StoreOutbox(storage::Store& store) : store_(store) {}
+
+  std::vector<uplink::OutboxEntry> peek(std::size_t max_entries, std::size_t max_bytes,
+                                        const std::set<std::uint64_t>& exclude) override;
+  void ack(std::span<const std::uint64_t> seqs) override;
+  uplink::OutboxStats stats() const override;
+
+ private:
+  storage::Store& store_;
+};
+
+// Exposed for tests: storage kind -> uplink kind, and the eviction JSON -> protobuf conversion.
+std::string uplink_kind(storage::OutboxKind kind);
+std::string eviction_payload_from_json(std::string_view json, uint64_t seq);
+
+}  // namespace fleetgw::runtime

@@ -1,0 +1,171 @@
+#include "gateway/sim/sim_command.h"
+
+#include <charconv>
+#include <csignal>
+#include <fstream>
+#include <iostream>
+#include <vector>
+
+#include <spdlog/spdlog.h>
+#include <asio/signal_set.hpp>
+#include <asio/steady_timer.hpp>
+
+#include "gateway/can/socketcan_transport.h"
+#include "gateway/can/udp_transport.h"
+#include "gateway/sim/recorder.h"
+#include "gateway/sim/scenario.h"
+#include "gateway/sim/sim_transport.h"
+
+namespace fleetgw::sim {
+namespace {
+
+std::vector<std::string_view> split(std::string_view s, char sep) {
+  std::vector<std::string_view> parts;
+  std::size_t start = 0;
+  for (;;) {
+    const std::size_t pos = s.find(sep, start);
+    parts.push_back(s.substr(start, pos == std::string_view::npos ? pos : pos - start));
+    if (pos == std::string_view::npos) return parts;
+    start = pos + 1;
+  }
+}
+
+uint16_t parse_port(std::string_view text, std::string_view spec) {
+  unsigned value = 0;
+  const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), value);
+  if (ec != std::errc() || end != text.data() + text.size() || value == 0 || value > 65535) {
+    throw std::invalid_argument("--bus " + std::string(spec) + ": \"" + std::string(text) +
+                                "\" is not a port number (1..65535)");
+  }
+  return static_cast<uint16_t>(value);
+}
+
+}  // namespace
+
+std::unique_ptr<can::Transport> make_bus_transport(asio::io_context& io, std::string_view spec) {
+  const std::vector<std::string_view> parts = split(spec, ':');
+  if (parts[0] == "udp" && (parts.size() == 3 || parts.size() == 5)) {
+    can::UdpOptions o;
+    if (parts.size() == 3) {
+      o.local_port = parse_port(parts[1], spec);
+      o.remote_port = parse_port(parts[2], spec);
+    } else {
+      o.local_address = std::string(parts[1]);
+      o.local_port = parse_port(parts[2], spec);
+      o.remote_address = std::string(parts[3]);
+      o.remote_port = parse_port(parts[4], spec);
+    }
+    return std::make_unique<can::UdpTransport>(io, o);
+  }
+  if (parts[0] == "socketcan" && parts.size() == 2 && !parts[1].empty()) {
+    can::SocketCanOptions o;
+    o.interface = std::string(parts[1]);
+    return std::make_unique<can::SocketCanTransport>(io, o);
+  }
+  throw std::invalid_argument("--bus \"" + std::string(spec) +
+                              "\": expected udp:<local port>:<remote port>, "
+                              "udp:<addr>:<port>:<addr>:<port> or socketcan:<interface>");
+}
+
+int run_sim(const SimCliOptions& options) {
+  Scenario scenario;
+  try {
+    scenario = load_scenario(options.scenario);
+  } catch (const ScenarioError& e) {
+    std::cerr << "fleetgw sim: " << e.what() << '\n';
+    return 2;
+  }
+  if (options.seed) scenario.seed = *options.seed;
+  if (options.duration_s) {
+    if (!(*options.duration_s > 0)) {
+      std::cerr << "fleetgw sim: --duration must be positive\n";
+      return 2;
+    }
+    scenario.duration = Micros(static_cast<int64_t>(*options.duration_s * 1e6));
+  }
+  const Micros duration = scenario.effective_duration();
+
+  if (!options.record.empty()) {
+    std::ofstream out(options.record, std::ios::binary | std::ios::trunc);
+    if (!out) {
+      std::cerr << "fleetgw sim: cannot write " << options.record << '\n';
+      return 1;
+    }
+    const std::size_t lines = record_scenario(scenario, duration, out);
+    if (!out) {
+      std::cerr << "fleetgw sim: write error on " << options.record << '\n';
+      return 1;
+    }
+    spdlog::info("sim: wrote {} frames ({} s of scenario '{}') to {}", lines,
+                 duration.count() / 1'000'000, scenario.name, options.record.string());
+    return 0;
+  }
+  if (!(options.speed > 0) || options.speed > 1e6) {
+    std::cerr << "fleetgw sim: --speed must be in (0, 1e6]\n";
+    return 2;
+  }
+
+  asio::io_context io;
+  std::unique_ptr<can::Transport> transport;
+  try {
+    transport = options.transport_factory ? options.transport_factory(io, options.bus)
+                                          : make_bus_transport(io, options.bus);
+  } catch (const std::invalid_argument& e) {
+    std::cerr << "fleetgw sim: " << e.what() << '\n';
+    return 2;
+  } catch (const std::exception& e) {
+    std::cerr << "fleetgw sim: cannot open bus: " << e.what() << '\n';
+    return 1;
+  }
+  if (!transport) {
+    std::cerr << "fleetgw sim: no transport for --bus " << options.bus << '\n';
+    return 2;
+  }
+
+  Bike bike(scenario);
+  RealtimeDriver driver(io, bike, options.speed);
+  const Micros end = scenario.start + duration;
+  uint64_t tx_failures = 0;
+  asio::signal_set signals(io, SIGINT, SIGTERM);
+  asio::steady_timer end_check(io);
+
+  auto shutdown = [&] {
+    driver.stop();
+    transport->stop();
+    signals.cancel();
+    end_check.cancel();
+  };
+  transport->start([&](const motinova::CanFrame& frame, Micros) { driver.receive(frame); },
+                   [](const can::BusHealth& h) {
+                     spdlog::info("sim: bus {} ({})", can::link_state_name(h.state), h.detail);
+                   });
+  driver.start([&](const motinova::CanFrame& frame, Micros) {
+    if (!transport->send(frame)) ++tx_failures;
+  });
+  signals.async_wait([&](const std::error_code& ec, int) {
+    if (!ec) shutdown();
+  });
+  // Checks the virtual end every 100 ms of real time (the bike keeps its own schedule).
+  std::function<void()> check = [&] {
+    end_check.expires_after(std::chrono::milliseconds(100));
+    end_check.async_wait([&](const std::error_code& ec) {
+      if (ec) return;
+      if (driver.virtual_now() >= end) {
+        shutdown();
+      } else {
+        check();
+      }
+    });
+  };
+  check();
+  spdlog::info("sim: scenario '{}' (seed {}) on {} at x{} for {} s of virtual time", scenario.name,
+               scenario.seed, transport->name(), options.speed, duration.count() / 1'000'000);
+  io.run();
+
+  const BikeStats& s = bike.stats();
+  spdlog::info("sim: done: {} messages / {} CAN frames sent, {} frames heard, {} tx failures",
+               s.messages_sent, s.can_frames_sent, s.external_frames, tx_failures);
+  return 0;
+}
+
+}  // namespace fleetgw::sim

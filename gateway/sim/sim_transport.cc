@@ -1,0 +1,123 @@
+#include "gateway/sim/sim_transport.h"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+#include <asio/post.hpp>
+
+namespace fleetgw::sim {
+
+RealtimeDriver::RealtimeDriver(asio::io_context& io, Bike& bike, double acceleration)
+    : io_(io), bike_(bike), acceleration_(acceleration), timer_(io) {
+  if (!(acceleration > 0) || !std::isfinite(acceleration)) {
+    throw std::invalid_argument("sim: acceleration must be a positive number");
+  }
+  bike_emit_ = [this](const motinova::CanFrame& frame) {
+    if (emit_) emit_(frame, bike_.current_time());
+  };
+}
+
+RealtimeDriver::~RealtimeDriver() {
+  stop();
+}
+
+void RealtimeDriver::start(Emit emit) {
+  emit_ = std::move(emit);
+  real_start_ = std::chrono::steady_clock::now();
+  virtual_start_ = bike_.current_time();
+  running_ = true;
+  arm();
+}
+
+void RealtimeDriver::stop() {
+  running_ = false;
+  timer_.cancel();
+}
+
+Micros RealtimeDriver::virtual_now() const {
+  if (!running_ && real_start_ == std::chrono::steady_clock::time_point{}) {
+    return bike_.current_time();
+  }
+  const auto real = std::chrono::duration_cast<std::chrono::duration<double, std::micro>>(
+      std::chrono::steady_clock::now() - real_start_);
+  return virtual_start_ + Micros(static_cast<int64_t>(real.count() * acceleration_));
+}
+
+void RealtimeDriver::receive(const motinova::CanFrame& frame) {
+  if (!running_) return;
+  bike_.receive(frame, virtual_now());
+  arm();  // the reaction may be due before the event the timer waits for
+}
+
+void RealtimeDriver::arm() {
+  if (!running_) return;
+  const Micros wait_virtual = bike_.next_event() - virtual_now();
+  const auto wait_real = std::chrono::microseconds(static_cast<int64_t>(
+      std::max<double>(0, static_cast<double>(wait_virtual.count())) / acceleration_));
+  timer_.expires_after(wait_real);
+  timer_.async_wait([this, token = std::weak_ptr<int>(alive_)](const std::error_code& ec) {
+    if (ec || token.expired()) return;
+    fire();
+  });
+}
+
+void RealtimeDriver::fire() {
+  if (!running_) return;
+  bike_.advance_to(virtual_now(), bike_emit_);
+  arm();
+}
+
+SimTransport::SimTransport(asio::io_context& io, Scenario scenario, double acceleration)
+    : io_(io),
+      bike_(std::move(scenario)),
+      driver_(io, bike_, acceleration),
+      name_("sim:" + bike_.scenario().name) {}
+
+SimTransport::~SimTransport() {
+  on_health_ = nullptr;  // the owner may be half destroyed: no callbacks from the destructor
+  stop();
+}
+
+void SimTransport::start(FrameHandler on_frame, HealthHandler on_health) {
+  if (started_) throw std::logic_error("SimTransport::start called twice");
+  started_ = true;
+  on_frame_ = std::move(on_frame);
+  on_health_ = std::move(on_health);
+  health_.state = can::LinkState::kUp;
+  health_.detail = "simulated bus, scenario " + bike_.scenario().name;
+  if (on_health_) on_health_(health_);
+  driver_.start([this](const motinova::CanFrame& frame, Micros ts) {
+    ++health_.rx_frames;
+    if (on_frame_) on_frame_(frame, ts);
+  });
+}
+
+bool SimTransport::send(const motinova::CanFrame& frame) {
+  if (!started_ || stopped_ || frame.len > 8) {
+    ++health_.tx_failures;
+    return false;
+  }
+  ++health_.tx_frames;
+  // Delivered from the event loop, like a real transmit, so a handler that sends while it is
+  // being called never re-enters the bike.
+  asio::post(io_, [this, frame, token = std::weak_ptr<int>(alive_)] {
+    if (token.expired() || stopped_) return;
+    driver_.receive(frame);
+  });
+  return true;
+}
+
+void SimTransport::stop() {
+  if (stopped_) return;
+  stopped_ = true;
+  driver_.stop();
+  alive_.reset();
+  if (started_) {
+    health_.state = can::LinkState::kDown;
+    health_.detail = "stopped";
+    if (on_health_) on_health_(health_);
+  }
+}
+
+}  // namespace fleetgw::sim

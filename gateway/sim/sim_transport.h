@@ -1,0 +1,90 @@
+// The simulated bike in (accelerated) real time on an asio::io_context.
+//
+//  * RealtimeDriver paces a Bike against the steady clock: virtual time = virtual start +
+//    elapsed real time × acceleration. It is what `fleetgw sim` uses to put the bike on a real
+//    (UDP / SocketCAN) bus.
+//  * SimTransport is a fleetgw::can::Transport whose "bus" is a simulated Bike in the same
+//    process: frames the gateway send()s go to Bike::receive, frames the bike emits reach the
+//    gateway's handler stamped with their virtual time (Micros on the scenario's timeline, which
+//    starts at Scenario::start). virtual_now() is the clock a gateway runtime should use when it
+//    runs against this transport with acceleration != 1.
+//
+// Contract (both): single-threaded, everything on the io_context's thread; handlers never run
+// after stop() or destruction. The Bike itself stays deterministic; only the pacing is real.
+#pragma once
+
+#include <functional>
+#include <memory>
+#include <string>
+
+#include <asio/io_context.hpp>
+#include <asio/steady_timer.hpp>
+
+#include "gateway/can/transport.h"
+#include "gateway/sim/bike.h"
+
+namespace fleetgw::sim {
+
+class RealtimeDriver {
+ public:
+  using Emit = std::function<void(const motinova::CanFrame&, Micros timestamp)>;
+
+  // `bike` must outlive the driver. acceleration > 0 (1 = real time).
+  RealtimeDriver(asio::io_context& io, Bike& bike, double acceleration);
+  ~RealtimeDriver();
+  RealtimeDriver(const RealtimeDriver&) = delete;
+  RealtimeDriver& operator=(const RealtimeDriver&) = delete;
+
+  // Anchors the bike's current time to "now" and starts emitting.
+  void start(Emit emit);
+  void stop();
+  // A frame from the outside bus, delivered to the bike at virtual_now().
+  void receive(const motinova::CanFrame& frame);
+  Micros virtual_now() const;
+  bool running() const { return running_; }
+
+ private:
+  void arm();
+  void fire();
+
+  asio::io_context& io_;
+  Bike& bike_;
+  double acceleration_;
+  asio::steady_timer timer_;
+  Emit emit_;
+  Bike::Emit bike_emit_;
+  std::chrono::steady_clock::time_point real_start_{};
+  Micros virtual_start_{0};
+  bool running_ = false;
+  std::shared_ptr<int> alive_ = std::make_shared<int>(0);
+};
+
+class SimTransport final : public can::Transport {
+ public:
+  SimTransport(asio::io_context& io, Scenario scenario, double acceleration = 1.0);
+  ~SimTransport() override;
+
+  void start(FrameHandler on_frame, HealthHandler on_health) override;
+  bool send(const motinova::CanFrame& frame) override;
+  void stop() override;
+  const can::BusHealth& health() const override { return health_; }
+  std::string_view name() const override { return name_; }
+
+  Micros virtual_now() const { return driver_.virtual_now(); }
+  Bike& bike() { return bike_; }
+  const Bike& bike() const { return bike_; }
+
+ private:
+  asio::io_context& io_;
+  Bike bike_;
+  RealtimeDriver driver_;
+  std::string name_;
+  can::BusHealth health_;
+  FrameHandler on_frame_;
+  HealthHandler on_health_;
+  bool started_ = false;
+  bool stopped_ = false;
+  std::shared_ptr<int> alive_ = std::make_shared<int>(0);
+};
+
+}  // namespace fleetgw::sim

@@ -1,0 +1,121 @@
+// Uplink: drains an OutboxSource to an MQTT broker as fleetgw.v1.Envelope messages (Paho MQTT
+// C++ async client) and delivers remote commands from the broker.
+//
+// Contract:
+//  * Threading: Paho calls back on its own threads; those callbacks only queue events. All real
+//    work -- outbox reads and acks, publishing, reconnect decisions, the command handler -- runs
+//    inside poll(), on the caller's thread. The owner calls poll() whenever the wake-up hook
+//    fires (e.g. it posts to its asio::io_context), at next_poll_due(), and after adding records
+//    to the outbox. wait_for_events() serves owners without an event loop (tests, benchmarks).
+//    Apart from the wake-up hook and wait_for_events(), methods must not be called concurrently.
+//  * Time: no clock is read for decisions; every entry point takes `now` (microseconds since the
+//    Unix epoch) and back-off, telemetry batching and status refresh run on that timeline.
+//  * Delivery: records leave in outbox order (priority, then sequence). A record is acked to the
+//    outbox only when the publish carrying it completed successfully (PUBACK for QoS 1; written
+//    to the socket for QoS 0 live telemetry). At most max_in_flight publishes are unacknowledged.
+//    Failed or interrupted publishes leave their records in the outbox, so they are sent again:
+//    duplicates are possible (consumers de-duplicate on vehicle id + sequence), loss is not.
+//    Records whose payload does not decode as their kind's message, or of unknown kind, are
+//    logged, counted (rejected_records) and removed, so one bad record cannot block the queue.
+//  * Session: client id = vehicle id, persistent session (clean_session = false), retained
+//    online Status on connect, retained offline Status as last will and on stop().
+//  * Security: TLS verification (chain and host name) on by default; the password is never
+//    logged, URIs are logged without user information.
+//  * Commands: payloads on <prefix>/<vehicle_id>/cmd larger than max_command_bytes or not
+//    decodable as fleetgw.v1.SignedCommand are logged and dropped; others go, raw, to the
+//    command handler inside poll(). An exception from the handler is logged and swallowed.
+#pragma once
+
+#include <chrono>
+#include <cstddef>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <string>
+#include <string_view>
+
+#include "fleetgw/v1/status.pb.h"
+#include "gateway/uplink/outbox_source.h"
+#include "gateway/uplink/topics.h"
+#include "gateway/uplink/uplink_config.h"
+#include "motinova/can.h"
+
+namespace fleetgw::uplink {
+
+using motinova::Micros;
+
+enum class LinkState {
+  kStopped,             // not started, or stopped
+  kConnecting,          // a connect attempt is under way
+  kConnected,           // connected; draining the outbox
+  kWaitingToReconnect,  // the last attempt failed or the connection dropped; see next_connect_at
+};
+std::string_view to_string(LinkState state);
+
+struct UplinkStats {
+  LinkState state = LinkState::kStopped;
+  std::uint64_t published_messages = 0;  // MQTT publishes handed to the client (incl. status)
+  std::uint64_t published_records = 0;   // outbox records in those publishes (re-sends count)
+  std::uint64_t acked_messages = 0;      // publishes whose token completed successfully
+  std::uint64_t acked_records = 0;       // records acked (deleted) in the outbox
+  std::uint64_t failed_publishes = 0;    // publishes that failed; their records stay
+  std::uint64_t rejected_records = 0;    // undecodable / unknown-kind records dropped
+  std::uint64_t bytes_published = 0;     // MQTT payload bytes handed to the client
+  std::uint64_t connects = 0;            // successful connections
+  std::uint64_t reconnects = 0;          // successful connections after the first
+  std::uint64_t connect_failures = 0;    // failed connect attempts
+  std::uint64_t connection_losses = 0;   // established connections that dropped
+  std::uint64_t commands_received = 0;   // commands handed to the handler
+  std::uint64_t commands_dropped = 0;    // oversized, undecodable or overflowing commands
+  std::size_t in_flight_messages = 0;    // publishes awaiting their token
+  std::size_t in_flight_records = 0;     // records in those publishes
+  std::size_t in_flight_high_water = 0;  // most publishes ever awaiting their token at once
+  std::uint64_t outbox_depth = 0;        // from the OutboxSource
+  std::int64_t oldest_unsent_created_us = 0;
+  std::int64_t last_publish_ok_us = 0;  // `now` of the poll that saw the last success; 0 never
+  std::chrono::milliseconds last_backoff{0};  // the most recent reconnect delay chosen
+  std::int64_t next_connect_at_us = 0;        // when kWaitingToReconnect: next attempt
+};
+
+class Uplink {
+ public:
+  // `payload` is the raw MQTT payload (a serialized fleetgw.v1.SignedCommand).
+  using CommandHandler = std::function<void(std::string_view payload)>;
+
+  // Validates the configuration (std::invalid_argument) and creates the MQTT client. Does not
+  // connect. `outbox` must outlive the Uplink.
+  Uplink(UplinkConfig config, OutboxSource& outbox);
+  // Calls stop() with a short timeout if still running (an orderly offline status), then
+  // releases the client.
+  ~Uplink();
+  Uplink(const Uplink&) = delete;
+  Uplink& operator=(const Uplink&) = delete;
+
+  // Set before start(). The wake-up hook is called on Paho threads: thread-safe, non-blocking.
+  void set_command_handler(CommandHandler handler);
+  void set_wakeup(std::function<void()> wakeup);
+  // Reported in Status messages.
+  void set_bus_state(fleetgw::v1::BusState state);
+
+  // Begins connecting.
+  void start(Micros now);
+  // Processes queued events, reconnects when due, publishes what the window allows.
+  void poll(Micros now);
+  // Blocks until a Paho event is queued or `max_wait` passed; true if events are queued.
+  bool wait_for_events(std::chrono::milliseconds max_wait);
+  // Latest time by which poll() should run again even without a wake-up.
+  Micros next_poll_due(Micros now) const;
+  // Publishes the retained offline status (when connected), disconnects and waits at most
+  // `timeout` for each step. Records still in flight stay in the outbox.
+  void stop(Micros now, std::chrono::milliseconds timeout = std::chrono::seconds(5));
+
+  LinkState state() const;
+  UplinkStats stats() const;
+  const Topics& topics() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace fleetgw::uplink

@@ -1,0 +1,88 @@
+// Configuration of the MQTT uplink, and its validation.
+//
+// Contract: validate() throws std::invalid_argument naming the offending field when a value is
+// unusable or insecure (e.g. credentials over plain tcp:// unless explicitly allowed, a vehicle
+// id that is not a single topic level). Messages never contain the password, and URIs are quoted
+// without user information. Defaults are the production defaults: QoS 1, persistent session,
+// 30 s keep-alive, TLS server verification on whenever TLS is used.
+#pragma once
+
+#include <chrono>
+#include <cstddef>
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <string_view>
+
+namespace fleetgw::uplink {
+
+struct TlsConfig {
+  // CA bundle (PEM) the broker certificate must chain to. Empty = the system trust store.
+  std::string ca_file;
+  // Client certificate and private key (PEM) for mutual TLS; both or neither.
+  std::string cert_file;
+  std::string key_file;
+  // Check that the broker certificate names the host in the URI. Turning this off is for lab
+  // brokers only; it is logged as a warning on every connect.
+  bool verify_server_name = true;
+};
+
+struct UplinkConfig {
+  // tcp://host:port or ssl://host:port (mqtts:// is accepted as ssl://). No user information.
+  std::string broker_uri;
+  // Vehicle identifier: MQTT client id and topic level. [A-Za-z0-9._-], 1..64 characters.
+  std::string vehicle_id;
+  // Topic prefix before /<vehicle_id>/... ; no wildcards, no leading or trailing '/'.
+  std::string topic_prefix = "fleet/v1";
+  // Reported in every Envelope.
+  std::string firmware_version;
+
+  std::optional<TlsConfig> tls;  // required for ssl:// URIs
+  std::string username;          // optional
+  std::string password;          // optional; never logged
+  // Credentials over an unencrypted connection are refused unless this is set (lab only).
+  bool allow_plaintext_credentials = false;
+
+  std::chrono::seconds keep_alive{30};
+  std::chrono::seconds connect_timeout{10};
+  // Reconnect back-off: the n-th consecutive failure waits a random time in
+  // [d/2, d] with d = min(reconnect_max, reconnect_min * 2^n).
+  std::chrono::milliseconds reconnect_min{1000};
+  std::chrono::milliseconds reconnect_max{120'000};
+  std::uint64_t jitter_seed = 0;  // 0 = seed from std::random_device
+
+  // Publishes (MQTT messages) sent and not yet acknowledged by the broker, at most.
+  std::size_t max_in_flight = 64;
+  // QoS of all records except live telemetry.
+  int qos = 1;
+  // QoS of telemetry batches whose newest sample is younger than live_telemetry_max_age.
+  // Telemetry older than that (a backlog after an outage) always goes with `qos`. With QoS 0 a
+  // batch counts as delivered once written to the socket, so it can be lost on a connection drop.
+  int live_telemetry_qos = 0;
+  std::chrono::milliseconds live_telemetry_max_age{10'000};
+  // A TelemetryBatch is sent when it holds this many samples or bytes, or when its oldest
+  // sample has waited telemetry_batch_max_delay.
+  std::size_t telemetry_batch_max_samples = 256;
+  std::size_t telemetry_batch_max_bytes = 16 * 1024;
+  std::chrono::milliseconds telemetry_batch_max_delay{1000};
+  // A QoS 1 publish interrupted by a connection loss is normally completed by Paho after the
+  // reconnect; if it is still open this long into the new connection its records are sent again.
+  std::chrono::milliseconds resend_after{20'000};
+  // Upper bound on the payload bytes fetched from the outbox per poll.
+  std::size_t max_fetch_bytes = 1024 * 1024;
+
+  // Commands larger than this are dropped (and logged) without being parsed.
+  std::size_t max_command_bytes = 4096;
+  // Commands waiting for poll() at most; more are dropped (a flood cannot exhaust memory).
+  std::size_t max_queued_commands = 16;
+
+  // The retained online status is refreshed this often while connected (0 = only on connect).
+  std::chrono::milliseconds status_interval{60'000};
+
+  void validate() const;
+};
+
+// The URI with any user information removed, safe for logs and error messages.
+std::string redact_uri(std::string_view uri);
+
+}  // namespace fleetgw::uplink

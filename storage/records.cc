@@ -1,0 +1,78 @@
+#include "storage/records.h"
+
+#include <nlohmann/json.hpp>
+
+#include <array>
+#include <utility>
+
+namespace fleetgw::storage {
+namespace {
+
+constexpr std::array<std::pair<OutboxKind, std::string_view>, 9> kKindNames = {{
+    {OutboxKind::kTelemetry, "telemetry"},
+    {OutboxKind::kRide, "ride"},
+    {OutboxKind::kFault, "fault"},
+    {OutboxKind::kPack, "pack"},
+    {OutboxKind::kLock, "lock"},
+    {OutboxKind::kInfo, "info"},
+    {OutboxKind::kStatus, "status"},
+    {OutboxKind::kCommandResult, "command_result"},
+    {OutboxKind::kEvictionReport, "eviction_report"},
+}};
+
+}  // namespace
+
+std::string_view to_string(OutboxKind kind) {
+  for (const auto& [k, name] : kKindNames) {
+    if (k == kind) return name;
+  }
+  return "invalid";
+}
+
+std::optional<OutboxKind> outbox_kind_from_string(std::string_view text) {
+  for (const auto& [k, name] : kKindNames) {
+    if (name == text) return k;
+  }
+  return std::nullopt;
+}
+
+std::string_view to_string(FaultEventKind kind) {
+  switch (kind) {
+    case FaultEventKind::kRaised:
+      return "raised";
+    case FaultEventKind::kCleared:
+      return "cleared";
+    case FaultEventKind::kUnknown:
+      return "unknown";
+  }
+  return "invalid";
+}
+
+std::string_view to_string(RideState state) {
+  switch (state) {
+    case RideState::kOpen:
+      return "open";
+    case RideState::kClosed:
+      return "closed";
+  }
+  return "invalid";
+}
+
+std::string EvictionReport::to_json() const {
+  nlohmann::json j = {
+      {"at_us", at_us},
+      {"budget_bytes", budget_bytes},
+      {"bytes_before", bytes_before},
+      {"bytes_after", bytes_after},
+      {"evicted",
+       {{"telemetry", telemetry_rows},
+        {"pack_snapshots", pack_snapshot_rows},
+        {"outbox", outbox_rows}}},
+      {"budget_exhausted", budget_exhausted},
+  };
+  j["oldest_telemetry_kept_us"] =
+      oldest_telemetry_kept_us ? nlohmann::json(*oldest_telemetry_kept_us) : nlohmann::json();
+  return j.dump();
+}
+
+}  // namespace fleetgw::storage

@@ -1,0 +1,192 @@
+// The typed rows fleetgw keeps on disk, one plain value struct per table.
+//
+// Contract:
+// - Every timestamp is an int64 count of microseconds since the Unix epoch (field suffix _us),
+//   supplied by the caller; storage never reads a clock for record data.
+// - Physical quantities carry their unit in the field name. std::optional fields are stored as
+//   SQL NULL when empty ("not known"), which is different from zero.
+// - `id` fields are assigned by the store (SQLite rowid); values set by the caller are ignored
+//   on insert and filled in when rows are read back.
+// - The structs carry no behaviour; validation happens in Store::write(), which names the
+//   offending batch entry and field.
+// - OutboxKind / OutboxPriority: the uplink queue vocabulary. Priority 0 is the most urgent; the
+//   uplink drains priority 0 completely before it sends any priority-1 entry, and so on.
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace fleetgw::storage {
+
+using Bytes = std::vector<std::uint8_t>;
+
+enum class RideState : std::uint8_t { kOpen = 0, kClosed = 1 };
+
+struct Ride {
+  std::int64_t id = 0;
+  std::string ride_id;  // unique key chosen by the ride tracker
+  RideState state = RideState::kOpen;
+  bool partial = false;  // the ride was reconstructed (e.g. the gateway restarted mid-ride)
+  std::int64_t start_us = 0;
+  std::optional<std::int64_t> end_us;  // empty while the ride is open
+  double duration_s = 0;
+  double moving_s = 0;
+  std::optional<double> start_odo_km;
+  std::optional<double> end_odo_km;
+  double distance_km = 0;             // from the odometer
+  double distance_integrated_km = 0;  // integrated from wheel speed
+  double max_speed_kmh = 0;
+  double avg_speed_kmh = 0;
+  double energy_wh = 0;
+  double energy_mah = 0;
+  std::optional<int> soc_start_pct;
+  std::optional<int> soc_end_pct;
+  std::map<std::string, double> assist_time_s;  // assist mode name -> seconds (JSON text column)
+  int fault_count = 0;
+  friend bool operator==(const Ride&, const Ride&) = default;
+};
+
+enum class FaultEventKind : std::uint8_t { kRaised = 0, kCleared = 1, kUnknown = 2 };
+
+struct FaultEvent {
+  std::int64_t id = 0;
+  int node = 0;  // MOTINOVA node number of the reporter
+  int bit = 0;   // bit index in the node's fault word
+  int code = 0;  // manufacturer fault code
+  std::string name;
+  std::string severity;
+  FaultEventKind event = FaultEventKind::kUnknown;
+  std::int64_t first_seen_us = 0;
+  std::int64_t last_seen_us = 0;
+  std::int64_t occurrences = 1;
+  friend bool operator==(const FaultEvent&, const FaultEvent&) = default;
+};
+
+struct PackSnapshot {
+  std::int64_t id = 0;
+  std::int64_t ts_us = 0;
+  std::optional<double> voltage_v;
+  std::optional<double> current_a;
+  std::optional<double> soc_pct;
+  std::optional<double> soh_pct;
+  std::optional<std::int64_t> cycles;
+  std::vector<double> temps_c;  // JSON array text column
+  std::optional<int> cell_min_mv;
+  std::optional<int> cell_max_mv;
+  std::optional<int> cell_spread_mv;
+  std::optional<int> cell_min_index;
+  std::optional<int> cell_max_index;
+  std::string lifetime_json = "{}";  // lifetime counters, JSON object text (owned by the tracker)
+  friend bool operator==(const PackSnapshot&, const PackSnapshot&) = default;
+};
+
+struct TelemetrySample {
+  std::int64_t id = 0;
+  std::int64_t ts_us = 0;
+  std::optional<double> speed_kmh;
+  std::optional<int> assist_level;
+  std::optional<double> soc_pct;
+  std::optional<double> voltage_v;
+  std::optional<double> current_a;
+  std::optional<double> motor_temp_c;
+  std::optional<double> controller_temp_c;
+  std::optional<double> battery_temp_c;
+  std::optional<int> wheel_lock_state;    // lock node state code
+  std::optional<int> battery_lock_state;  // lock node state code
+  friend bool operator==(const TelemetrySample&, const TelemetrySample&) = default;
+};
+
+struct LockEvent {
+  std::int64_t id = 0;
+  std::int64_t ts_us = 0;
+  int lock_node = 0;
+  std::string kind;  // e.g. "wheel", "battery", "cable"
+  std::string old_state;
+  std::string new_state;
+  std::string cause;  // e.g. "command:<id>", "manual", "timeout"
+  friend bool operator==(const LockEvent&, const LockEvent&) = default;
+};
+
+struct CommandResult {
+  std::int64_t id = 0;
+  std::string command_id;
+  std::int64_t ts_us = 0;
+  std::string result;  // e.g. "ok", "rejected", "failed", "expired"
+  std::string reason;
+  std::string final_state;
+  std::int64_t duration_ms = 0;
+  friend bool operator==(const CommandResult&, const CommandResult&) = default;
+};
+
+// One row of the commands journal: what the gateway has accepted and how far it got. Writing a
+// journal entry also records the command id as seen until expires_at_us (duplicate delivery
+// protection for QoS-1 MQTT).
+struct CommandJournalEntry {
+  std::string command_id;
+  std::int64_t received_us = 0;
+  std::string state;  // e.g. "received", "executing", "done"
+  std::int64_t expires_at_us = 0;
+  friend bool operator==(const CommandJournalEntry&, const CommandJournalEntry&) = default;
+};
+
+enum class OutboxKind : std::uint8_t {
+  kTelemetry,
+  kRide,
+  kFault,
+  kPack,
+  kLock,
+  kInfo,
+  kStatus,
+  kCommandResult,
+  kEvictionReport,
+};
+
+// Lower value = more urgent.
+enum class OutboxPriority : std::uint8_t {
+  kCommandResult = 0,
+  kFault = 1,
+  kRide = 2,
+  kLock = 3,
+  kPack = 4,
+  kTelemetry = 5,
+};
+inline constexpr int kLowestPriority = 5;
+
+std::string_view to_string(OutboxKind kind);
+std::optional<OutboxKind> outbox_kind_from_string(std::string_view text);
+std::string_view to_string(FaultEventKind kind);
+std::string_view to_string(RideState state);
+
+struct OutboxEntry {
+  std::uint64_t seq = 0;  // per-vehicle sequence number, never reused
+  int priority = 0;
+  OutboxKind kind = OutboxKind::kInfo;
+  std::int64_t created_us = 0;
+  Bytes payload;                          // opaque bytes produced by the gateway
+  std::optional<std::int64_t> source_id;  // rowid in the kind's table, if any
+  friend bool operator==(const OutboxEntry&, const OutboxEntry&) = default;
+};
+
+// What one eviction pass removed to bring the database back under its disk budget. The store
+// logs it, persists the per-table counters and queues it as an outbox entry of kind
+// kEvictionReport with a JSON payload (to_json()); write() also returns it so the gateway can
+// build its own protobuf report instead.
+struct EvictionReport {
+  std::int64_t at_us = 0;
+  std::uint64_t budget_bytes = 0;
+  std::uint64_t bytes_before = 0;
+  std::uint64_t bytes_after = 0;
+  std::uint64_t telemetry_rows = 0;      // evicted in this pass
+  std::uint64_t pack_snapshot_rows = 0;  // evicted in this pass
+  std::uint64_t outbox_rows = 0;         // unsent outbox entries dropped with them
+  std::optional<std::int64_t> oldest_telemetry_kept_us;
+  bool budget_exhausted = false;  // nothing evictable left; database stays above budget
+  std::string to_json() const;
+  friend bool operator==(const EvictionReport&, const EvictionReport&) = default;
+};
+
+}  // namespace fleetgw::storage

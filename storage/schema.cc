@@ -1,0 +1,179 @@
+#include "storage/schema.h"
+
+#include <spdlog/spdlog.h>
+
+#include <array>
+#include <string_view>
+
+namespace fleetgw::storage {
+namespace {
+
+// v1: the base tables. Frozen: a released step is never edited, later changes are new steps.
+constexpr std::string_view kV1 = R"sql(
+CREATE TABLE rides (
+  id INTEGER PRIMARY KEY,
+  ride_id TEXT NOT NULL UNIQUE,
+  state TEXT NOT NULL CHECK (state IN ('open', 'closed')),
+  partial INTEGER NOT NULL DEFAULT 0,
+  start_us INTEGER NOT NULL,
+  end_us INTEGER,
+  duration_s REAL NOT NULL DEFAULT 0,
+  moving_s REAL NOT NULL DEFAULT 0,
+  start_odo_km REAL,
+  end_odo_km REAL,
+  distance_km REAL NOT NULL DEFAULT 0,
+  distance_integrated_km REAL NOT NULL DEFAULT 0,
+  max_speed_kmh REAL NOT NULL DEFAULT 0,
+  avg_speed_kmh REAL NOT NULL DEFAULT 0,
+  energy_wh REAL NOT NULL DEFAULT 0,
+  energy_mah REAL NOT NULL DEFAULT 0,
+  soc_start_pct INTEGER,
+  soc_end_pct INTEGER,
+  assist_time_json TEXT NOT NULL DEFAULT '{}',
+  fault_count INTEGER NOT NULL DEFAULT 0
+);
+CREATE TABLE fault_events (
+  id INTEGER PRIMARY KEY,
+  node INTEGER NOT NULL,
+  bit INTEGER NOT NULL,
+  code INTEGER NOT NULL,
+  name TEXT NOT NULL,
+  severity TEXT NOT NULL,
+  event TEXT NOT NULL CHECK (event IN ('raised', 'cleared', 'unknown')),
+  first_seen_us INTEGER NOT NULL,
+  last_seen_us INTEGER NOT NULL,
+  occurrences INTEGER NOT NULL DEFAULT 1
+);
+CREATE TABLE pack_snapshots (
+  id INTEGER PRIMARY KEY,
+  ts_us INTEGER NOT NULL,
+  voltage_v REAL,
+  current_a REAL,
+  soc_pct REAL,
+  soh_pct REAL,
+  cycles INTEGER,
+  temps_json TEXT NOT NULL DEFAULT '[]',
+  cell_min_mv INTEGER,
+  cell_max_mv INTEGER,
+  cell_spread_mv INTEGER,
+  cell_min_index INTEGER,
+  cell_max_index INTEGER,
+  lifetime_json TEXT NOT NULL DEFAULT '{}'
+);
+CREATE TABLE telemetry (
+  id INTEGER PRIMARY KEY,
+  ts_us INTEGER NOT NULL,
+  speed_kmh REAL,
+  assist_level INTEGER,
+  soc_pct REAL,
+  voltage_v REAL,
+  current_a REAL,
+  motor_temp_c REAL,
+  controller_temp_c REAL,
+  battery_temp_c REAL,
+  wheel_lock_state INTEGER,
+  battery_lock_state INTEGER
+);
+CREATE TABLE lock_events (
+  id INTEGER PRIMARY KEY,
+  ts_us INTEGER NOT NULL,
+  lock_node INTEGER NOT NULL,
+  kind TEXT NOT NULL,
+  old_state TEXT NOT NULL,
+  new_state TEXT NOT NULL,
+  cause TEXT NOT NULL
+);
+CREATE TABLE command_results (
+  id INTEGER PRIMARY KEY,
+  command_id TEXT NOT NULL,
+  ts_us INTEGER NOT NULL,
+  result TEXT NOT NULL,
+  reason TEXT NOT NULL,
+  final_state TEXT NOT NULL,
+  duration_ms INTEGER NOT NULL
+);
+CREATE TABLE commands (
+  command_id TEXT PRIMARY KEY,
+  received_us INTEGER NOT NULL,
+  state TEXT NOT NULL,
+  expires_at_us INTEGER NOT NULL
+);
+CREATE TABLE seen_command_ids (
+  command_id TEXT PRIMARY KEY,
+  expires_at_us INTEGER NOT NULL
+);
+CREATE TABLE meta (
+  key TEXT PRIMARY KEY,
+  value TEXT NOT NULL
+);
+CREATE TABLE outbox (
+  seq INTEGER PRIMARY KEY,
+  priority INTEGER NOT NULL,
+  kind TEXT NOT NULL,
+  created_us INTEGER NOT NULL,
+  payload BLOB NOT NULL,
+  source_id INTEGER
+);
+)sql";
+
+// v2: persisted eviction counters, and the indexes the uplink and the eviction need once the
+// outbox holds days of backlog (v1 sorted the whole outbox on every peek).
+constexpr std::string_view kV2 = R"sql(
+CREATE TABLE eviction_counters (
+  table_name TEXT PRIMARY KEY,
+  rows INTEGER NOT NULL DEFAULT 0,
+  passes INTEGER NOT NULL DEFAULT 0,
+  last_us INTEGER
+);
+INSERT INTO eviction_counters (table_name) VALUES ('telemetry'), ('pack_snapshots'), ('outbox');
+CREATE INDEX outbox_by_priority ON outbox (priority, seq);
+CREATE INDEX outbox_by_source ON outbox (kind, source_id) WHERE source_id IS NOT NULL;
+)sql";
+
+constexpr std::array<std::string_view, kSchemaVersion> kSteps = {kV1, kV2};
+
+}  // namespace
+
+SchemaTooNewError::SchemaTooNewError(const std::string& path, int found, int supported)
+    : std::runtime_error("storage: database '" + path + "' has schema version " +
+                         std::to_string(found) + " but this fleetgw build supports at most " +
+                         std::to_string(supported) +
+                         "; refusing to start (was it written by a newer fleetgw? upgrade the "
+                         "binary or move the file away)"),
+      found_(found),
+      supported_(supported) {}
+
+int schema_version(Database& db) {
+  return static_cast<int>(db.query_int64("PRAGMA user_version").value_or(0));
+}
+
+int migrate(Database& db, int target) {
+  if (target < 0 || target > kSchemaVersion) {
+    throw std::invalid_argument("storage: migrate target " + std::to_string(target) +
+                                " outside 0.." + std::to_string(kSchemaVersion));
+  }
+  const int before = schema_version(db);
+  if (before > kSchemaVersion) throw SchemaTooNewError(db.path(), before, kSchemaVersion);
+  if (before > target) {
+    throw std::invalid_argument("storage: '" + db.path() + "' is at version " +
+                                std::to_string(before) + ", cannot migrate down to " +
+                                std::to_string(target));
+  }
+  if (before == 0 && target > 0) {
+    // Lets Store return evicted pages to the file system. The setting only sticks on a file
+    // without pages; if something already wrote the header (e.g. journal_mode=WAL), a VACUUM of
+    // the still-empty database applies it at negligible cost.
+    db.exec("PRAGMA auto_vacuum = INCREMENTAL");
+    if (db.query_int64("PRAGMA auto_vacuum").value_or(0) != 2) db.exec("VACUUM");
+  }
+  for (int version = before + 1; version <= target; ++version) {
+    Transaction tx(db);
+    db.exec(kSteps[static_cast<std::size_t>(version - 1)]);
+    db.exec("PRAGMA user_version = " + std::to_string(version));
+    tx.commit();
+    spdlog::info("storage: migrated '{}' to schema version {}", db.path(), version);
+  }
+  return before;
+}
+
+}  // namespace fleetgw::storage

@@ -1,0 +1,230 @@
+// fleetgw's persistent store: the typed tables of storage/records.h plus the uplink OUTBOX, in
+// one SQLite file (WAL mode), so a unit that stays offline for days loses nothing.
+//
+// Contract:
+// - One Store per database file and per process, used from one thread (the gateway's storage
+//   strand). A second Store on the same file (in this or another process) is refused: the
+//   store holds an exclusive flock on "<path>.lock" for its lifetime. Read-only tools (the
+//   sqlite3 CLI, technician exports through another process) may read concurrently (WAL).
+// - Opening: the file is created if absent. A file that is not SQLite (bad header, garbage),
+//   that SQLite reports as corrupt, or that fails PRAGMA quick_check is never overwritten: it
+//   is renamed, with its -wal/-shm, to "<path>.corrupt-<UTC timestamp>", an error is logged and
+//   a fresh database is started (moved_aside_path() tells the gateway, which should report it).
+//   A database whose schema version is newer than this binary stops start-up with
+//   SchemaTooNewError (path and both versions). Migrations (storage/schema.h) run at open.
+// - write(Batch) stores every record of the batch and queues its uplink payload (when it has
+//   one) in the outbox in ONE transaction, with the per-vehicle sequence counter persisted in
+//   the same transaction: either the whole batch and its sequence numbers are on disk, or none
+//   of it is. Sequence numbers are allocated gap-free and are never reused, even after acks,
+//   evictions, crashes or restarts. The gateway batches (every ~200 ms or when large) so the
+//   CAN path never waits for the disk: one commit costs about as much as one record.
+//   Bad input (empty ride id, negative timestamp, oversized payload...) throws
+//   std::invalid_argument naming the batch entry and field, before anything is written.
+//   Disk errors throw SqliteError; the transaction is then rolled back and nothing of the
+//   batch is stored or numbered.
+// - Durability: Durability::kNormal (default, PRAGMA synchronous=NORMAL) makes every returned
+//   write() survive a crash or kill of the process; after a power cut or kernel panic the last
+//   commits before the cut (those still in the OS page cache, typically well under a second)
+//   may be lost, but the database is never corrupted. Durability::kFull (synchronous=FULL)
+//   fsyncs the WAL at every commit so a returned write() also survives power loss, at the cost
+//   of one fsync per batch (milliseconds on flash; wears SD/eMMC with 5 commits/s).
+// - Outbox: priority 0 is the most urgent (OutboxPriority: command results 0, faults 1, rides 2,
+//   lock events 3, pack statistics 4, telemetry 5; eviction reports go at priority 1).
+//   peek_outbox() returns entries in (priority, seq) order, skipping the ones in flight, and
+//   marks what it returns as in flight (tracked in memory only: after a restart everything
+//   unacknowledged is sent again, the backend deduplicates by sequence number). ack() deletes
+//   exactly the acknowledged rows; release() puts in-flight entries back (publish failed).
+// - Disk budget (StoreOptions::max_bytes, 0 = none): measured as the live pages of the
+//   database ((page_count - freelist_count) * page_size) after each batch, inside the batch's
+//   transaction. Above the budget the oldest telemetry samples are evicted first (with their
+//   outbox rows), then the oldest pack snapshots, down to low_water * budget; faults, rides,
+//   lock events, command results, commands and other outbox entries are never evicted. Each
+//   pass is counted per table (persisted), logged, queued as an eviction_report outbox entry
+//   (JSON payload, EvictionReport::to_json) and returned from write() so the gateway can send
+//   its own protobuf instead. Freed pages go back to the file system (auto_vacuum=INCREMENTAL).
+//   The WAL file comes on top of the budget (bounded by wal_autocheckpoint/journal_size_limit).
+// - Technician tools: stats() and export_table() return data; the CLI formats it.
+#pragma once
+
+#include <nlohmann/json.hpp>
+
+#include <cstddef>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <ostream>
+#include <span>
+#include <string>
+#include <string_view>
+#include <utility>
+#include <vector>
+
+#include "storage/records.h"
+
+namespace spdlog {
+class logger;
+}
+
+namespace fleetgw::storage {
+
+enum class Durability : std::uint8_t { kNormal, kFull };
+
+struct StoreOptions {
+  std::string path{};           // database file
+  std::uint64_t max_bytes = 0;  // disk budget; config `max_mb` * 1024 * 1024; 0 = unlimited
+  double low_water = 0.9;       // eviction frees down to low_water * max_bytes
+  Durability durability = Durability::kNormal;
+  int wal_autocheckpoint_pages =
+      1000;  // SQLite default; bounds the WAL to ~4 MB between checkpoints
+  std::shared_ptr<spdlog::logger> logger{};  // default: spdlog's default logger
+  // Wall clock (us since epoch) used only to name a moved-aside corrupt file. Default: system.
+  std::function<std::int64_t()> wall_clock_us{};
+};
+
+// A record plus, optionally, its uplink payload. With a payload the record is queued in the
+// outbox in the same transaction; without one it is only stored (e.g. an open ride's periodic
+// checkpoint, which is sent once the ride closes).
+template <typename T>
+struct Pending {
+  T record;
+  std::optional<Bytes> uplink;
+};
+
+// An outbox entry without a table row behind it (device info, status...).
+struct UplinkMessage {
+  OutboxKind kind = OutboxKind::kInfo;
+  int priority = kLowestPriority;
+  Bytes payload;
+};
+
+// Everything the gateway accumulated since its last write(). Rides are upserted by ride_id
+// (an open ride's row is updated in place, so a ride in progress survives a restart); commands
+// are upserted by command_id; all other records are appended.
+struct Batch {
+  std::int64_t now_us = 0;  // created_us of the outbox entries queued by this batch
+  std::vector<Pending<TelemetrySample>> telemetry;
+  std::vector<Pending<Ride>> rides;
+  std::vector<Pending<FaultEvent>> faults;
+  std::vector<Pending<PackSnapshot>> packs;
+  std::vector<Pending<LockEvent>> locks;
+  std::vector<Pending<CommandResult>> command_results;
+  std::vector<CommandJournalEntry> commands;
+  std::vector<UplinkMessage> messages;
+  std::vector<std::pair<std::string, std::string>> meta;  // keys "storage.*" are reserved
+
+  std::size_t size() const;
+  bool empty() const { return size() == 0; }
+  void clear();
+};
+
+struct WriteResult {
+  // Sequence numbers assigned by this batch: [first_seq, end_seq), contiguous; empty when the
+  // batch queued nothing.
+  std::uint64_t first_seq = 0;
+  std::uint64_t end_seq = 0;
+  std::size_t records = 0;  // table rows written
+  std::optional<EvictionReport> eviction;
+};
+
+struct OutboxDepth {
+  int priority = 0;
+  std::uint64_t entries = 0;
+  std::uint64_t payload_bytes = 0;
+  friend bool operator==(const OutboxDepth&, const OutboxDepth&) = default;
+};
+
+struct EvictionCounter {
+  std::string table;
+  std::uint64_t rows = 0;
+  std::uint64_t passes = 0;
+  std::optional<std::int64_t> last_us;
+};
+
+struct Stats {
+  std::string path;
+  int schema_version = 0;
+  std::vector<std::pair<std::string, std::uint64_t>> table_rows;  // table name -> row count
+  std::vector<OutboxDepth> outbox;                                // by priority, ascending
+  std::uint64_t outbox_in_flight = 0;
+  std::optional<std::uint64_t> oldest_unsent_seq;
+  std::optional<std::int64_t> oldest_unsent_us;
+  std::optional<std::string> oldest_unsent_kind;
+  std::uint64_t file_bytes = 0;  // main database file on disk
+  std::uint64_t wal_bytes = 0;   // -wal file on disk
+  std::uint64_t page_size = 0;
+  std::uint64_t page_count = 0;
+  std::uint64_t freelist_pages = 0;
+  std::uint64_t live_bytes = 0;  // what the budget is measured against
+  std::uint64_t budget_bytes = 0;
+  std::uint64_t next_seq = 0;
+  std::vector<EvictionCounter> evictions;
+  nlohmann::json to_json() const;
+};
+
+using RowWriter = std::function<void(const nlohmann::json& row)>;
+
+class Store {
+ public:
+  // Largest accepted uplink payload; bigger ones are a gateway bug, not data.
+  static constexpr std::size_t kMaxPayloadBytes = 1 << 20;
+
+  explicit Store(StoreOptions options);
+  Store(Store&&) noexcept;
+  Store& operator=(Store&&) noexcept;
+  ~Store();
+
+  WriteResult write(const Batch& batch);
+
+  // Outbox, for the uplink.
+  // Up to `limit` entries, in (priority, seq) order, not in flight, whose payloads total at most
+  // `max_bytes` -- except that the first entry is always returned so a single large payload
+  // cannot block the queue. The returned entries become in flight.
+  std::vector<OutboxEntry> peek_outbox(std::size_t limit, std::size_t max_bytes);
+  // Deletes the acknowledged entries (only those); returns how many rows existed and were
+  // deleted (an entry evicted meanwhile is not counted). Clears their in-flight mark.
+  std::size_t ack(std::span<const std::uint64_t> seqs);
+  // Makes in-flight entries eligible for peek_outbox() again.
+  void release(std::span<const std::uint64_t> seqs);
+  void release_all();
+  std::size_t in_flight() const;
+  std::vector<OutboxDepth> outbox_depth();
+  std::optional<std::int64_t> oldest_unsent_us();
+  std::uint64_t next_seq() const;
+
+  // State the gateway restores at start-up.
+  std::vector<Ride> open_rides();
+  std::optional<Ride> ride(std::string_view ride_id);
+  std::optional<CommandJournalEntry> command(std::string_view command_id);
+  // True when the command id was recorded and has not expired at now_us.
+  bool command_seen(std::string_view command_id, std::int64_t now_us);
+  // Forgets seen command ids (and finished journal entries) that expired before now_us.
+  std::size_t purge_expired_commands(std::int64_t now_us);
+  std::optional<std::string> meta(std::string_view key);
+
+  // Technician tools.
+  Stats stats();
+  // Calls `write_row` with one JSON object per row of `table` whose time column is >= since_us
+  // (tables without a time column ignore since_us), in insertion order. *_json columns are
+  // embedded as JSON, blobs as lowercase hex. Unknown tables throw std::invalid_argument
+  // listing the known ones. Returns the number of rows.
+  std::uint64_t export_table(std::string_view table, std::int64_t since_us,
+                             const RowWriter& write_row);
+  // Same, as JSON lines.
+  std::uint64_t export_table(std::string_view table, std::int64_t since_us, std::ostream& out);
+  static std::span<const std::string_view> exportable_tables();
+
+  // Maintenance and diagnostics.
+  std::string integrity_check();  // "ok" or SQLite's list of problems
+  std::uint64_t live_bytes();
+  int synchronous_mode();  // PRAGMA synchronous of the connection: 1 NORMAL, 2 FULL
+  const std::string& path() const;
+  // Where a corrupt database found at open was moved, if one was.
+  const std::optional<std::string>& moved_aside_path() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace fleetgw::storage

@@ -1,0 +1,189 @@
+// Disk budget: past max_bytes the oldest telemetry goes first, then pack snapshots; faults,
+// rides, lock events and command results are never evicted; every eviction is counted,
+// persisted, reported through write() and queued as an eviction_report outbox entry.
+#include <gtest/gtest.h>
+
+#include <map>
+
+#include "storage/sqlite.h"
+#include "storage/store.h"
+#include "storage_test_util.h"
+
+namespace fleetgw::storage {
+namespace {
+
+using namespace testing;
+
+std::map<std::string, std::uint64_t> counts(Store& store) {
+  std::map<std::string, std::uint64_t> out;
+  for (const auto& [table, rows] : store.stats().table_rows) out[table] = rows;
+  return out;
+}
+
+void write_precious(Store& store) {
+  Batch b;
+  b.now_us = 1;
+  for (int i = 0; i < 50; ++i) b.faults.push_back({fault_at(i, i), payload_of("fault")});
+  for (int i = 0; i < 10; ++i) {
+    b.rides.push_back({ride_named("r" + std::to_string(i), i, true), payload_of("ride")});
+  }
+  for (int i = 0; i < 20; ++i) b.locks.push_back({lock_at(i), payload_of("lock")});
+  for (int i = 0; i < 10; ++i) {
+    b.command_results.push_back({command_result("c" + std::to_string(i), i), payload_of("cmd")});
+  }
+  store.write(b);
+}
+
+TEST(Budget, TelemetryEvictedFirstPreciousRecordsKept) {
+  TempDir dir;
+  const std::string path = dir.file("budget.db");
+  constexpr std::uint64_t kBudget = 2 << 20;
+  std::uint64_t reported_telemetry = 0, reported_outbox = 0, passes = 0;
+  std::int64_t t = 1'000;
+  {
+    Store store(StoreOptions{.path = path, .max_bytes = kBudget});
+    write_precious(store);
+    Batch packs;
+    for (int i = 0; i < 100; ++i) packs.packs.push_back({pack_at(i), payload_of("pack")});
+    store.write(packs);
+
+    // ~3x the budget in telemetry with 64-byte uplink payloads.
+    for (int batch = 0; batch < 120; ++batch) {
+      Batch b;
+      b.now_us = t;
+      for (int i = 0; i < 500; ++i, t += 1000) {
+        b.telemetry.push_back({telemetry_at(t), Bytes(64, static_cast<std::uint8_t>(i))});
+      }
+      auto r = store.write(b);
+      ASSERT_LE(store.live_bytes(), kBudget) << "batch " << batch;
+      if (r.eviction) {
+        ++passes;
+        EXPECT_EQ(r.eviction->pack_snapshot_rows, 0u) << "telemetry was still available";
+        EXPECT_FALSE(r.eviction->budget_exhausted);
+        EXPECT_GT(r.eviction->bytes_before, kBudget);
+        EXPECT_LE(r.eviction->bytes_after, static_cast<std::uint64_t>(kBudget * 0.9));
+        EXPECT_GT(r.eviction->telemetry_rows, 0u);
+        reported_telemetry += r.eviction->telemetry_rows;
+        reported_outbox += r.eviction->outbox_rows;
+        ASSERT_TRUE(r.eviction->oldest_telemetry_kept_us.has_value());
+      }
+    }
+    ASSERT_GT(passes, 1u);
+    EXPECT_EQ(reported_outbox, reported_telemetry) << "unsent telemetry leaves with its sample";
+
+    auto c = counts(store);
+    EXPECT_EQ(c["fault_events"], 50u);
+    EXPECT_EQ(c["rides"], 10u);
+    EXPECT_EQ(c["lock_events"], 20u);
+    EXPECT_EQ(c["command_results"], 10u);
+    EXPECT_EQ(c["pack_snapshots"], 100u);
+    EXPECT_EQ(c["telemetry"] + reported_telemetry, 60'000u);
+
+    // The survivors are the newest samples, and no outbox entry points at an evicted sample.
+    Database raw(path);
+    EXPECT_EQ(raw.query_int64("SELECT min(id) FROM telemetry"),
+              static_cast<std::int64_t>(reported_telemetry) + 1);
+    EXPECT_EQ(raw.query_int64("SELECT count(*) FROM outbox WHERE kind = 'telemetry' AND "
+                              "source_id NOT IN (SELECT id FROM telemetry)"),
+              0);
+    EXPECT_EQ(raw.query_int64("SELECT count(*) FROM outbox WHERE kind = 'eviction_report'"),
+              static_cast<std::int64_t>(passes));
+  }
+  // Counters persist; the file really shrank (incremental vacuum + checkpoint at close).
+  Store store(StoreOptions{.path = path, .max_bytes = kBudget});
+  auto stats = store.stats();
+  std::map<std::string, EvictionCounter> ev;
+  for (const auto& e : stats.evictions) ev[e.table] = e;
+  EXPECT_EQ(ev["telemetry"].rows, reported_telemetry);
+  EXPECT_EQ(ev["telemetry"].passes, passes);
+  EXPECT_EQ(ev["pack_snapshots"].rows, 0u);
+  EXPECT_EQ(ev["outbox"].rows, reported_outbox);
+  EXPECT_LE(stats.file_bytes, kBudget);
+  EXPECT_GT(stats.file_bytes, kBudget / 2);
+
+  // The report is queued at priority 1 with a JSON payload the gateway can forward or convert.
+  bool found = false;
+  for (const auto& e : store.peek_outbox(100'000, 1 << 30)) {
+    if (e.kind != OutboxKind::kEvictionReport) continue;
+    EXPECT_EQ(e.priority, 1);
+    auto j = nlohmann::json::parse(std::string(e.payload.begin(), e.payload.end()));
+    EXPECT_GT(j["evicted"]["telemetry"].get<std::uint64_t>(), 0u);
+    EXPECT_EQ(j["budget_bytes"].get<std::uint64_t>(), kBudget);
+    found = true;
+  }
+  EXPECT_TRUE(found);
+}
+
+TEST(Budget, PackSnapshotsEvictedWhenNoTelemetryLeft) {
+  TempDir dir;
+  constexpr std::uint64_t kBudget = 1 << 20;
+  Store store(StoreOptions{.path = dir.file("packs.db"), .max_bytes = kBudget});
+  write_precious(store);
+  std::uint64_t evicted_packs = 0;
+  for (int batch = 0; batch < 40; ++batch) {
+    Batch b;
+    b.now_us = batch;
+    for (int i = 0; i < 200; ++i) b.packs.push_back({pack_at(batch * 1000 + i), Bytes(80, 1)});
+    auto r = store.write(b);
+    if (r.eviction) {
+      EXPECT_EQ(r.eviction->telemetry_rows, 0u);
+      evicted_packs += r.eviction->pack_snapshot_rows;
+    }
+    ASSERT_LE(store.live_bytes(), kBudget);
+  }
+  EXPECT_GT(evicted_packs, 0u);
+  auto c = counts(store);
+  EXPECT_EQ(c["pack_snapshots"] + evicted_packs, 8000u);
+  EXPECT_EQ(c["fault_events"], 50u);
+  EXPECT_EQ(c["rides"], 10u);
+  EXPECT_EQ(c["lock_events"], 20u);
+  EXPECT_EQ(c["command_results"], 10u);
+}
+
+TEST(Budget, TelemetryGoesBeforeAnyPackSnapshot) {
+  TempDir dir;
+  constexpr std::uint64_t kBudget = 1 << 20;
+  Store store(StoreOptions{.path = dir.file("order.db"), .max_bytes = kBudget});
+  // Old pack snapshots first, then newer telemetry: age alone would pick the packs.
+  Batch packs;
+  for (int i = 0; i < 1000; ++i) packs.packs.push_back({pack_at(i), Bytes(80, 1)});
+  store.write(packs);
+  std::uint64_t evicted_telemetry = 0;
+  for (int batch = 0; batch < 40; ++batch) {
+    Batch b;
+    for (int i = 0; i < 500; ++i) {
+      b.telemetry.push_back({telemetry_at(1'000'000 + batch * 500 + i), Bytes(64, 2)});
+    }
+    auto r = store.write(b);
+    if (r.eviction) {
+      evicted_telemetry += r.eviction->telemetry_rows;
+      EXPECT_EQ(r.eviction->pack_snapshot_rows, 0u) << "batch " << batch;
+    }
+  }
+  EXPECT_GT(evicted_telemetry, 0u);
+  EXPECT_EQ(counts(store)["pack_snapshots"], 1000u);
+}
+
+TEST(Budget, NothingEvictableKeepsEverythingAndReportsOnce) {
+  TempDir dir;
+  constexpr std::uint64_t kBudget = 256 << 10;
+  Store store(StoreOptions{.path = dir.file("full.db"), .max_bytes = kBudget});
+  int exhausted_reports = 0;
+  for (int batch = 0; batch < 20; ++batch) {
+    Batch b;
+    b.now_us = batch;
+    for (int i = 0; i < 200; ++i) b.faults.push_back({fault_at(batch, i), Bytes(100, 3)});
+    auto r = store.write(b);
+    if (r.eviction) {
+      EXPECT_TRUE(r.eviction->budget_exhausted);
+      EXPECT_EQ(r.eviction->telemetry_rows + r.eviction->pack_snapshot_rows, 0u);
+      ++exhausted_reports;
+    }
+  }
+  EXPECT_GT(store.live_bytes(), kBudget);
+  EXPECT_EQ(exhausted_reports, 1) << "reported on the transition, not on every batch";
+  EXPECT_EQ(counts(store)["fault_events"], 4000u) << "faults are never dropped";
+}
+
+}  // namespace
+}  // namespace fleetgw::storage

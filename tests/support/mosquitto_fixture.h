@@ -1,0 +1,134 @@
+// Test support: a real mosquitto broker for integration tests and benchmarks.
+//
+// Contract:
+//  * MosquittoBroker starts `mosquitto -c <generated config>` listening on 127.0.0.1 at a free
+//    port, in a private temporary directory (config, log file, ACL, persistence). start() returns
+//    once the port accepts connections, or throws std::runtime_error quoting the broker log.
+//  * stop()/kill() end the process (SIGTERM / SIGKILL); start() again reuses the same port and
+//    directory, so "broker outage, then back" is one stop() + start(). pause()/resume() freeze the
+//    broker (SIGSTOP/SIGCONT): connections stay open but nothing is acknowledged.
+//  * TestPki generates, with the openssl CLI, a CA, a server certificate for 127.0.0.1/localhost,
+//    a server certificate for a different host name (to test host-name verification), and client
+//    certificates whose common name is the given identity.
+//  * Everything is removed when the object is destroyed; the destructor never throws.
+//  * Not thread-safe: drive one instance from one thread.
+#pragma once
+
+#include <sys/types.h>
+
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace fleetgw::testing {
+
+// A private temporary directory, removed recursively on destruction.
+class TempDir {
+ public:
+  explicit TempDir(std::string_view prefix = "fleetgw-test");
+  ~TempDir();
+  TempDir(const TempDir&) = delete;
+  TempDir& operator=(const TempDir&) = delete;
+  TempDir(TempDir&& other) noexcept;
+  TempDir& operator=(TempDir&& other) noexcept;
+
+  const std::filesystem::path& path() const { return path_; }
+
+ private:
+  std::filesystem::path path_;
+};
+
+// A certificate and its private key (PEM files).
+struct CertKey {
+  std::filesystem::path cert;
+  std::filesystem::path key;
+};
+
+// Test certificate authority and certificates, made with the openssl CLI (EC P-256, 2 days).
+class TestPki {
+ public:
+  // Generates the CA and both server certificates in a new temporary directory.
+  TestPki();
+
+  const std::filesystem::path& ca_cert() const { return ca_.cert; }
+  // Server certificate valid for 127.0.0.1 and localhost.
+  const CertKey& server() const { return server_; }
+  // Server certificate signed by the same CA but only valid for "wrong-host.invalid".
+  const CertKey& wrong_name_server() const { return wrong_server_; }
+  // Issues a client certificate with CN = `common_name` (mosquitto's use_identity_as_username).
+  CertKey issue_client(std::string_view common_name);
+  // A second, unrelated CA (a client trusting only this one must refuse the broker).
+  const std::filesystem::path& foreign_ca_cert() const { return foreign_ca_.cert; }
+
+ private:
+  CertKey make_ca(std::string_view name, std::string_view cn);
+  CertKey issue(std::string_view name, std::string_view cn, std::string_view extensions);
+
+  TempDir dir_;
+  CertKey ca_;
+  CertKey foreign_ca_;
+  CertKey server_;
+  CertKey wrong_server_;
+};
+
+struct MosquittoOptions {
+  // TLS listener; needs `server` (and `ca_cert` to verify client certificates).
+  bool tls = false;
+  std::filesystem::path ca_cert;
+  CertKey server;
+  // With TLS: clients must present a certificate signed by ca_cert; its CN becomes the username.
+  bool require_client_cert = true;
+  // Contents of an ACL file (mosquitto acl_file syntax); empty = no ACL, anonymous allowed.
+  std::string acl;
+  // Keep broker state on disk across stop()/start() (retained messages, sessions).
+  bool persistence = false;
+  // Extra lines appended to the generated config.
+  std::string extra_config;
+};
+
+class MosquittoBroker {
+ public:
+  explicit MosquittoBroker(MosquittoOptions options = {});
+  ~MosquittoBroker();
+  MosquittoBroker(const MosquittoBroker&) = delete;
+  MosquittoBroker& operator=(const MosquittoBroker&) = delete;
+
+  // Starts the broker (no-op if running). Throws std::runtime_error with the log on failure.
+  void start();
+  // Graceful stop (SIGTERM), waits for exit.
+  void stop();
+  // Abrupt stop (SIGKILL), waits for exit.
+  void kill();
+  // Freezes / thaws the broker process.
+  void pause();
+  void resume();
+  bool running() const { return pid_ > 0; }
+
+  std::uint16_t port() const { return port_; }
+  // "tcp://127.0.0.1:<port>" or "ssl://127.0.0.1:<port>".
+  std::string uri() const;
+  // Same with host name "localhost" (for host-name verification tests).
+  std::string uri_localhost() const;
+  // Broker log so far (for failure messages).
+  std::string log() const;
+  const std::filesystem::path& directory() const { return dir_.path(); }
+
+ private:
+  void write_config() const;
+  void signal_and_wait(int sig);
+
+  MosquittoOptions options_;
+  TempDir dir_;
+  std::uint16_t port_ = 0;
+  pid_t pid_ = -1;
+};
+
+// Runs a program (no shell) and waits; throws std::runtime_error with its output on failure.
+void run_program(const std::vector<std::string>& argv, const std::filesystem::path& output_file);
+
+// A free TCP port on 127.0.0.1 (bound and released; the usual tiny race applies).
+std::uint16_t free_loopback_port();
+
+}  // namespace fleetgw::testing
