@@ -20,6 +20,9 @@ namespace {
 std::atomic<uint64_t> g_allocations{0};
 }
 
+// GCC cannot see that the replacement operator new below pairs with this operator delete.
+#pragma GCC diagnostic ignored "-Wmismatched-new-delete"
+
 void* operator new(std::size_t n) {
   g_allocations.fetch_add(1, std::memory_order_relaxed);
   if (void* p = std::malloc(n ? n : 1)) return p;
