@@ -148,7 +148,7 @@ TEST(DecodeTool, CorruptFramesAreCountedNeverPrinted) {
   int messages = 0, errors = 0;
   bool malformed_line_reported = false;
   for (const auto& l : r.lines) {
-    if (l.contains("message")) ++messages;
+    if (l.contains("fields")) ++messages;
     if (l.contains("error")) ++errors;
     if (l.value("error", "") == "malformed_line") malformed_line_reported = l["line"] == 10;  // 4 + 4 segments, then 2 lines
   }
