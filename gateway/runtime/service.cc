@@ -228,9 +228,11 @@ int run_service(const config::Config& config, const ServiceOptions& options,
       spdlog::critical("invalid [mqtt] configuration: {}", e.what());
       return 1;
     }
+    // The network lives in real time even when the bus is simulated or replayed faster:
+    // back-off and keep-alive must not run at 400x.
     poll_uplink = [&] {
       if (stopping) return;
-      up->poll(now());
+      up->poll(system_now());
     };
     up->set_wakeup([&io, &poll_uplink] { asio::post(io, [&poll_uplink] { poll_uplink(); }); });
     recorder.set_after_flush([&] { poll_uplink(); });
@@ -251,7 +253,7 @@ int run_service(const config::Config& config, const ServiceOptions& options,
     });
   };
   if (up) {
-    up->start(now());
+    up->start(system_now());
     arm_uplink();
   }
   io.run();
@@ -261,10 +263,10 @@ int run_service(const config::Config& config, const ServiceOptions& options,
     const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(2);
     while (std::chrono::steady_clock::now() < deadline && outbox.stats().depth > 0 &&
            up->state() == uplink::LinkState::kConnected) {
-      up->poll(now());
+      up->poll(system_now());
       up->wait_for_events(std::chrono::milliseconds(50));
     }
-    up->stop(now());
+    up->stop(system_now());
     const auto s = up->stats();
     spdlog::info("uplink: {} records acked in {} messages, {} reconnects, {} still queued",
                  s.acked_records, s.acked_messages, s.reconnects, outbox.stats().depth);
