@@ -183,9 +183,11 @@ int run_service(const config::Config& config, const ServiceOptions& options,
   }
 
   std::function<void()> arm_tick = [&] {
-    tick_timer.expires_after(std::chrono::milliseconds(20));
+    // Wake up when the core next has work, at most every 50 ms (replays tick from frames).
+    tick_timer.expires_after(std::chrono::milliseconds(50));
     tick_timer.async_wait([&](const std::error_code& ec) {
-      if (ec) return;
+      // A handler already queued when stop() cancelled the timer runs without an error.
+      if (ec || stopping) return;
       // A replay's clock only moves with its frames; the other timelines move by themselves.
       if (!bus.replay) {
         const Micros t = now();
@@ -198,7 +200,7 @@ int run_service(const config::Config& config, const ServiceOptions& options,
   std::function<void()> arm_live = [&] {
     live_timer.expires_after(std::chrono::seconds(1));
     live_timer.async_wait([&](const std::error_code& ec) {
-      if (ec) return;
+      if (ec || stopping) return;
       live_out << core.live().line() << std::endl;
       arm_live();
     });

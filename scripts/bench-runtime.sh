@@ -1,0 +1,157 @@
+#!/usr/bin/env bash
+# Performance of `fleetgw run` (issue 3): CPU time and peak resident memory.
+#
+#   1. 30-minute ride: `fleetgw sim --record` writes 1800 s of config/scenarios/ride.toml as a
+#      candump -L log; `fleetgw run --replay` plays it as fast as possible under /usr/bin/time -v.
+#      CPU seconds per bus-hour = (user + sys) * 3600 / 1800, i.e. the % of one core the
+#      service would use at the real-time load of that ride.
+#   2. Real time: the first REALTIME_S seconds of the same log replayed at recorded speed
+#      (can.replay_speed = 1), measured directly (includes the 20 ms tick timer's wake-ups).
+#   3. Saturated bus: the ride log's valid MOTINOVA traffic time-compressed to SAT_FPS frames/s
+#      (default 2200, a 250 kbit/s bus at ~100 % load with 8-byte frames) for SAT_S seconds,
+#      replayed as fast as possible: speed = bus seconds / wall seconds (target >= 100x).
+#
+# The store is a temporary SQLite file, MQTT is disabled, log level warn.
+# Environment: BUILD_DIR (default build-bench-runtime, configured as Release if absent),
+#   FLEETGW (binary; overrides BUILD_DIR), RIDE_S (1800), REALTIME_S (60), SAT_S (60),
+#   SAT_FPS (2200), KEEP=1 keeps the work directory.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+ROOT=$(pwd)
+RIDE_S=${RIDE_S:-1800}
+REALTIME_S=${REALTIME_S:-60}
+SAT_S=${SAT_S:-60}
+SAT_FPS=${SAT_FPS:-2200}
+
+if [[ -z ${FLEETGW:-} ]]; then
+  BUILD_DIR=${BUILD_DIR:-build-bench-runtime}
+  if [[ ! -f $BUILD_DIR/CMakeCache.txt ]]; then
+    cmake -S "$ROOT" -B "$BUILD_DIR" -DCMAKE_BUILD_TYPE=Release -DFLEETGW_BUILD_TESTS=OFF \
+      -DFLEETGW_BUILD_BENCH=OFF >/dev/null
+  fi
+  cmake --build "$BUILD_DIR" --target fleetgw -j "$(nproc)" >/dev/null
+  FLEETGW=$(find "$BUILD_DIR" -type f -name fleetgw -perm -u+x | head -1)
+fi
+[[ -x $FLEETGW ]] || { echo "bench-runtime: no fleetgw binary" >&2; exit 1; }
+BUILD_TYPE=$(grep -s "^CMAKE_BUILD_TYPE:" "$(dirname "$FLEETGW")/../../CMakeCache.txt" | cut -d= -f2 || true)
+BUILD_TYPE=${BUILD_TYPE:-RelWithDebInfo (project default)}
+
+WORK=$(mktemp -d /tmp/fleetgw-bench-XXXXXX)
+if [[ -z ${KEEP:-} ]]; then trap 'rm -rf "$WORK"' EXIT; fi
+
+config() {  # file replay_speed
+  cat >"$1" <<EOF
+[log]
+level = "warn"
+[can]
+transport = "replay"
+replay_speed = $2
+[storage]
+path = "$WORK/db-$(basename "$1" .toml)/fleetgw.db"
+[mqtt]
+enabled = false
+EOF
+}
+
+# measure NAME -- command...: runs under /usr/bin/time -v; sets CPU (s), RSS (KiB), WALL (s).
+measure() {
+  local name=$1
+  shift 2
+  /usr/bin/time -v -o "$WORK/$name.time" "$@" >"$WORK/$name.out" 2>"$WORK/$name.err" || {
+    echo "bench-runtime: $name failed:" >&2
+    tail -20 "$WORK/$name.err" >&2
+    exit 1
+  }
+  local user sys
+  user=$(awk -F': ' '/User time/ {print $2}' "$WORK/$name.time")
+  sys=$(awk -F': ' '/System time/ {print $2}' "$WORK/$name.time")
+  RSS=$(awk -F': ' '/Maximum resident set size/ {print $2}' "$WORK/$name.time")
+  WALL=$(awk -F': ' '/Elapsed \(wall clock\)/ {print $2}' "$WORK/$name.time" |
+    awk -F: '{ s = 0; for (i = 1; i <= NF; ++i) s = s * 60 + $i; print s }')
+  CPU=$(echo "$user + $sys" | bc -l)
+}
+
+echo "fleetgw: $FLEETGW ($BUILD_TYPE), $(nproc) cores, $(uname -m)"
+
+# 1. The 30-minute ride, as fast as possible.
+"$FLEETGW" sim --scenario config/scenarios/ride.toml --duration "$RIDE_S" \
+  --record "$WORK/ride.log" 2>/dev/null
+RIDE_FRAMES=$(wc -l <"$WORK/ride.log")
+config "$WORK/fast.toml" 0
+measure ride -- "$FLEETGW" run --config "$WORK/fast.toml" --replay "$WORK/ride.log"
+RIDE_CPU=$CPU RIDE_RSS=$RSS RIDE_WALL=$WALL
+RIDE_CPU_PER_HOUR=$(echo "$RIDE_CPU * 3600 / $RIDE_S" | bc -l)
+RIDE_CORE_PCT=$(echo "$RIDE_CPU_PER_HOUR / 3600 * 100" | bc -l)
+
+# Process baseline: the binary and its shared libraries, doing nothing.
+measure baseline -- "$FLEETGW" --version
+BASE_RSS=$RSS
+
+# 2. Real time: REALTIME_S seconds of the ride at recorded speed. Besides Max RSS (which counts
+#    the clean, file-backed pages of the binary and every shared library), /proc/PID/smaps_rollup
+#    is sampled every second for PSS and Private_Dirty (the memory the process really owns).
+head -n "$(awk -v s="$REALTIME_S" 'NR == 1 { gsub(/[()]/, "", $1); t0 = $1 }
+  { gsub(/[()]/, "", $1); if ($1 - t0 > s) { print NR - 1; exit } }' "$WORK/ride.log")" \
+  "$WORK/ride.log" >"$WORK/realtime.log"
+config "$WORK/realtime.toml" 1.0
+(
+  sleep 2
+  pid=$(pgrep -n -f -- "--replay $WORK/realtime.log" || true)
+  while [[ -n $pid && -r /proc/$pid/smaps_rollup ]]; do
+    awk '/^(Pss|Private_Dirty):/ {printf "%s %s ", $1, $2} END {print ""}' \
+      "/proc/$pid/smaps_rollup" 2>/dev/null || true
+    sleep 1
+  done >"$WORK/realtime.smaps"
+) &
+SAMPLER=$!
+measure realtime -- "$FLEETGW" run --config "$WORK/realtime.toml" --replay "$WORK/realtime.log"
+wait "$SAMPLER" || true
+RT_CPU=$CPU RT_RSS=$RSS RT_WALL=$WALL
+RT_PSS=$(awk '{ for (i = 1; i < NF; i += 2) if ($i == "Pss:" && $(i + 1) > m) m = $(i + 1) } END { print m + 0 }' "$WORK/realtime.smaps")
+RT_DIRTY=$(awk '{ for (i = 1; i < NF; i += 2) if ($i == "Private_Dirty:" && $(i + 1) > m) m = $(i + 1) } END { print m + 0 }' "$WORK/realtime.smaps")
+RT_CORE_PCT=$(echo "$RT_CPU / $RT_WALL * 100" | bc -l)
+
+# 3. Saturated bus: the ride's traffic (every frame valid) re-timed to SAT_FPS frames/s, the
+#    ride log repeated with a time offset when it is shorter than SAT_S * SAT_FPS frames.
+NEED=$((SAT_S * SAT_FPS))
+awk -v need="$NEED" -v fps="$SAT_FPS" '
+  { lines[NR] = $0 }
+  END {
+    n = 0; t0 = 1717228800
+    while (n < need) {
+      for (i = 1; i <= NR && n < need; ++i) {
+        split(lines[i], f, " ")
+        us = int(n * 1000000 / fps)
+        printf "(%d.%06d) %s %s\n", t0 + int(us / 1000000), us % 1000000, f[2], f[3]
+        ++n
+      }
+    }
+  }' "$WORK/ride.log" >"$WORK/saturated.log"
+SAT_FRAMES=$(wc -l <"$WORK/saturated.log")
+measure saturated -- "$FLEETGW" run --config "$WORK/fast.toml" --replay "$WORK/saturated.log"
+SAT_CPU=$CPU SAT_RSS=$RSS SAT_WALL=$WALL
+SAT_SPEED=$(echo "$SAT_S / $SAT_WALL" | bc -l)
+SAT_CHECK=$("$FLEETGW" decode "$WORK/saturated.log" 2>&1 >/dev/null | tail -1)
+
+printf '\n%-44s %12s %12s %12s %12s\n' "run" "bus time" "wall" "CPU (u+s)" "max RSS"
+printf '%-44s %10ss %10.2fs %10.2fs %9.1f MB\n' \
+  "30-min ride ($RIDE_FRAMES frames), as fast as possible" "$RIDE_S" "$RIDE_WALL" "$RIDE_CPU" \
+  "$(echo "$RIDE_RSS / 1024" | bc -l)"
+printf '%-44s %10ss %10.2fs %10.2fs %9.1f MB\n' \
+  "ride at recorded speed (real time)" "$REALTIME_S" "$RT_WALL" "$RT_CPU" \
+  "$(echo "$RT_RSS / 1024" | bc -l)"
+printf '%-44s %10s %10s %10s %9.1f MB\n' \
+  "process baseline (fleetgw --version)" "-" "-" "-" "$(echo "$BASE_RSS / 1024" | bc -l)"
+printf '%-44s %10ss %10.2fs %10.2fs %9.1f MB\n' \
+  "saturated bus, $SAT_FPS frames/s ($SAT_FRAMES frames)" "$SAT_S" "$SAT_WALL" "$SAT_CPU" \
+  "$(echo "$SAT_RSS / 1024" | bc -l)"
+echo
+printf 'CPU per hour of riding (from the 30-min replay): %.2f s/h = %.3f %% of one core (target < 0.5 %%)\n' \
+  "$RIDE_CPU_PER_HOUR" "$RIDE_CORE_PCT"
+printf 'CPU at real time, measured:                      %.3f %% of one core (target < 0.5 %%)\n' \
+  "$RT_CORE_PCT"
+printf 'Peak RSS at real-time load:                      %.1f MB (target < 10 MB); PSS %.1f MB, private dirty %.1f MB\n' \
+  "$(echo "$RT_RSS / 1024" | bc -l)" "$(echo "$RT_PSS / 1024" | bc -l)" "$(echo "$RT_DIRTY / 1024" | bc -l)"
+printf 'Saturated 250 kbit/s bus replay speed:           %.0fx real time (target >= 100x)\n' \
+  "$SAT_SPEED"
+echo "Saturated log check (fleetgw decode):           $SAT_CHECK"
