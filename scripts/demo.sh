@@ -2,12 +2,13 @@
 # The live demo: a simulated MOTINOVA e-bike on an in-process CAN bus, the fleetgw service
 # decoding it, storing rides/faults/telemetry in SQLite and publishing them to a local mosquitto,
 # and a subscriber decoding what reaches the broker.
-#   DURATION=seconds (default 60), SPEED=time acceleration (default 20), SCENARIO=file
+#   DURATION=seconds (default 40), SPEED=time acceleration (default 1: real time, so that
+#   command expiry is judged on a real clock), SCENARIO=file
 set -euo pipefail
 cd "$(dirname "$0")/.."
 ROOT=$(pwd)
-DURATION=${DURATION:-60}
-SPEED=${SPEED:-20}
+DURATION=${DURATION:-40}
+SPEED=${SPEED:-1}
 SCENARIO=${SCENARIO:-config/scenarios/demo.toml}
 
 ./scripts/install-deps.sh
@@ -36,12 +37,28 @@ sleep 0.5
 sed -e "s#@PORT@#$PORT#g" -e "s#@DB@#$DEMO/fleetgw.db#g" -e "s#@SCENARIO@#$SCENARIO#g" \
   -e "s#@SPEED@#$SPEED#g" config/demo.toml.in > "$DEMO/fleetgw.toml"
 
+# The operator's signing key, trusted by this gateway.
+KEYLINE=$($FLEETGW keygen "$DEMO/operator" 2>/dev/null)
+printf '\n[command.trusted_keys]\n%s\n' "$KEYLINE" >> "$DEMO/fleetgw.toml"
+
 echo "== broker on 127.0.0.1:$PORT; subscriber output in $DEMO/subscriber.log"
 $FLEETGW watch --broker "tcp://127.0.0.1:$PORT" --topic 'fleet/v1/#' > "$DEMO/subscriber.log" 2>&1 &
 SUBSCRIBER=$!
 
+# An operator unlocks and re-locks the seat lock remotely while the bike is parked, and tries
+# to engage the frame lock while it rides (refused by the interlock).
+operator() {
+  sleep "$1"
+  echo "== operator: $2 $3"
+  $FLEETGW command --vehicle demo-bike-01 --lock "$2" --action "$3" --key "$DEMO/operator.pem" \
+    --broker "tcp://127.0.0.1:$PORT" --timeout-s 10 || true
+}
+( operator 3 seat unlock; operator 2 seat lock; operator 3 frame lock ) &
+OPERATOR=$!
+
 echo "== fleetgw run (simulated bike, ${SPEED}x time, ${DURATION}s)"
 $FLEETGW run --config "$DEMO/fleetgw.toml" --live --duration "$DURATION"
+wait $OPERATOR 2>/dev/null || true
 
 sleep 1
 echo

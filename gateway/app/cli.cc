@@ -11,6 +11,7 @@
 #include "gateway/sim/sim_command.h"
 #include "gateway/app/logging.h"
 #include "gateway/app/watch_command.h"
+#include "gateway/command/command_tool.h"
 #include "gateway/runtime/recorder.h"
 #include "storage/store.h"
 
@@ -159,6 +160,36 @@ int run_cli(int argc, char** argv) {
   watch_cmd->add_option("--count", watch_options.max_messages, "stop after this many messages");
   watch_cmd->add_option("--duration", watch_options.duration_s, "stop after this many seconds");
 
+  // keygen
+  auto* keygen_cmd = app.add_subcommand("keygen", "write an Ed25519 key pair for signing commands");
+  std::string keygen_prefix;
+  keygen_cmd->add_option("prefix", keygen_prefix, "writes PREFIX.pem (private, 0600) and PREFIX.pub")
+      ->required();
+
+  // command
+  auto* command_cmd = app.add_subcommand("command", "sign and send a lock/unlock command, wait for its result");
+  command::CommandToolOptions cmd_options;
+  int64_t cmd_timeout_s = 10, cmd_expires_s = 60;
+  command_cmd->add_option("--vehicle", cmd_options.vehicle, "vehicle id")->required();
+  command_cmd->add_option("--lock", cmd_options.lock, "lock kind (seat, battery, frame...) or vehicle")
+      ->required();
+  command_cmd->add_option("--action", cmd_options.action, "lock or unlock")
+      ->required()
+      ->check(CLI::IsMember({"lock", "unlock"}));
+  command_cmd->add_option("--key", cmd_options.key, "Ed25519 private key (PEM)")->required();
+  command_cmd->add_option("--key-id", cmd_options.key_id, "key id (default: the key file's stem)");
+  command_cmd->add_option("--broker", cmd_options.broker, "broker URI")->required();
+  command_cmd->add_option("--ca-file", cmd_options.ca_file, "CA bundle (TLS)");
+  command_cmd->add_option("--cert-file", cmd_options.cert_file, "client certificate (mutual TLS)");
+  command_cmd->add_option("--key-file", cmd_options.key_file, "client key (mutual TLS)");
+  command_cmd->add_option("--username", cmd_options.username, "user name");
+  command_cmd->add_option("--password", cmd_options.password, "password (never logged)");
+  command_cmd->add_option("--topic-prefix", cmd_options.topic_prefix, "topic prefix");
+  command_cmd->add_option("--timeout-s", cmd_timeout_s, "wait this long for the result")
+      ->check(CLI::Range(1, 3600));
+  command_cmd->add_option("--expires-in-s", cmd_expires_s, "command validity")
+      ->check(CLI::Range(1, 86400));
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -215,6 +246,12 @@ int run_cli(int argc, char** argv) {
       return 0;
     }
     if (watch_cmd->parsed()) return run_watch(watch_options, std::cout);
+    if (keygen_cmd->parsed()) return command::run_keygen(keygen_prefix, std::cout);
+    if (command_cmd->parsed()) {
+      cmd_options.timeout = std::chrono::seconds(cmd_timeout_s);
+      cmd_options.expires_in = std::chrono::seconds(cmd_expires_s);
+      return command::run_command_tool(cmd_options);
+    }
     if (check_cmd->parsed()) {
       config::load_config(check_file);
       std::cout << check_file << ": OK\n";

@@ -66,6 +66,9 @@ struct SimConfig {
   std::string scenario = "config/scenarios/demo.toml";
   double speed = 1.0;  // time acceleration
   int64_t seed = 0;    // 0 = use the scenario's seed
+  // Start the simulated timeline at the current wall-clock time instead of the scenario's
+  // start_utc, so records and commands carry present-day times (the live demo).
+  bool start_now = true;
 };
 
 struct StorageConfig {

@@ -13,6 +13,7 @@
 #include "gateway/node/transport_sender.h"
 #include "gateway/runtime/recorder.h"
 #include "gateway/runtime/store_outbox.h"
+#include "gateway/command/command_service.h"
 #include "gateway/uplink/uplink.h"
 #include "storage/store.h"
 #include "gateway/sim/scenario.h"
@@ -49,8 +50,10 @@ struct Bus {
 Bus make_bus(asio::io_context& io, const config::Config& c) {
   Bus bus;
   if (c.can.transport == "sim") {
-    auto t = std::make_unique<sim::SimTransport>(io, sim::load_scenario(c.sim.scenario),
-                                                 c.sim.speed);
+    sim::Scenario scenario = sim::load_scenario(c.sim.scenario);
+    if (c.sim.start_now) scenario.start = system_now();
+    if (c.sim.seed != 0) scenario.seed = static_cast<uint64_t>(c.sim.seed);
+    auto t = std::make_unique<sim::SimTransport>(io, std::move(scenario), c.sim.speed);
     bus.sim = t.get();
     bus.transport = std::move(t);
   } else if (c.can.transport == "replay") {
@@ -219,6 +222,28 @@ int run_service(const config::Config& config, const ServiceOptions& options,
   const Micros start = bus.replay ? Micros(0) : now();
   Recorder recorder(config, *store, start);
 
+  // Remote lock commands: verified, journaled in the store, executed through the node.
+  std::unique_ptr<command::CommandService> commands;
+  try {
+    commands = std::make_unique<command::CommandService>(
+        command::make_command_service_config(config),
+        command::CommandContext{core.node(), *store, &recorder.trackers(),
+                                command::default_clock_synchronised});
+  } catch (const std::exception& e) {
+    spdlog::critical("invalid [command] configuration: {}", e.what());
+    return 1;
+  }
+  if (const auto n = commands->recover(start)) {
+    spdlog::warn("{} command(s) interrupted by the previous stop finished as timeout", n);
+  }
+  struct CommandFeed final : MessageListener {
+    command::CommandService& svc;
+    explicit CommandFeed(command::CommandService& s) : svc(s) {}
+    void on_message(const motinova::DecodedMessage& m, Micros t) override { svc.on_message(m, t); }
+    void tick(Micros t) override { svc.tick(t); }
+  } command_feed(*commands);
+  core.add_listener(command_feed);
+
   // The uplink drains the store's outbox; Paho's threads only wake the loop up.
   StoreOutbox outbox(*store);
   std::unique_ptr<uplink::Uplink> up;
@@ -237,6 +262,11 @@ int run_service(const config::Config& config, const ServiceOptions& options,
       up->poll(system_now());
     };
     up->set_wakeup([&io, &poll_uplink] { asio::post(io, [&poll_uplink] { poll_uplink(); }); });
+    up->set_command_handler([&](std::string_view payload) {
+      const auto d = commands->on_payload(payload, now());
+      spdlog::info("command received: {}", command::disposition_name(d));
+      recorder.flush(now());  // results leave at once, not at the next flush
+    });
     recorder.set_after_flush([&] { poll_uplink(); });
   }
   core.add_listener(recorder);

@@ -1,0 +1,175 @@
+// CommandService: executes authenticated remote lock/unlock commands on the bike, exactly once,
+// only when safe, and always with one definite, durable CommandResult.
+//
+// Contract:
+//  * Clock-free and single-threaded: the runtime calls recover(now) once at start-up (before the
+//    first payload), on_payload(bytes, now) for every message on <prefix>/<vehicle>/cmd (from
+//    Uplink's command handler, on its loop thread), on_message(msg, now) with every decoded bus
+//    message (motion interlock), and tick(now) with the node's tick. Lock confirmations arrive
+//    through IotNode::actuate_lock callbacks inside the node's on_frame()/tick().
+//  * Nothing touches the bus for a rejected command: verification (CommandVerifier), the
+//    busy/shutdown checks, the lock-online check (NodeRegistry) and the interlocks all run
+//    before the first CAN write.
+//  * Exactly-once effect: an accepted command is journaled in SQLite (state "executing") BEFORE
+//    the first CAN write; if the journal cannot be written the command is rejected
+//    (storage_error) and nothing moves. A redelivered command (same id; QoS-1 duplicate) never
+//    acts again: while it runs the duplicate is ignored (its result follows), afterwards the
+//    stored result is queued again. recover(now) finishes journal entries a crash left
+//    "executing" as `timeout` (reason "interrupted_by_restart") WITHOUT actuating again: a
+//    status read could not tell whether our write or someone's key moved the lock, and a
+//    definite "we do not know" is safer than a guess. The lock's real state still reaches the
+//    backend as lock events.
+//  * Exactly one CommandResult per authenticated command id (rejections included: the id is
+//    journaled with the rejection). It is written with the journal's final state in ONE
+//    transaction, at outbox priority 0 (kind command_result -> uplink cmd_result) with the
+//    serialized fleetgw.v1.CommandResult as payload, so it survives outages and restarts.
+//    Results for payloads that were not authentic (and re-sent results of duplicates) are rate
+//    limited (`unauthenticated_results_per_minute`) so a flood of junk cannot fill the disk.
+//  * Interlocks per lock kind (InterlockRule): by default the frame, wheel and steering locks
+//    never engage and the battery lock never releases while the bike moves: mc_status speed
+//    above interlock_speed_kmh, or motor rpm > 0 within the last interlock_motor_window. Without
+//    a recent mc_status (older than motion_max_age) motion is unknown and such actions are
+//    refused too (motion_unknown_blocks), because a silent MC does not mean a still wheel.
+//  * Execution: LockActuator via IotNode::actuate_lock (LOCK/UNLOCK per §3.5.4, confirmation by
+//    status polling), confirm_timeout per attempt, `retries` more attempts after a timeout (never
+//    after a reported failure: a jammed bolt is not forced). A whole-vehicle unlock sends the
+//    vehicle UNLOCK broadcast (0x760/0x1206) first, then unlocks every fitted lock (wheel-type
+//    locks first, so the bike can roll); a whole-vehicle lock locks every fitted lock in
+//    `vehicle_lock_order` (seat, battery ... frame last) and then sends the vehicle LOCK
+//    broadcast (0x760/0x1104). One lock at a time; a failing lock does not stop the sequence
+//    (secure what can be secured), the overall result is the worst of the locks.
+//  * Domain trackers (optional) are told before each actuation, so lock events carry the cause
+//    "command:<id>".
+//  * Destroying the service mid-command is safe: pending node callbacks become no-ops, the
+//    journal keeps "executing" and the next recover() finishes it.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <memory>
+#include <optional>
+#include <span>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "gateway/command/verifier.h"
+#include "gateway/node/iot_node.h"
+#include "motinova/codec.h"
+#include "motinova/options.h"
+
+namespace fleetgw::config {
+struct Config;
+}
+namespace fleetgw::domain {
+class DomainTrackers;
+}
+namespace fleetgw::storage {
+class Store;
+}
+namespace fleetgw::v1 {
+class CommandResult;
+}
+
+namespace fleetgw::command {
+
+// When an action on a lock kind is refused while the bike moves.
+struct InterlockRule {
+  bool block_lock_while_moving = false;    // e.g. frame: a bolt must never hit a turning wheel
+  bool block_unlock_while_moving = false;  // e.g. battery: never released while riding
+};
+
+// frame/wheel/rear_wheel/steering: lock blocked; battery: unlock blocked.
+std::map<std::string, InterlockRule> default_interlocks();
+
+struct CommandServiceConfig {
+  VerifierConfig verifier;
+  // Lock-state names (U19) and the mc_status reading used by the interlock.
+  motinova::DecodeOptions decode_options{};
+  std::map<std::string, InterlockRule> interlocks = default_interlocks();
+  double interlock_speed_kmh = 1.0;
+  Micros interlock_motor_window = 5s;
+  Micros motion_max_age = 1s;
+  bool motion_unknown_blocks = true;
+  Micros confirm_timeout = 3s;  // per attempt
+  int retries = 1;              // extra attempts after a timeout
+  // Whole-vehicle lock order by kind; kinds not listed go first (LOCK index order). Unlock
+  // runs in the reverse order.
+  std::vector<std::string> vehicle_lock_order{"seat",  "battery", "other",     "steering",
+                                              "frame", "wheel",   "rear_wheel"};
+  // Rejected ids are remembered at least this long (even when already expired), so a
+  // redelivery gets the same answer instead of a second result.
+  Micros rejected_retention = 10min;
+  int unauthenticated_results_per_minute = 30;
+  Micros purge_interval = 60s;
+};
+
+// Fills the config from fleetgw.toml: [vehicle].id, [command], [protocol] lock kinds and names.
+CommandServiceConfig make_command_service_config(const config::Config& config);
+
+// "Is the wall clock synchronised?" default: now is after 2024-01-01T00:00:00Z (a board that
+// booted without RTC or NTP sits in 1970 or at its build date).
+bool default_clock_synchronised(Micros now);
+
+// What the service needs from the runtime. Everything referenced must outlive the service.
+struct CommandContext {
+  node::IotNode& node;
+  storage::Store& store;
+  domain::DomainTrackers* trackers = nullptr;
+  std::function<bool(Micros)> clock_synchronised = default_clock_synchronised;
+};
+
+enum class Disposition : std::uint8_t {
+  kRejected,             // a rejected result was produced (nothing touched the bus)
+  kStarted,              // accepted, journaled, actuation under way
+  kDuplicateInProgress,  // same id still executing: ignored, the result follows
+  kDuplicateAnswered,    // same id finished earlier: its stored result was queued again
+  kDropped,              // not answered: result rate limit reached (counted and logged)
+};
+std::string_view disposition_name(Disposition d);
+
+struct CommandStats {
+  std::uint64_t payloads = 0;
+  std::uint64_t accepted = 0;
+  std::uint64_t rejected = 0;
+  std::uint64_t succeeded = 0;
+  std::uint64_t failed = 0;
+  std::uint64_t timed_out = 0;
+  std::uint64_t duplicates = 0;
+  std::uint64_t recovered = 0;
+  std::uint64_t results_dropped = 0;  // rate limit
+  std::uint64_t storage_errors = 0;
+  std::map<std::string, std::uint64_t> rejections;  // by reason name
+};
+
+class CommandService {
+ public:
+  // Called with every result produced or re-sent (after it was stored). For tests, live view.
+  using ResultObserver = std::function<void(const v1::CommandResult& result, bool resent)>;
+
+  // Throws std::invalid_argument for a bad configuration (trusted keys, vehicle id).
+  CommandService(CommandServiceConfig config, CommandContext context);
+  ~CommandService();
+  CommandService(const CommandService&) = delete;
+  CommandService& operator=(const CommandService&) = delete;
+
+  // Finishes journal entries left "executing" by a previous run; returns how many.
+  std::size_t recover(Micros now);
+  Disposition on_payload(std::span<const std::uint8_t> payload, Micros now);
+  Disposition on_payload(std::string_view payload, Micros now);
+  void on_message(const motinova::DecodedMessage& msg, Micros now);
+  void tick(Micros now);
+
+  void set_result_observer(ResultObserver observer);
+  bool busy() const;
+  const CommandStats& stats() const;
+  const CommandServiceConfig& config() const;
+
+ private:
+  struct Impl;
+  std::shared_ptr<Impl> impl_;  // shared so pending node callbacks can detect our destruction
+};
+
+}  // namespace fleetgw::command

@@ -1,0 +1,329 @@
+#include "gateway/command/command_tool.h"
+
+#include <mqtt/async_client.h>
+#include <nlohmann/json.hpp>
+
+#include <condition_variable>
+#include <deque>
+#include <fstream>
+#include <iostream>
+#include <mutex>
+
+#include "fleetgw/v1/command.pb.h"
+#include "fleetgw/v1/envelope.pb.h"
+#include "gateway/command/verifier.h"
+
+namespace fleetgw::command {
+namespace {
+
+std::string hex(std::span<const std::uint8_t> bytes) {
+  static constexpr char kDigits[] = "0123456789abcdef";
+  std::string s;
+  for (const auto b : bytes) {
+    s += kDigits[b >> 4];
+    s += kDigits[b & 0xF];
+  }
+  return s;
+}
+
+Micros system_now() {
+  return std::chrono::duration_cast<Micros>(std::chrono::system_clock::now().time_since_epoch());
+}
+
+bool valid_id_chars(std::string_view id) {
+  if (id.empty() || id.size() > 64) return false;
+  for (const char c : id) {
+    const bool ok = (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') ||
+                    c == '.' || c == '_' || c == '-';
+    if (!ok) return false;
+  }
+  return true;
+}
+
+std::string_view code_name(v1::CommandResultCode c) {
+  switch (c) {
+    case v1::COMMAND_RESULT_CODE_SUCCEEDED:
+      return "succeeded";
+    case v1::COMMAND_RESULT_CODE_FAILED:
+      return "failed";
+    case v1::COMMAND_RESULT_CODE_TIMEOUT:
+      return "timeout";
+    case v1::COMMAND_RESULT_CODE_REJECTED:
+      return "rejected";
+    default:
+      return "unspecified";
+  }
+}
+
+std::string_view state_name(v1::LockState s) {
+  switch (s) {
+    case v1::LOCK_STATE_LOCKED:
+      return "locked";
+    case v1::LOCK_STATE_UNLOCKED:
+      return "unlocked";
+    case v1::LOCK_STATE_FAULT:
+      return "fault";
+    default:
+      return "unspecified";
+  }
+}
+
+nlohmann::json to_json(const v1::CommandResult& r, std::string_view vehicle, Micros round_trip) {
+  nlohmann::json j;
+  j["command_id"] = r.command_id();
+  j["vehicle_id"] = vehicle;
+  j["result"] = code_name(r.result());
+  j["reason"] = r.reason();
+  j["final_lock_state"] = state_name(r.final_lock_state());
+  j["final_lock_state_name"] = r.final_lock_state_name();
+  j["duration_ms"] = r.duration_ms();
+  j["round_trip_ms"] = round_trip.count() / 1000;
+  nlohmann::json locks = nlohmann::json::array();
+  for (const auto& l : r.locks()) {
+    locks.push_back({{"lock_kind", l.lock_kind()},
+                     {"result", code_name(l.result())},
+                     {"reason", l.reason()},
+                     {"final_lock_state_name", l.final_lock_state_name()},
+                     {"duration_ms", l.duration_ms()},
+                     {"commands_sent", l.commands_sent()}});
+  }
+  j["locks"] = std::move(locks);
+  return j;
+}
+
+// Messages arriving on Paho's thread, handed to the tool's thread.
+class Inbox {
+ public:
+  void push(mqtt::const_message_ptr m) {
+    {
+      std::lock_guard lock(mu_);
+      queue_.push_back(std::move(m));
+    }
+    cv_.notify_one();
+  }
+  mqtt::const_message_ptr pop_until(std::chrono::steady_clock::time_point deadline) {
+    std::unique_lock lock(mu_);
+    if (!cv_.wait_until(lock, deadline, [this] { return !queue_.empty(); })) return nullptr;
+    auto m = std::move(queue_.front());
+    queue_.pop_front();
+    return m;
+  }
+
+ private:
+  std::mutex mu_;
+  std::condition_variable cv_;
+  std::deque<mqtt::const_message_ptr> queue_;
+};
+
+}  // namespace
+
+std::string random_command_id() {
+  return hex(random_bytes(16));
+}
+
+std::optional<v1::Command> make_command(std::string_view vehicle, std::string_view lock,
+                                        std::string_view action, Micros issued_at,
+                                        Micros expires_at, std::string command_id) {
+  v1::Command c;
+  if (action == "lock") {
+    c.set_action(v1::COMMAND_ACTION_LOCK);
+  } else if (action == "unlock") {
+    c.set_action(v1::COMMAND_ACTION_UNLOCK);
+  } else {
+    return std::nullopt;
+  }
+  if (lock.empty()) return std::nullopt;
+  if (lock == "vehicle") {
+    c.set_whole_vehicle(true);
+  } else {
+    c.set_lock_kind(std::string(lock));
+  }
+  c.set_command_id(std::move(command_id));
+  c.set_vehicle_id(std::string(vehicle));
+  c.set_issued_at_us(issued_at.count());
+  c.set_expires_at_us(expires_at.count());
+  return c;
+}
+
+std::string sign_command(const v1::Command& command, const Ed25519PrivateKey& key,
+                         std::string_view key_id) {
+  v1::SignedCommand s;
+  // Serialized once: the signature covers exactly the bytes that travel.
+  s.set_command(command.SerializeAsString());
+  const auto* bytes = reinterpret_cast<const std::uint8_t*>(s.command().data());
+  const auto sig = key.sign({bytes, s.command().size()});
+  s.set_signature(std::string(sig.begin(), sig.end()));
+  s.set_key_id(std::string(key_id));
+  return s.SerializeAsString();
+}
+
+int run_keygen(const std::filesystem::path& path_prefix, std::ostream& out, std::ostream& err,
+               std::string_view key_id) {
+  try {
+    std::string id(key_id);
+    if (id.empty()) id = path_prefix.filename().string();
+    if (!valid_id_chars(id)) {
+      err << "keygen: key id '" << id << "' must be 1..64 characters of [A-Za-z0-9._-]\n";
+      return 1;
+    }
+    const auto key = Ed25519PrivateKey::generate();
+    const std::filesystem::path pem = path_prefix.string() + ".pem";
+    const std::filesystem::path pub = path_prefix.string() + ".pub";
+    if (std::filesystem::exists(pub)) {
+      err << "keygen: " << pub.string() << " exists; not overwritten\n";
+      return 1;
+    }
+    key.write_pem(pem);
+    const std::string pub64 = key.public_key().base64();
+    std::ofstream(pub) << pub64 << '\n';
+    err << "keygen: private key " << pem.string() << " (mode 0600), public key " << pub.string()
+        << "\nkeygen: add this line to [command.trusted_keys] of the gateways' config:\n";
+    out << id << " = \"" << pub64 << "\"\n";
+    return 0;
+  } catch (const std::exception& e) {
+    err << "keygen: " << e.what() << '\n';
+    return 1;
+  }
+}
+
+int run_keygen(const std::filesystem::path& path_prefix, std::ostream& out) {
+  return run_keygen(path_prefix, out, std::cerr);
+}
+
+int run_command_tool(const CommandToolOptions& o) {
+  std::ostream& out = o.out != nullptr ? *o.out : std::cout;
+  std::ostream& err = o.err != nullptr ? *o.err : std::cerr;
+  const auto clock = o.wall_clock ? o.wall_clock : system_now;
+  auto usage = [&](const std::string& what) {
+    err << "command: " << what << '\n';
+    return kExitUsage;
+  };
+
+  if (!valid_id_chars(o.vehicle)) return usage("--vehicle: 1..64 characters of [A-Za-z0-9._-]");
+  if (o.action != "lock" && o.action != "unlock") return usage("--action: lock or unlock");
+  if (o.lock.empty() || o.lock.size() > 64) return usage("--lock: a lock kind or 'vehicle'");
+  if (o.broker.rfind("tcp://", 0) != 0 && o.broker.rfind("ssl://", 0) != 0) {
+    return usage("--broker: tcp://host:port or ssl://host:port");
+  }
+  if (o.broker.find('@') != std::string::npos) {
+    return usage("--broker: no credentials in the URI; use --username/--password");
+  }
+  const bool tls = o.broker.rfind("ssl://", 0) == 0;
+  if (!tls && (!o.username.empty() || !o.password.empty()) && !o.allow_plaintext_credentials) {
+    return usage("refusing to send credentials over plain tcp://; use ssl://");
+  }
+  if (o.cert_file.empty() != o.key_file.empty()) {
+    return usage("--cert-file and --key-file go together");
+  }
+  if (o.timeout.count() <= 0 || o.expires_in.count() <= 0) {
+    return usage("--timeout-s and --expires-in-s must be > 0");
+  }
+  if (o.topic_prefix.empty() || o.topic_prefix.find_first_of("#+") != std::string::npos) {
+    return usage("--topic-prefix: no wildcards");
+  }
+  std::string key_id = o.key_id.empty() ? o.key.stem().string() : o.key_id;
+  if (!valid_id_chars(key_id)) return usage("--key-id: 1..64 characters of [A-Za-z0-9._-]");
+  std::optional<Ed25519PrivateKey> key;
+  try {
+    key = Ed25519PrivateKey::load_pem(o.key);
+  } catch (const std::exception& e) {
+    return usage(std::string("--key: ") + e.what());
+  }
+  const std::string id = o.command_id.empty() ? random_command_id() : o.command_id;
+  if (!is_valid_command_id(id)) return usage("command id: 1..128 printable characters");
+
+  const std::string base = o.topic_prefix + "/" + o.vehicle;
+  const std::string cmd_topic = base + "/cmd";
+  const std::string result_topic = base + "/cmd/result";
+
+  try {
+    mqtt::async_client client(o.broker, "fleetgw-cmd-" + hex(random_bytes(6)),
+                              mqtt::create_options(MQTTVERSION_3_1_1));
+    Inbox inbox;
+    client.set_message_callback([&inbox](mqtt::const_message_ptr m) { inbox.push(std::move(m)); });
+    mqtt::connect_options opts;
+    opts.set_mqtt_version(MQTTVERSION_3_1_1);
+    opts.set_clean_session(true);
+    opts.set_keep_alive_interval(30);
+    opts.set_connect_timeout(static_cast<int>(std::max<std::int64_t>(1, o.timeout.count())));
+    if (!o.username.empty()) opts.set_user_name(o.username);
+    if (!o.password.empty()) opts.set_password(o.password);
+    if (tls) {
+      mqtt::ssl_options ssl;
+      if (!o.ca_file.empty()) ssl.set_trust_store(o.ca_file);
+      if (!o.cert_file.empty()) {
+        ssl.set_key_store(o.cert_file);
+        ssl.set_private_key(o.key_file);
+      }
+      ssl.set_enable_server_cert_auth(true);
+      ssl.set_verify(true);
+      ssl.set_ssl_version(MQTT_SSL_VERSION_TLS_1_2);
+      opts.set_ssl(std::move(ssl));
+    }
+    const auto t0 = std::chrono::steady_clock::now();
+    const auto deadline = t0 + o.timeout;
+    auto remaining = [&] {
+      return std::max(std::chrono::milliseconds(1),
+                      std::chrono::duration_cast<std::chrono::milliseconds>(
+                          deadline - std::chrono::steady_clock::now()));
+    };
+    try {
+      if (!client.connect(opts)->wait_for(remaining())) {
+        err << "command: no connection to the broker within " << o.timeout.count() << " s\n";
+        return kExitNoAnswer;
+      }
+      // Subscribe first: a result published before our subscription existed would be lost.
+      if (!client.subscribe(result_topic, 1)->wait_for(remaining())) {
+        err << "command: subscribe to " << result_topic << " timed out\n";
+        return kExitNoAnswer;
+      }
+    } catch (const mqtt::exception& e) {
+      err << "command: broker " << o.broker << ": " << e.what() << '\n';
+      return kExitNoAnswer;
+    }
+
+    const Micros now = clock();
+    const auto cmd = make_command(o.vehicle, o.lock, o.action, now,
+                                  now + std::chrono::duration_cast<Micros>(o.expires_in), id);
+    const std::string payload = sign_command(*cmd, *key, key_id);
+    const auto sent_at = std::chrono::steady_clock::now();
+    if (!client.publish(cmd_topic, payload.data(), payload.size(), 1, false)
+             ->wait_for(remaining())) {
+      err << "command: publish to " << cmd_topic << " not acknowledged in time\n";
+      client.disconnect()->wait_for(std::chrono::seconds(1));
+      return kExitNoAnswer;
+    }
+    err << "command: " << id << " published to " << cmd_topic << "; waiting for the result\n";
+
+    while (auto m = inbox.pop_until(deadline)) {
+      if (m->get_topic() != result_topic) continue;
+      v1::Envelope env;
+      const auto& p = m->get_payload_ref();
+      if (!env.ParseFromArray(p.data(), static_cast<int>(p.size())) || !env.has_command_result() ||
+          env.command_result().command_id() != id) {
+        continue;  // someone else's result, or a re-sent one of an older command
+      }
+      const auto rtt =
+          std::chrono::duration_cast<Micros>(std::chrono::steady_clock::now() - sent_at);
+      out << to_json(env.command_result(), o.vehicle, rtt).dump() << std::endl;
+      try {
+        client.disconnect()->wait_for(std::chrono::seconds(1));
+      } catch (const mqtt::exception&) {
+        // The answer is in; a failing disconnect changes nothing for the caller.
+      }
+      return env.command_result().result() == v1::COMMAND_RESULT_CODE_SUCCEEDED ? kExitSucceeded
+                                                                                : kExitNotSucceeded;
+    }
+    err << "command: no result for " << id << " within " << o.timeout.count() << " s\n";
+    try {
+      client.disconnect()->wait_for(std::chrono::seconds(1));
+    } catch (const mqtt::exception&) {
+    }
+    return kExitNoAnswer;
+  } catch (const std::exception& e) {
+    err << "command: " << e.what() << '\n';
+    return kExitNoAnswer;
+  }
+}
+
+}  // namespace fleetgw::command

@@ -1,0 +1,237 @@
+#include "gateway/command/verifier.h"
+
+#include <ctime>
+#include <stdexcept>
+
+#include "fleetgw/v1/command.pb.h"
+
+namespace fleetgw::command {
+namespace {
+
+Rejection reject(RejectReason reason, std::string detail, std::string command_id = {},
+                 bool authenticated = false) {
+  return Rejection{reason, std::move(detail), std::move(command_id), authenticated};
+}
+
+bool valid_vehicle_id(std::string_view id) {
+  if (id.empty() || id.size() > 64) return false;
+  for (const char c : id) {
+    const bool ok = (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') ||
+                    c == '.' || c == '_' || c == '-';
+    if (!ok) return false;
+  }
+  return true;
+}
+
+}  // namespace
+
+std::string_view reject_reason_name(RejectReason reason) {
+  switch (reason) {
+    case RejectReason::kMalformed:
+      return "malformed";
+    case RejectReason::kUnknownKey:
+      return "unknown_key";
+    case RejectReason::kBadSignature:
+      return "signature_invalid";
+    case RejectReason::kWrongVehicle:
+      return "wrong_vehicle";
+    case RejectReason::kClockUnsynchronised:
+      return "clock_unsynchronised";
+    case RejectReason::kExpired:
+      return "expired";
+    case RejectReason::kIssuedInFuture:
+      return "issued_in_future";
+    case RejectReason::kValidityTooLong:
+      return "validity_too_long";
+    case RejectReason::kReplayed:
+      return "replayed";
+    case RejectReason::kLockNotFitted:
+      return "lock_not_fitted";
+    case RejectReason::kLockOffline:
+      return "lock_offline";
+    case RejectReason::kInterlockMoving:
+      return "interlock_moving";
+    case RejectReason::kInterlockMotionUnknown:
+      return "interlock_motion_unknown";
+    case RejectReason::kLockBusy:
+      return "lock_busy";
+    case RejectReason::kShuttingDown:
+      return "shutting_down";
+    case RejectReason::kStorageError:
+      return "storage_error";
+  }
+  return "unknown";
+}
+
+bool is_valid_command_id(std::string_view id) {
+  if (id.empty() || id.size() > 128) return false;
+  for (const char c : id) {
+    if (c <= ' ' || c > '~') return false;
+  }
+  return true;
+}
+
+std::string format_utc(Micros t) {
+  const std::int64_t us = t.count();
+  std::int64_t secs = us / 1'000'000;
+  std::int64_t frac = us % 1'000'000;
+  if (frac < 0) {
+    frac += 1'000'000;
+    --secs;
+  }
+  const std::time_t tt = static_cast<std::time_t>(secs);
+  std::tm tm{};
+  if (gmtime_r(&tt, &tm) == nullptr) return std::to_string(us) + "us";
+  char buf[40];
+  const std::size_t n = std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%S", &tm);
+  char out[64];
+  std::snprintf(out, sizeof out, "%.*s.%06lldZ", static_cast<int>(n), buf,
+                static_cast<long long>(frac));
+  return out;
+}
+
+CommandVerifier::CommandVerifier(VerifierConfig config) : config_(std::move(config)) {
+  if (!valid_vehicle_id(config_.vehicle_id)) {
+    throw std::invalid_argument("command: invalid vehicle id '" + config_.vehicle_id + "'");
+  }
+  for (const auto& [id, text] : config_.trusted_keys) {
+    if (id.empty()) throw std::invalid_argument("command.trusted_keys: empty key id");
+    auto key = Ed25519PublicKey::from_base64(text);
+    if (!key) {
+      throw std::invalid_argument("command.trusted_keys." + id +
+                                  ": not a base64 raw Ed25519 public key (32 bytes)");
+    }
+    keys_.emplace(id, std::move(*key));
+  }
+}
+
+VerifyResult CommandVerifier::authenticate(std::span<const std::uint8_t> payload) const {
+  if (payload.size() > config_.max_payload_bytes) {
+    return reject(RejectReason::kMalformed, "payload of " + std::to_string(payload.size()) +
+                                                " bytes exceeds " +
+                                                std::to_string(config_.max_payload_bytes));
+  }
+  v1::SignedCommand signed_cmd;
+  if (!signed_cmd.ParseFromArray(payload.data(), static_cast<int>(payload.size()))) {
+    return reject(RejectReason::kMalformed, "not a fleetgw.v1.SignedCommand");
+  }
+  if (signed_cmd.command().empty()) return reject(RejectReason::kMalformed, "empty command");
+  v1::Command cmd;
+  if (!cmd.ParseFromString(signed_cmd.command())) {
+    return reject(RejectReason::kMalformed, "command bytes are not a fleetgw.v1.Command");
+  }
+  // The id is reported back even for commands that fail later checks, but only when it is
+  // well-formed: arbitrary bytes never reach logs, topics or the database.
+  std::string id = is_valid_command_id(cmd.command_id()) ? cmd.command_id() : std::string();
+  auto bad = [&](std::string detail) {
+    return reject(RejectReason::kMalformed, std::move(detail), id);
+  };
+  if (signed_cmd.signature().empty()) return bad("no signature");
+  if (signed_cmd.key_id().empty()) return bad("no key id");
+  if (cmd.command_id().empty()) return bad("no command_id");
+  if (id.empty()) return bad("command_id is not 1..128 printable ASCII characters");
+  if (cmd.vehicle_id().empty()) return bad("no vehicle_id");
+  if (cmd.issued_at_us() <= 0) return bad("no issued_at_us");
+  if (cmd.expires_at_us() <= 0) return bad("no expires_at_us");
+  if (cmd.expires_at_us() <= cmd.issued_at_us()) return bad("expires_at_us <= issued_at_us");
+  if (cmd.action() != v1::COMMAND_ACTION_LOCK && cmd.action() != v1::COMMAND_ACTION_UNLOCK) {
+    return bad("action is neither LOCK nor UNLOCK");
+  }
+  switch (cmd.target_case()) {
+    case v1::Command::kLockKind:
+      if (cmd.lock_kind().empty()) return bad("empty lock_kind");
+      break;
+    case v1::Command::kWholeVehicle:
+      if (!cmd.whole_vehicle()) return bad("whole_vehicle must be true when set");
+      break;
+    default:
+      return bad("no target (lock_kind or whole_vehicle)");
+  }
+
+  const auto key = keys_.find(signed_cmd.key_id());
+  if (key == keys_.end()) {
+    return reject(RejectReason::kUnknownKey,
+                  "key id '" + signed_cmd.key_id().substr(0, 64) + "' is not trusted", id);
+  }
+  const auto* msg = reinterpret_cast<const std::uint8_t*>(signed_cmd.command().data());
+  const auto* sig = reinterpret_cast<const std::uint8_t*>(signed_cmd.signature().data());
+  if (!key->second.verify({msg, signed_cmd.command().size()},
+                          {sig, signed_cmd.signature().size()})) {
+    return reject(RejectReason::kBadSignature,
+                  "Ed25519 signature does not verify with key '" + key->first + "'", id);
+  }
+  if (cmd.vehicle_id() != config_.vehicle_id) {
+    return reject(RejectReason::kWrongVehicle,
+                  "command is for vehicle '" + cmd.vehicle_id().substr(0, 64) + "'", id, true);
+  }
+
+  VerifiedCommand out;
+  out.command_id = std::move(id);
+  out.vehicle_id = cmd.vehicle_id();
+  out.key_id = signed_cmd.key_id();
+  out.issued_at = Micros(cmd.issued_at_us());
+  out.expires_at = Micros(cmd.expires_at_us());
+  out.target = cmd.action() == v1::COMMAND_ACTION_LOCK ? node::LockTarget::kLocked
+                                                       : node::LockTarget::kUnlocked;
+  out.whole_vehicle = cmd.target_case() == v1::Command::kWholeVehicle;
+  if (!out.whole_vehicle) out.lock_kind = cmd.lock_kind();
+  out.command_bytes = signed_cmd.command();
+  return out;
+}
+
+std::optional<Rejection> CommandVerifier::check(VerifiedCommand& c, Micros now,
+                                                bool clock_synchronised,
+                                                const SeenPredicate& seen) const {
+  auto reject_auth = [&](RejectReason r, std::string detail) {
+    return reject(r, std::move(detail), c.command_id, true);
+  };
+  if (!clock_synchronised) {
+    return reject_auth(RejectReason::kClockUnsynchronised,
+                       "wall clock not synchronised (now " + format_utc(now) +
+                           "): command expiry cannot be judged");
+  }
+  if (c.expires_at <= now) {
+    return reject_auth(RejectReason::kExpired,
+                       "expired at " + format_utc(c.expires_at) + ", now " + format_utc(now));
+  }
+  if (c.issued_at > now + config_.clock_skew) {
+    return reject_auth(RejectReason::kIssuedInFuture,
+                       "issued at " + format_utc(c.issued_at) + ", now " + format_utc(now) +
+                           " (allowed skew " +
+                           std::to_string(config_.clock_skew.count() / 1'000'000) + " s)");
+  }
+  if (c.expires_at - c.issued_at > config_.max_validity) {
+    return reject_auth(
+        RejectReason::kValidityTooLong,
+        "valid for " + std::to_string((c.expires_at - c.issued_at).count() / 1'000'000) +
+            " s, at most " + std::to_string(config_.max_validity.count() / 1'000'000) + " s");
+  }
+  if (seen && seen(c.command_id, now)) {
+    return reject_auth(RejectReason::kReplayed, "command id already seen");
+  }
+  if (!c.whole_vehicle) {
+    c.lock_index = -1;
+    for (std::size_t k = 0; k < config_.lock_kinds.size(); ++k) {
+      if (!config_.lock_kinds[k].empty() && config_.lock_kinds[k] == c.lock_kind) {
+        c.lock_index = static_cast<int>(k);
+        break;
+      }
+    }
+    if (c.lock_index < 0) {
+      return reject_auth(RejectReason::kLockNotFitted,
+                         "no '" + c.lock_kind.substr(0, 64) + "' lock fitted to this vehicle");
+    }
+  }
+  return std::nullopt;
+}
+
+VerifyResult CommandVerifier::verify(std::span<const std::uint8_t> payload, Micros now,
+                                     bool clock_synchronised, const SeenPredicate& seen) const {
+  VerifyResult r = authenticate(payload);
+  if (auto* c = std::get_if<VerifiedCommand>(&r)) {
+    if (auto rejection = check(*c, now, clock_synchronised, seen)) return std::move(*rejection);
+  }
+  return r;
+}
+
+}  // namespace fleetgw::command

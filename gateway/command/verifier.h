@@ -1,0 +1,135 @@
+// CommandVerifier: decides whether a remote command payload may act on this vehicle. Pure: no
+// I/O, no clock, no bus; the caller supplies `now`, whether the wall clock is synchronised and
+// a "command id already seen" predicate (the SQLite journal in production).
+//
+// Contract:
+//  * verify() turns the raw MQTT payload (a serialized fleetgw.v1.SignedCommand) into either a
+//    VerifiedCommand or a Rejection (reason enum + human-readable detail). Checks, in order:
+//      1. malformed            oversized, not a SignedCommand, no signature/key id, `command` not a
+//                              Command, a required field missing or out of range
+//      2. unknown_key          key_id not in the trusted keys
+//      3. signature_invalid    not a valid Ed25519 signature of exactly the `command` bytes
+//      4. wrong_vehicle        vehicle_id is not this vehicle
+//      5. clock_unsynchronised the wall clock is not synchronised: expiry cannot be judged
+//      6. expired              expires_at <= now
+//      7. issued_in_future     issued_at > now + clock skew allowance
+//      8. validity_too_long    expires_at - issued_at > max_validity (a standing unlock token)
+//      9. replayed             the command id was already seen (and has not expired)
+//     10. lock_not_fitted      the lock kind is not fitted to this bike
+//    The clock check comes before the time checks because they are meaningless on an
+//    unsynchronised clock (it would report "issued in the future" instead of the real cause).
+//  * authenticate() runs checks 1-4 only: what the command service needs to recognise a
+//    redelivery of a command it already journaled before judging its freshness again.
+//  * Rejection::command_id is the id found in the payload when one could be parsed, even if the
+//    command was not authentic (so an operator sees why their command was refused);
+//    Rejection::authenticated tells whether the signature was valid.
+//  * The constructor throws std::invalid_argument for a trusted key that is not a base64 raw
+//    Ed25519 public key (naming the key id) or an invalid vehicle id.
+#pragma once
+
+#include <array>
+#include <chrono>
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <optional>
+#include <span>
+#include <string>
+#include <string_view>
+#include <variant>
+
+#include "gateway/command/ed25519.h"
+#include "gateway/node/lock_actuator.h"
+#include "motinova/can.h"
+
+namespace fleetgw::command {
+
+using motinova::Micros;
+using namespace std::chrono_literals;
+
+enum class RejectReason : std::uint8_t {
+  // CommandVerifier
+  kMalformed,
+  kUnknownKey,
+  kBadSignature,
+  kWrongVehicle,
+  kClockUnsynchronised,
+  kExpired,
+  kIssuedInFuture,
+  kValidityTooLong,
+  kReplayed,
+  kLockNotFitted,
+  // CommandService (after verification, before anything touches the bus)
+  kLockOffline,
+  kInterlockMoving,
+  kInterlockMotionUnknown,
+  kLockBusy,
+  kShuttingDown,
+  kStorageError,
+};
+// The reason as sent in CommandResult.reason: "malformed", "unknown_key", "signature_invalid",
+// "wrong_vehicle", "clock_unsynchronised", "expired", "issued_in_future", "validity_too_long",
+// "replayed", "lock_not_fitted", "lock_offline", "interlock_moving", "interlock_motion_unknown",
+// "lock_busy", "shutting_down", "storage_error".
+std::string_view reject_reason_name(RejectReason reason);
+
+struct Rejection {
+  RejectReason reason = RejectReason::kMalformed;
+  std::string detail;      // e.g. "expires_at 2024-06-01T08:00:00Z <= now 2024-06-01T08:00:05Z"
+  std::string command_id;  // from the payload when parseable; may be empty
+  bool authenticated = false;
+};
+
+// A command that passed authentication (and, from verify(), every check).
+struct VerifiedCommand {
+  std::string command_id;
+  std::string vehicle_id;
+  std::string key_id;
+  Micros issued_at{0};
+  Micros expires_at{0};
+  node::LockTarget target = node::LockTarget::kLocked;  // lock -> kLocked, unlock -> kUnlocked
+  bool whole_vehicle = false;
+  std::string lock_kind;  // empty for whole_vehicle
+  int lock_index = -1;    // 0-based LOCK k (node 7 + k); -1 for whole_vehicle or not yet resolved
+  std::string command_bytes;  // the signed Command bytes (tells a redelivery from id reuse)
+};
+
+using VerifyResult = std::variant<VerifiedCommand, Rejection>;
+
+struct VerifierConfig {
+  std::string vehicle_id;
+  std::map<std::string, std::string> trusted_keys;  // key id -> base64 raw Ed25519 public key
+  Micros clock_skew = 30s;                          // allowance for issued_at in the future
+  Micros max_validity = 24h;                        // longest accepted expires_at - issued_at
+  std::array<std::string, motinova::kLockCount> lock_kinds{};  // "" = not fitted
+  std::size_t max_payload_bytes = 4096;
+};
+
+class CommandVerifier {
+ public:
+  using SeenPredicate = std::function<bool(std::string_view command_id, Micros now)>;
+
+  explicit CommandVerifier(VerifierConfig config);
+
+  VerifyResult authenticate(std::span<const std::uint8_t> payload) const;
+  VerifyResult verify(std::span<const std::uint8_t> payload, Micros now, bool clock_synchronised,
+                      const SeenPredicate& seen) const;
+  // Checks 5-10 on an authenticated command.
+  std::optional<Rejection> check(VerifiedCommand& command, Micros now, bool clock_synchronised,
+                                 const SeenPredicate& seen) const;
+
+  const VerifierConfig& config() const { return config_; }
+
+ private:
+  VerifierConfig config_;
+  std::map<std::string, Ed25519PublicKey, std::less<>> keys_;
+};
+
+// Limits of the command id (chosen by the backend): 1..128 printable ASCII characters without
+// space, so it is safe in topics, logs and the "command:<id>" lock-event cause.
+bool is_valid_command_id(std::string_view id);
+
+// "2024-06-01T08:00:00.000000Z" for details and logs.
+std::string format_utc(Micros t);
+
+}  // namespace fleetgw::command

@@ -1,0 +1,243 @@
+// Test rig for the command service: the simulated bike on a VirtualBus, the real GatewayCore
+// (reassembler -> decode -> IotNode) sending through a recording FrameSender onto the bus, a real
+// SQLite Store on a temp file, DomainTrackers for lock-event causes, and a CommandService whose
+// results are collected. Everything runs in lockstep on the bus's virtual timeline.
+#pragma once
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "fleetgw/v1/command.pb.h"
+#include "gateway/command/command_service.h"
+#include "gateway/command/command_tool.h"
+#include "gateway/command/ed25519.h"
+#include "gateway/config/config.h"
+#include "gateway/domain/domain_trackers.h"
+#include "gateway/node/messages.h"
+#include "gateway/runtime/gateway_core.h"
+#include "gateway/sim/virtual_bus.h"
+#include "motinova/segmenter.h"
+#include "storage/store.h"
+#include "tests/support/mosquitto_fixture.h"
+
+namespace fleetgw::command::testing {
+
+using motinova::Micros;
+using namespace std::chrono_literals;
+
+inline constexpr const char* kVehicle = "bike-0042";
+inline constexpr const char* kKeyId = "backend-1";
+
+// Every frame the gateway put on the bus, with the virtual time.
+class BusSender final : public node::FrameSender {
+ public:
+  struct Sent {
+    motinova::AppFrame frame;
+    Micros at;
+  };
+  explicit BusSender(sim::VirtualBus& bus) : bus_(bus) {}
+  void set_id(sim::VirtualBus::ParticipantId id) { id_ = id; }
+  bool send(const motinova::AppFrame& frame) override {
+    sent.push_back({frame, bus_.now()});
+    for (const auto& can : motinova::segment(frame)) bus_.send(can, id_);
+    return true;
+  }
+  // LOCK (F+2) / UNLOCK (F+3) writes to lock k's command ID 0x767+k (k < 0: any lock).
+  std::size_t lock_writes(int k = -1, Micros since = Micros{-1}) const {
+    std::size_t n = 0;
+    for (const auto& s : sent) {
+      const int id = s.frame.can_id;
+      if (id < 0x767 || id > 0x76B || s.at < since) continue;
+      const int lock = id - 0x767;
+      if (k >= 0 && lock != k) continue;
+      const int f = s.frame.function - node::ids::lock_function_base(lock);
+      if (f == 2 || f == 3) ++n;
+    }
+    return n;
+  }
+  // Vehicle LOCK (0x760/0x11) or UNLOCK (0x760/0x12) broadcasts.
+  std::size_t vehicle_broadcasts(uint8_t function, Micros since = Micros{-1}) const {
+    std::size_t n = 0;
+    for (const auto& s : sent) {
+      if (s.frame.can_id == 0x760 && s.frame.function == function && s.at >= since) ++n;
+    }
+    return n;
+  }
+  // Anything at all to a lock ID or a vehicle LOCK/UNLOCK since `since`.
+  std::size_t command_frames_since(Micros since) const {
+    return lock_writes(-1, since) + vehicle_broadcasts(0x11, since) +
+           vehicle_broadcasts(0x12, since);
+  }
+
+  std::vector<Sent> sent;
+
+ private:
+  sim::VirtualBus& bus_;
+  sim::VirtualBus::ParticipantId id_ = sim::VirtualBus::kExternal;
+};
+
+inline sim::Scenario quiet_scenario() {
+  sim::Scenario sc;
+  sc.name = "command-test";
+  sc.duration = Micros(3600LL * 1'000'000);
+  sc.locks_locked = true;
+  return sc;
+}
+
+// Feeds decoded messages to the trackers and the command service (the runtime's job).
+class Forwarder final : public runtime::MessageListener {
+ public:
+  domain::DomainTrackers* trackers = nullptr;
+  CommandService* service = nullptr;
+  void on_message(const motinova::DecodedMessage& m, Micros now) override {
+    if (trackers != nullptr) trackers->on_message(m, now);
+    if (service != nullptr) service->on_message(m, now);
+  }
+  void tick(Micros now) override {
+    if (trackers != nullptr) trackers->tick(now);
+    if (service != nullptr) service->tick(now);
+  }
+};
+
+struct Rig {
+  explicit Rig(sim::Scenario scenario = quiet_scenario(), bool start_service = true)
+      : dir("fleetgw-cmd-test"),
+        key(Ed25519PrivateKey::generate()),
+        bus(std::move(scenario)),
+        sender(bus) {
+    cfg.vehicle.id = kVehicle;
+    cfg.command.trusted_keys[kKeyId] = key.public_key().base64();
+    cfg.protocol.lock_kinds = bus.bike().scenario().lock_kinds;
+    db_path = dir.path() / "fleetgw.db";
+    sim::VirtualBus::Participant p;
+    p.name = "gateway";
+    p.on_frame = [this](const motinova::CanFrame& f, Micros ts) {
+      if (core) core->on_can_frame(f, ts);
+    };
+    p.tick = [this](Micros now) {
+      if (core) core->tick(now);
+    };
+    p.next_event = [this] { return core ? core->next_event() : Micros::max(); };
+    sender.set_id(bus.add(std::move(p)));
+    open_store();
+    make_core();
+    if (start_service) make_service();
+  }
+  ~Rig() {
+    service.reset();
+    core.reset();
+  }
+
+  void open_store() {
+    store = std::make_unique<storage::Store>(storage::StoreOptions{.path = db_path});
+  }
+  void make_core() {
+    core = std::make_unique<runtime::GatewayCore>(cfg, sender);
+    core->add_listener(forwarder);
+    domain::DomainConfig dc;
+    dc.apply(cfg.protocol);
+    trackers = std::make_unique<domain::DomainTrackers>(dc, sink);
+    forwarder.trackers = trackers.get();
+    core->start(bus.now());
+  }
+  CommandServiceConfig service_config() {
+    auto c = make_command_service_config(cfg);
+    if (tweak) tweak(c);
+    return c;
+  }
+  void make_service() {
+    service = std::make_unique<CommandService>(
+        service_config(), CommandContext{core->node(), *store, trackers.get(), clock_synced});
+    service->set_result_observer([this](const v1::CommandResult& r, bool resent) {
+      results.push_back(r);
+      resent_flags.push_back(resent);
+    });
+    forwarder.service = service.get();
+  }
+  // A crash: service, node and store gone; then everything is built again on the same file.
+  void restart() {
+    forwarder.service = nullptr;
+    service.reset();
+    forwarder.trackers = nullptr;
+    core.reset();
+    trackers.reset();
+    store.reset();
+    open_store();
+    make_core();
+    make_service();
+  }
+
+  std::string payload(std::string_view lock, std::string_view action, std::string id = {},
+                      Micros expires_in = 60s, std::optional<Micros> issued = std::nullopt) {
+    const Micros now = bus.now();
+    auto cmd = make_command(kVehicle, lock, action, issued.value_or(now), now + expires_in,
+                            id.empty() ? random_command_id() : id);
+    return sign_command(*cmd, key, kKeyId);
+  }
+
+  // The result with this id (first one), if any.
+  const v1::CommandResult* result(std::string_view id) const {
+    for (const auto& r : results) {
+      if (r.command_id() == id) return &r;
+    }
+    return nullptr;
+  }
+  static std::string id_of(const std::string& signed_payload) {
+    v1::SignedCommand s;
+    s.ParseFromString(signed_payload);
+    v1::Command c;
+    c.ParseFromString(s.command());
+    return c.command_id();
+  }
+
+  // Delivers a payload and runs the bus until its result arrives (or max_wait passes).
+  const v1::CommandResult* run(const std::string& signed_payload, Micros max_wait = 10s) {
+    const std::string id = id_of(signed_payload);
+    const std::size_t before = results.size();
+    last_disposition = service->on_payload(signed_payload, bus.now());
+    const Micros until = bus.now() + max_wait;
+    while (bus.now() < until) {
+      for (std::size_t i = before; i < results.size(); ++i) {
+        if (results[i].command_id() == id) return &results[i];
+      }
+      bus.run_for(10ms);
+    }
+    for (std::size_t i = before; i < results.size(); ++i) {
+      if (results[i].command_id() == id) return &results[i];
+    }
+    return nullptr;
+  }
+
+  sim::LockState lock_state(int k) const {
+    return bus.bike().state().lock_states[static_cast<std::size_t>(k)];
+  }
+
+  fleetgw::testing::TempDir dir;
+  std::filesystem::path db_path;
+  Ed25519PrivateKey key;
+  config::Config cfg;
+  sim::VirtualBus bus;
+  BusSender sender;
+  Forwarder forwarder;
+  domain::DomainSink sink;
+  std::unique_ptr<storage::Store> store;
+  std::unique_ptr<runtime::GatewayCore> core;
+  std::unique_ptr<domain::DomainTrackers> trackers;
+  std::unique_ptr<CommandService> service;
+  std::function<bool(Micros)> clock_synced = default_clock_synchronised;
+  std::function<void(CommandServiceConfig&)> tweak;
+  std::vector<v1::CommandResult> results;
+  std::vector<bool> resent_flags;
+  Disposition last_disposition = Disposition::kRejected;
+};
+
+inline std::string reason_code(const v1::CommandResult& r) {
+  return r.reason().substr(0, r.reason().find(':'));
+}
+
+}  // namespace fleetgw::command::testing
