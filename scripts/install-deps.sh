@@ -16,6 +16,7 @@ PACKAGES=(
   libsystemd-dev
   clang libclang-rt-14-dev
   qemu-system-x86 busybox-static cpio xz-utils kmod
+  dpkg-dev file systemd adduser
 )
 
 missing=()

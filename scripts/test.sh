@@ -5,7 +5,10 @@
 #      real mosquitto, real SQLite files, and the SocketCAN tests inside a QEMU VM),
 #   3. runs the libFuzzer target over the reassembler and decoder for FUZZ_SECONDS (default 60),
 #   4. rebuilds with AddressSanitizer + UndefinedBehaviorSanitizer and runs the suite again.
-# Environment: JOBS (default: nproc), FUZZ_SECONDS, SKIP_ASAN=1, SKIP_FUZZ=1, SKIP_VM=1.
+#   The normal pass also builds and installs the Debian package (then purges it) and cross-builds
+#   for arm64, running the unit tests under qemu-aarch64-static.
+# Environment: JOBS (default: nproc), FUZZ_SECONDS, SKIP_ASAN=1, SKIP_FUZZ=1, SKIP_VM=1,
+#   SKIP_ARM64=1.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 ROOT=$(pwd)
@@ -42,6 +45,7 @@ cmake --build build -j "$JOBS"
 echo "== test"
 exclude=""
 [ "${SKIP_VM:-0}" = 1 ] && exclude="vm"
+[ "${SKIP_ARM64:-0}" = 1 ] && exclude="${exclude:+$exclude|}arm64"
 run_ctest build "$exclude" || status=1
 
 if [ "${SKIP_FUZZ:-0}" != 1 ]; then
@@ -68,7 +72,7 @@ if [ "${SKIP_ASAN:-0}" != 1 ]; then
     -DFLEETGW_BUILD_BENCH=OFF >/dev/null
   cmake --build build-asan -j "$JOBS"
   ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
-    run_ctest build-asan "vm|bench" || status=1
+    run_ctest build-asan "vm|bench|deploy|arm64" || status=1
 fi
 
 echo

@@ -1,18 +1,19 @@
 #include "gateway/app/cli.h"
 
-#include <CLI/CLI.hpp>
 #include <fmt/format.h>
+#include <CLI/CLI.hpp>
 
 #include <iostream>
 
-#include "gateway/config/config.h"
-#include "gateway/decode/decode_command.h"
-#include "gateway/runtime/service.h"
-#include "gateway/sim/sim_command.h"
 #include "gateway/app/logging.h"
 #include "gateway/app/watch_command.h"
 #include "gateway/command/command_tool.h"
+#include "gateway/config/config.h"
+#include "gateway/decode/decode_command.h"
 #include "gateway/runtime/recorder.h"
+#include "gateway/runtime/service.h"
+#include "gateway/sim/sim_command.h"
+#include "gateway/status/status_command.h"
 #include "storage/store.h"
 
 namespace fleetgw::app {
@@ -32,7 +33,8 @@ struct ProtocolFlags {
     cmd.add_option("--byte-order", byte_order, "U2: data byte order")
         ->check(CLI::IsMember({"be", "le"}));
     const auto layouts = CLI::IsMember({"documented", "swapped", "two_words_low_first"});
-    cmd.add_option("--mc-fault-layout", mc_fault_layout, "U3: MC fault word layout")->check(layouts);
+    cmd.add_option("--mc-fault-layout", mc_fault_layout, "U3: MC fault word layout")
+        ->check(layouts);
     cmd.add_option("--bms-fault-layout", bms_fault_layout, "U3: BMS fault word layout")
         ->check(layouts);
     cmd.add_option("--other-fault-layout", other_fault_layout, "U3: OBC/IOT/lock fault words")
@@ -42,8 +44,9 @@ struct ProtocolFlags {
     cmd.add_option("--bms-current-sign", bms_current_sign, "U4: which BMS current is positive")
         ->check(CLI::IsMember({"charge_positive", "discharge_positive"}));
     cmd.add_flag("--mc-current-signed", mc_current_signed, "U4: MC bus current is signed");
-    cmd.add_option("--lock-kinds", lock_kinds,
-                   "U21: comma-separated lock kinds of LOCK 1..5, e.g. seat,frame,steering,battery,other");
+    cmd.add_option(
+        "--lock-kinds", lock_kinds,
+        "U21: comma-separated lock kinds of LOCK 1..5, e.g. seat,frame,steering,battery,other");
   }
 
   motinova::DecodeOptions resolve() const {
@@ -52,12 +55,14 @@ struct ProtocolFlags {
     if (!crc_order.empty()) p.crc_order = config::parse_crc_order(crc_order);
     if (!byte_order.empty()) p.data_order = config::parse_byte_order(byte_order);
     if (!mc_fault_layout.empty()) p.mc_fault_layout = config::parse_fault_layout(mc_fault_layout);
-    if (!bms_fault_layout.empty()) p.bms_fault_layout = config::parse_fault_layout(bms_fault_layout);
+    if (!bms_fault_layout.empty())
+      p.bms_fault_layout = config::parse_fault_layout(bms_fault_layout);
     if (!other_fault_layout.empty()) {
       p.other_fault_layout = config::parse_fault_layout(other_fault_layout);
     }
     if (!mc_vi_order.empty()) p.mc_voltage_current_order = config::parse_mc_vi_order(mc_vi_order);
-    if (!bms_current_sign.empty()) p.bms_current_charge_positive = bms_current_sign == "charge_positive";
+    if (!bms_current_sign.empty())
+      p.bms_current_charge_positive = bms_current_sign == "charge_positive";
     if (mc_current_signed) p.mc_current_signed = true;
     if (!lock_kinds.empty()) {
       std::array<std::string, 5> kinds{};
@@ -89,7 +94,8 @@ int run_cli(int argc, char** argv) {
   ProtocolFlags decode_flags;
   int gap_ms = 100;
   decode_cmd->add_option("file", decode_options.input, "candump -L log, or - for stdin");
-  decode_cmd->add_flag("--errors", decode_options.print_errors, "also print one JSON line per error");
+  decode_cmd->add_flag("--errors", decode_options.print_errors,
+                       "also print one JSON line per error");
   decode_cmd->add_option("--gap-ms", gap_ms, "drop a partial message after this gap (U15)")
       ->check(CLI::Range(1, 60'000));
   decode_flags.add_to(*decode_cmd);
@@ -145,7 +151,8 @@ int run_cli(int argc, char** argv) {
     c->add_option("--db", db_path, "database file (overrides the configuration)");
   }
   db_export->add_option("--table", export_table, "table to export")->required();
-  db_export->add_option("--since", export_since_us, "only rows at or after this time (us since epoch)");
+  db_export->add_option("--since", export_since_us,
+                        "only rows at or after this time (us since epoch)");
 
   // watch
   auto* watch_cmd = app.add_subcommand("watch", "print the Envelopes a broker receives, as JSON");
@@ -160,18 +167,29 @@ int run_cli(int argc, char** argv) {
   watch_cmd->add_option("--count", watch_options.max_messages, "stop after this many messages");
   watch_cmd->add_option("--duration", watch_options.duration_s, "stop after this many seconds");
 
+  // status
+  auto* status_cmd = app.add_subcommand(
+      "status", "health of the running service (exit 1: needs attention, 3: no answer)");
+  status::StatusCommandOptions status_options;
+  status_cmd->add_option("--socket", status_options.socket_path, "status socket")
+      ->capture_default_str();
+  status_cmd->add_flag("--json", status_options.json, "print the raw JSON document");
+
   // keygen
   auto* keygen_cmd = app.add_subcommand("keygen", "write an Ed25519 key pair for signing commands");
   std::string keygen_prefix;
-  keygen_cmd->add_option("prefix", keygen_prefix, "writes PREFIX.pem (private, 0600) and PREFIX.pub")
+  keygen_cmd
+      ->add_option("prefix", keygen_prefix, "writes PREFIX.pem (private, 0600) and PREFIX.pub")
       ->required();
 
   // command
-  auto* command_cmd = app.add_subcommand("command", "sign and send a lock/unlock command, wait for its result");
+  auto* command_cmd =
+      app.add_subcommand("command", "sign and send a lock/unlock command, wait for its result");
   command::CommandToolOptions cmd_options;
   int64_t cmd_timeout_s = 10, cmd_expires_s = 60;
   command_cmd->add_option("--vehicle", cmd_options.vehicle, "vehicle id")->required();
-  command_cmd->add_option("--lock", cmd_options.lock, "lock kind (seat, battery, frame...) or vehicle")
+  command_cmd
+      ->add_option("--lock", cmd_options.lock, "lock kind (seat, battery, frame...) or vehicle")
       ->required();
   command_cmd->add_option("--action", cmd_options.action, "lock or unlock")
       ->required()
@@ -246,6 +264,8 @@ int run_cli(int argc, char** argv) {
       return 0;
     }
     if (watch_cmd->parsed()) return run_watch(watch_options, std::cout);
+    if (status_cmd->parsed())
+      return status::run_status_command(status_options, std::cout, std::cerr);
     if (keygen_cmd->parsed()) return command::run_keygen(keygen_prefix, std::cout);
     if (command_cmd->parsed()) {
       cmd_options.timeout = std::chrono::seconds(cmd_timeout_s);

@@ -1,3 +1,5 @@
 #include "gateway/app/cli.h"
 
-int main(int argc, char** argv) { return fleetgw::app::run_cli(argc, argv); }
+int main(int argc, char** argv) {
+  return fleetgw::app::run_cli(argc, argv);
+}

@@ -18,7 +18,9 @@ namespace {
 
 // Set from the signal handler only; a watch is a one-shot command-line tool.
 volatile std::sig_atomic_t g_stop = 0;
-void on_signal(int) { g_stop = 1; }
+void on_signal(int) {
+  g_stop = 1;
+}
 
 std::string to_json(const google::protobuf::Message& m) {
   std::string json;
@@ -50,13 +52,12 @@ int run_watch(const WatchOptions& options, std::ostream& out) {
     client.connect(conn.finalize())->wait();
     client.subscribe(options.topic, 1)->wait();
   } catch (const mqtt::exception& e) {
-    std::cerr << "watch: cannot subscribe to " << options.topic << " at " << options.broker
-              << ": " << e.what() << '\n';
+    std::cerr << "watch: cannot subscribe to " << options.topic << " at " << options.broker << ": "
+              << e.what() << '\n';
     return 1;
   }
-  const auto deadline =
-      std::chrono::steady_clock::now() +
-      std::chrono::milliseconds(static_cast<int64_t>(options.duration_s * 1000));
+  const auto deadline = std::chrono::steady_clock::now() +
+                        std::chrono::milliseconds(static_cast<int64_t>(options.duration_s * 1000));
   long seen = 0;
   while (!g_stop) {
     if (options.duration_s > 0 && std::chrono::steady_clock::now() >= deadline) break;
@@ -69,8 +70,8 @@ int run_watch(const WatchOptions& options, std::ostream& out) {
       out << R"({"topic":")" << msg->get_topic() << R"(","error":"not a fleetgw.v1.Envelope ()"
           << payload.size() << " bytes)\"}" << std::endl;
     } else {
-      out << R"({"topic":")" << msg->get_topic() << R"(","envelope":)" << to_json(envelope)
-          << "}" << std::endl;
+      out << R"({"topic":")" << msg->get_topic() << R"(","envelope":)" << to_json(envelope) << "}"
+          << std::endl;
     }
     if (options.max_messages > 0 && ++seen >= options.max_messages) break;
   }

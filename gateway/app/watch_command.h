@@ -21,8 +21,8 @@ struct WatchOptions {
   std::string key_file;
   std::string username;
   std::string password;
-  long max_messages = 0;   // 0 = unlimited
-  double duration_s = 0;   // 0 = until a signal
+  long max_messages = 0;  // 0 = unlimited
+  double duration_s = 0;  // 0 = until a signal
 };
 
 int run_watch(const WatchOptions& options, std::ostream& out);

@@ -2,10 +2,10 @@
 
 #include <fmt/format.h>
 
+#include <toml++/toml.h>
 #include <fstream>
 #include <set>
 #include <sstream>
-#include <toml++/toml.h>
 
 namespace fleetgw::config {
 namespace {
@@ -54,7 +54,8 @@ class Section {
     }
   }
 
-  void choice(std::string_view key, std::string& out, std::initializer_list<std::string_view> allowed) {
+  void choice(std::string_view key, std::string& out,
+              std::initializer_list<std::string_view> allowed) {
     std::string value = out;
     const toml::node* n = find(key);
     if (!n) return;
@@ -124,7 +125,8 @@ class Section {
     for (std::size_t i = 0; i < N; ++i) {
       const auto* s = (*a)[i].as_string();
       if (!s || (!allow_empty && s->get().empty())) {
-        problem(*n, key, fmt::format("element {} must be a{} string", i, allow_empty ? "" : " non-empty"));
+        problem(*n, key,
+                fmt::format("element {} must be a{} string", i, allow_empty ? "" : " non-empty"));
         return;
       }
       values[i] = s->get();
@@ -166,8 +168,8 @@ class Section {
     if (!table_) return;
     for (const auto& [k, v] : *table_) {
       if (!seen_.count(std::string(k.str()))) {
-        problems_.push_back(fmt::format("{}:{}: {}: unknown key", file_, v.source().begin.line,
-                                        qualify(k.str())));
+        problems_.push_back(
+            fmt::format("{}:{}: {}: unknown key", file_, v.source().begin.line, qualify(k.str())));
       }
     }
   }
@@ -215,7 +217,8 @@ Config parse_root(const toml::table& root, const std::string& name) {
     }
     {
       auto s = top.sub("log");
-      s.choice("level", c.log.level, {"trace", "debug", "info", "warn", "error", "critical", "off"});
+      s.choice("level", c.log.level,
+               {"trace", "debug", "info", "warn", "error", "critical", "off"});
     }
     {
       auto s = top.sub("can");
@@ -236,9 +239,9 @@ Config parse_root(const toml::table& root, const std::string& name) {
       s.string("model", c.node.identity.model);
       s.string("serial", c.node.identity.serial);
       s.string("hw", c.node.identity.hw);
-      for (auto [key, value] : {std::pair{"model", &c.node.identity.model},
-                                std::pair{"serial", &c.node.identity.serial},
-                                std::pair{"hw", &c.node.identity.hw}}) {
+      for (auto [key, value] :
+           {std::pair{"model", &c.node.identity.model},
+            std::pair{"serial", &c.node.identity.serial}, std::pair{"hw", &c.node.identity.hw}}) {
         if (value->size() > 16) s.invalid(key, "at most 16 ASCII characters (model-info block)");
       }
       s.integer("offline_timeout_ms", c.node.offline_timeout_ms, 200, 600'000);
@@ -305,6 +308,10 @@ Config parse_root(const toml::table& root, const std::string& name) {
     {
       auto s = top.sub("faults");
       s.integer("debounce_ms", c.faults.debounce_ms, 0, 600'000);
+    }
+    {
+      auto s = top.sub("status");
+      s.string("socket", c.status.socket);
     }
     {
       auto s = top.sub("command");

@@ -34,7 +34,7 @@ struct LogConfig {
 };
 
 struct CanConfig {
-  std::string transport = "sim";  // socketcan | replay | udp | sim
+  std::string transport = "socketcan";  // socketcan | replay | udp | sim
   std::string interface = "can0";
   std::string replay_file;
   double replay_speed = 0.0;  // 0 = as fast as possible, 1 = recorded speed
@@ -120,6 +120,10 @@ struct CommandConfig {
   int retries = 1;
 };
 
+struct StatusConfig {
+  std::string socket = "/run/fleetgw/status.sock";  // `fleetgw status` asks here; "" = off
+};
+
 struct Config {
   std::filesystem::path source;  // file it was loaded from (empty for defaults)
   VehicleConfig vehicle;
@@ -134,6 +138,7 @@ struct Config {
   RideConfig ride;
   FaultConfig faults;
   CommandConfig command;
+  StatusConfig status;
 };
 
 // Loads and validates a TOML file.
@@ -142,9 +147,11 @@ Config load_config(const std::filesystem::path& file);
 Config parse_config(std::string_view toml_text, const std::string& name);
 
 // Protocol option spellings shared with the decode tool's command-line flags.
-motinova::CrcOrder parse_crc_order(std::string_view s);      // be | le | auto
-motinova::ByteOrder parse_byte_order(std::string_view s);    // be | le
-motinova::FaultWordLayout parse_fault_layout(std::string_view s);  // documented | swapped | two_words_low_first
-motinova::McVoltageCurrentOrder parse_mc_vi_order(std::string_view s);  // voltage_first | current_first | auto
+motinova::CrcOrder parse_crc_order(std::string_view s);    // be | le | auto
+motinova::ByteOrder parse_byte_order(std::string_view s);  // be | le
+motinova::FaultWordLayout parse_fault_layout(
+    std::string_view s);  // documented | swapped | two_words_low_first
+motinova::McVoltageCurrentOrder parse_mc_vi_order(
+    std::string_view s);  // voltage_first | current_first | auto
 
 }  // namespace fleetgw::config

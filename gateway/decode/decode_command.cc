@@ -42,9 +42,9 @@ std::string format_summary(const DecodeSummary& s) {
   std::string errors;
   for (std::size_t k = 0; k < motinova::kReassemblyErrorKinds; ++k) {
     if (s.reassembly.errors[k] == 0) continue;
-    errors += fmt::format(" {}={}",
-                          motinova::reassembly_error_name(static_cast<motinova::ReassemblyError>(k)),
-                          s.reassembly.errors[k]);
+    errors += fmt::format(
+        " {}={}", motinova::reassembly_error_name(static_cast<motinova::ReassemblyError>(k)),
+        s.reassembly.errors[k]);
   }
   text += errors.empty() ? "; no frame errors" : "; frame errors:" + errors;
   if (s.non_data_frames) {
@@ -81,7 +81,9 @@ int run_decode(const DecodeCommandOptions& options, std::ostream& out, std::ostr
   reader.on_error([&](const can::candump::ParseError& e) {
     err << source << ": " << e.message << '\n';
     if (options.print_errors) {
-      out << nlohmann::ordered_json{{"error", "malformed_line"}, {"line", e.line}, {"message", e.message}}
+      out << nlohmann::ordered_json{{"error", "malformed_line"},
+                                    {"line", e.line},
+                                    {"message", e.message}}
                  .dump()
           << '\n';
     }

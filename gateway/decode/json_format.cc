@@ -56,7 +56,9 @@ json fault_word(const motinova::DecodedMessage& m, const motinova::FieldValue& v
 
 }  // namespace
 
-std::string hex_id(uint32_t value, int digits) { return fmt::format("0x{:0{}X}", value, digits); }
+std::string hex_id(uint32_t value, int digits) {
+  return fmt::format("0x{:0{}X}", value, digits);
+}
 
 std::string lock_kind(motinova::Node node, const motinova::DecodeOptions& options) {
   if (!motinova::is_lock(node)) return "";

@@ -15,11 +15,11 @@ namespace fleetgw::decode {
 
 // {"ts", "can_id", "src", "dst", "mode", "function", "message", "fields"}.
 nlohmann::ordered_json message_to_json(const motinova::DecodedMessage& message, motinova::Micros ts,
-                               const motinova::DecodeOptions& options);
+                                       const motinova::DecodeOptions& options);
 
 // Only the "fields" object.
 nlohmann::ordered_json fields_to_json(const motinova::DecodedMessage& message,
-                              const motinova::DecodeOptions& options);
+                                      const motinova::DecodeOptions& options);
 
 // {"ts", "can_id", "error", "bytes_dropped"}.
 nlohmann::ordered_json error_to_json(const motinova::ReassemblyErrorEvent& error);

@@ -7,7 +7,9 @@
 namespace fleetgw::runtime {
 namespace {
 
-Micros ms(int v) { return Micros(int64_t{v} * 1000); }
+Micros ms(int v) {
+  return Micros(int64_t{v} * 1000);
+}
 
 }  // namespace
 
@@ -43,8 +45,8 @@ node::NodeConfig make_node_config(const config::Config& c) {
 GatewayCore::GatewayCore(const config::Config& config, node::FrameSender& sender,
                          node::NodeHooks hooks)
     : options_(config.protocol),
-      reassembler_(motinova::ReassemblerOptions{
-          .gap_timeout = ms(config.can.reassembly_gap_ms), .crc_order = config.protocol.crc_order}),
+      reassembler_(motinova::ReassemblerOptions{.gap_timeout = ms(config.can.reassembly_gap_ms),
+                                                .crc_order = config.protocol.crc_order}),
       echo_(sender, *this),
       node_(std::make_unique<node::IotNode>(make_node_config(config), options_, echo_,
                                             std::move(hooks))) {}
@@ -76,9 +78,10 @@ void GatewayCore::on_frame(const motinova::AppFrame& frame, Micros ts) {
   if (decoded_.status == motinova::DecodeStatus::kUnknownMessage) ++stats_.unknown_messages;
   if (decoded_.status == motinova::DecodeStatus::kLengthMismatch) {
     ++stats_.length_mismatches;
-    spdlog::warn("bus: {} function 0x{:02X} has {} data bytes, the catalogue expects another "
-                 "length; kept as unknown",
-                 decode::hex_id(frame.can_id), frame.function, frame.data.size());
+    spdlog::warn(
+        "bus: {} function 0x{:02X} has {} data bytes, the catalogue expects another "
+        "length; kept as unknown",
+        decode::hex_id(frame.can_id), frame.function, frame.data.size());
   }
   node_->on_frame(frame, decoded_, ts);
   live_.update(decoded_, options_);

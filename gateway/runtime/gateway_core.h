@@ -58,8 +58,7 @@ class GatewayCore final : private motinova::FrameSink {
  public:
   static constexpr Micros kTickInterval{50'000};
 
-  GatewayCore(const config::Config& config, node::FrameSender& sender,
-              node::NodeHooks hooks = {});
+  GatewayCore(const config::Config& config, node::FrameSender& sender, node::NodeHooks hooks = {});
   ~GatewayCore() override;
 
   void add_listener(MessageListener& listener) { listeners_.push_back(&listener); }

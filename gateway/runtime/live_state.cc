@@ -69,9 +69,10 @@ std::string LiveState::line() const {
   auto num = [](const std::optional<double>& v, const char* fmt_spec, const char* unit) {
     return v ? fmt::format(fmt::runtime(fmt_spec), *v) + unit : std::string("--") + unit;
   };
-  std::string out = fmt::format("{:>9} | {:<6} | SOC {:>5} | {:>7} {:>8}", num(speed_kmh, "{:.1f}", " km/h"),
-                                assist.value_or("--"), num(soc_pct, "{:.0f}", "%"),
-                                num(pack_voltage_v, "{:.1f}", " V"), num(pack_current_a, "{:+.1f}", " A"));
+  std::string out =
+      fmt::format("{:>9} | {:<6} | SOC {:>5} | {:>7} {:>8}", num(speed_kmh, "{:.1f}", " km/h"),
+                  assist.value_or("--"), num(soc_pct, "{:.0f}", "%"),
+                  num(pack_voltage_v, "{:.1f}", " V"), num(pack_current_a, "{:+.1f}", " A"));
   if (charging && *charging) out += " charging";
   out += " |";
   for (const auto& l : locks) {

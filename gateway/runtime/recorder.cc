@@ -5,7 +5,9 @@
 namespace fleetgw::runtime {
 namespace {
 
-Micros ms(int64_t v) { return Micros(v * 1000); }
+Micros ms(int64_t v) {
+  return Micros(v * 1000);
+}
 
 // Appends every record of `from` to `to` (used to retry a failed batch together with new ones).
 void append(storage::Batch& to, storage::Batch&& from) {
@@ -43,8 +45,8 @@ storage::StoreOptions make_store_options(const config::Config& c) {
   storage::StoreOptions o;
   o.path = c.storage.path;
   o.max_bytes = static_cast<uint64_t>(c.storage.max_mb) * 1024 * 1024;
-  o.durability = c.storage.synchronous == "full" ? storage::Durability::kFull
-                                                 : storage::Durability::kNormal;
+  o.durability =
+      c.storage.synchronous == "full" ? storage::Durability::kFull : storage::Durability::kNormal;
   return o;
 }
 

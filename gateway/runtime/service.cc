@@ -10,21 +10,23 @@
 #include "gateway/can/replay_transport.h"
 #include "gateway/can/socketcan_transport.h"
 #include "gateway/can/udp_transport.h"
+#include "gateway/command/command_service.h"
 #include "gateway/node/transport_sender.h"
 #include "gateway/runtime/recorder.h"
+#include "gateway/runtime/status_provider.h"
 #include "gateway/runtime/store_outbox.h"
-#include "gateway/command/command_service.h"
-#include "gateway/uplink/uplink.h"
-#include "storage/store.h"
 #include "gateway/sim/scenario.h"
 #include "gateway/sim/sim_transport.h"
+#include "gateway/status/notifier.h"
+#include "gateway/status/status_server.h"
+#include "gateway/uplink/uplink.h"
+#include "storage/store.h"
 
 namespace fleetgw::runtime {
 namespace {
 
 Micros system_now() {
-  return std::chrono::duration_cast<Micros>(
-      std::chrono::system_clock::now().time_since_epoch());
+  return std::chrono::duration_cast<Micros>(std::chrono::system_clock::now().time_since_epoch());
 }
 
 // "127.0.0.1:20000" -> address, port; throws naming the key.
@@ -155,11 +157,18 @@ int run_service(const config::Config& config, const ServiceOptions& options,
   asio::steady_timer stop_timer(io);
   asio::steady_timer uplink_timer(io);
   asio::signal_set signals(io, SIGINT, SIGTERM);
+  // systemd integration: READY once bus and store are open, watchdog pings from this loop.
+  status::Notifier notifier = status::Notifier::from_environment();
+  std::optional<status::LoopWatchdog> watchdog;
+  std::optional<status::StatusServer> status_server;
 
   auto stop = [&](const char* why) {
     if (stopping) return;
     stopping = true;
     spdlog::info("stopping: {}", why);
+    notifier.stopping();
+    if (watchdog) watchdog->stop();
+    if (status_server) status_server->stop();
     bus.transport->stop();
     tick_timer.cancel();
     live_timer.cancel();
@@ -288,6 +297,23 @@ int run_service(const config::Config& config, const ServiceOptions& options,
     up->start(system_now());
     arm_uplink();
   }
+  if (const auto timeout = status::watchdog_timeout_from_environment()) {
+    watchdog.emplace(io, notifier, *timeout);
+    watchdog->start();
+  }
+  if (!config.status.socket.empty()) {
+    try {
+      const std::filesystem::path socket(config.status.socket);
+      if (socket.has_parent_path()) std::filesystem::create_directories(socket.parent_path());
+      status_server.emplace(io, socket, [&] {
+        return make_status_json(
+            StatusInputs{config, core, *bus.transport, *store, up.get(), start, now()});
+      });
+    } catch (const std::exception& e) {
+      spdlog::warn("status socket {} disabled: {}", config.status.socket, e.what());
+    }
+  }
+  notifier.ready(std::string(config.can.transport) + " on " + std::string(bus.transport->name()));
   io.run();
   recorder.flush(bus.replay ? last_frame_ts : now());
   if (up) {
@@ -309,9 +335,10 @@ int run_service(const config::Config& config, const ServiceOptions& options,
       std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
   const double virt =
       first_ts.count() < 0 ? 0.0 : static_cast<double>((last_frame_ts - first_ts).count()) / 1e6;
-  spdlog::info("stopped: {} CAN frames, {} messages, {} frame errors, {:.1f} s of bus time in "
-               "{:.2f} s",
-               stats.can_frames, core.stats().messages, stats.total_errors(), virt, wall);
+  spdlog::info(
+      "stopped: {} CAN frames, {} messages, {} frame errors, {:.1f} s of bus time in "
+      "{:.2f} s",
+      stats.can_frames, core.stats().messages, stats.total_errors(), virt, wall);
   if (report) {
     report->can_frames = stats.can_frames;
     report->messages = core.stats().messages;

@@ -10,15 +10,24 @@ namespace fleetgw::runtime {
 
 std::string uplink_kind(storage::OutboxKind kind) {
   switch (kind) {
-    case storage::OutboxKind::kTelemetry: return uplink::kind::kTelemetry;
-    case storage::OutboxKind::kRide: return uplink::kind::kRide;
-    case storage::OutboxKind::kFault: return uplink::kind::kFault;
-    case storage::OutboxKind::kPack: return uplink::kind::kPack;
-    case storage::OutboxKind::kLock: return uplink::kind::kLock;
-    case storage::OutboxKind::kInfo: return uplink::kind::kInfo;
-    case storage::OutboxKind::kStatus: return uplink::kind::kStatus;
-    case storage::OutboxKind::kCommandResult: return uplink::kind::kCommandResult;
-    case storage::OutboxKind::kEvictionReport: return uplink::kind::kEviction;
+    case storage::OutboxKind::kTelemetry:
+      return uplink::kind::kTelemetry;
+    case storage::OutboxKind::kRide:
+      return uplink::kind::kRide;
+    case storage::OutboxKind::kFault:
+      return uplink::kind::kFault;
+    case storage::OutboxKind::kPack:
+      return uplink::kind::kPack;
+    case storage::OutboxKind::kLock:
+      return uplink::kind::kLock;
+    case storage::OutboxKind::kInfo:
+      return uplink::kind::kInfo;
+    case storage::OutboxKind::kStatus:
+      return uplink::kind::kStatus;
+    case storage::OutboxKind::kCommandResult:
+      return uplink::kind::kCommandResult;
+    case storage::OutboxKind::kEvictionReport:
+      return uplink::kind::kEviction;
   }
   return "invalid";
 }
@@ -50,8 +59,8 @@ std::vector<uplink::OutboxEntry> StoreOutbox::peek(std::size_t max_entries, std:
   std::vector<uplink::OutboxEntry> out;
   if (max_entries == 0) return out;
   store_.release_all();
-  auto rows = store_.peek_outbox(max_entries + exclude.size(),
-                                 std::numeric_limits<std::size_t>::max());
+  auto rows =
+      store_.peek_outbox(max_entries + exclude.size(), std::numeric_limits<std::size_t>::max());
   store_.release_all();
   std::size_t bytes = 0;
   for (auto& row : rows) {
@@ -76,7 +85,9 @@ std::vector<uplink::OutboxEntry> StoreOutbox::peek(std::size_t max_entries, std:
   return out;
 }
 
-void StoreOutbox::ack(std::span<const std::uint64_t> seqs) { store_.ack(seqs); }
+void StoreOutbox::ack(std::span<const std::uint64_t> seqs) {
+  store_.ack(seqs);
+}
 
 uplink::OutboxStats StoreOutbox::stats() const {
   uplink::OutboxStats s;

@@ -18,7 +18,7 @@ std::vector<std::string> problems_of(const std::string& text) {
 
 TEST(Config, EmptyFileIsTheDefaults) {
   const Config c = parse_config("", "empty.toml");
-  EXPECT_EQ(c.can.transport, "sim");
+  EXPECT_EQ(c.can.transport, "socketcan");
   EXPECT_EQ(c.protocol.crc_order, motinova::CrcOrder::kBig);
   EXPECT_EQ(c.protocol.data_order, motinova::ByteOrder::kBig);
   EXPECT_EQ(c.node.request_retry_ms, 200);
@@ -70,7 +70,8 @@ TEST(Config, BadChoiceListsTheAllowedValues) {
 
 TEST(Config, EveryProblemIsReportedAtOnce) {
   const auto p = problems_of(
-      "[can]\ntransport = \"cam\"\n[mqtt]\nkeepalive_s = 1\ncert_file = \"c.pem\"\n[ride]\nfoo = 1\n");
+      "[can]\ntransport = \"cam\"\n[mqtt]\nkeepalive_s = 1\ncert_file = \"c.pem\"\n[ride]\nfoo = "
+      "1\n");
   EXPECT_EQ(p.size(), 4u);
 }
 
@@ -83,7 +84,8 @@ TEST(Config, SyntaxErrorHasLineAndColumn) {
 TEST(Config, ProtocolOptionsAreApplied) {
   const Config c = parse_config(
       "[protocol]\ncrc_order = \"auto\"\ndata_order = \"le\"\nmc_fault_layout = \"swapped\"\n"
-      "bms_current_charge_positive = false\nlock_kinds = [\"battery\", \"\", \"\", \"\", \"frame\"]\n",
+      "bms_current_charge_positive = false\nlock_kinds = [\"battery\", \"\", \"\", \"\", "
+      "\"frame\"]\n",
       "p.toml");
   EXPECT_EQ(c.protocol.crc_order, motinova::CrcOrder::kAuto);
   EXPECT_EQ(c.protocol.data_order, motinova::ByteOrder::kLittle);
@@ -95,9 +97,10 @@ TEST(Config, ProtocolOptionsAreApplied) {
 
 TEST(Config, LockStateNamesMustBeSevenNonEmptyStrings) {
   EXPECT_EQ(problems_of("[protocol]\nlock_state_names = [\"a\", \"b\"]\n").size(), 1u);
-  EXPECT_EQ(problems_of("[protocol]\nlock_state_names = [\"a\",\"b\",\"c\",\"d\",\"e\",\"f\",\"\"]\n")
-                .size(),
-            1u);
+  EXPECT_EQ(
+      problems_of("[protocol]\nlock_state_names = [\"a\",\"b\",\"c\",\"d\",\"e\",\"f\",\"\"]\n")
+          .size(),
+      1u);
 }
 
 TEST(Config, IdentityMustFitTheModelInfoBlock) {

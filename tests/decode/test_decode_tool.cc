@@ -121,8 +121,8 @@ TEST(DecodeTool, LockStatusNamesKindAndState) {
 
 TEST(DecodeTool, FaultWordListsActiveFaults) {
   // MC fault word: over-current (low 0x0001) and MOS short circuit (high 0x0001).
-  motinova::AppFrame f = motinova::make_frame(
-      0x710, motinova::Mode::kReport, 0x11, std::vector<uint8_t>{0x00, 0x01, 0x00, 0x01});
+  motinova::AppFrame f = motinova::make_frame(0x710, motinova::Mode::kReport, 0x11,
+                                              std::vector<uint8_t>{0x00, 0x01, 0x00, 0x01});
   const auto encoded = motinova::encode_frame(f);
   std::string hex;
   for (uint8_t b : encoded) hex += fmt::format("{:02X}", b);
@@ -150,7 +150,8 @@ TEST(DecodeTool, CorruptFramesAreCountedNeverPrinted) {
   for (const auto& l : r.lines) {
     if (l.contains("fields")) ++messages;
     if (l.contains("error")) ++errors;
-    if (l.value("error", "") == "malformed_line") malformed_line_reported = l["line"] == 10;  // 4 + 4 segments, then 2 lines
+    if (l.value("error", "") == "malformed_line")
+      malformed_line_reported = l["line"] == 10;  // 4 + 4 segments, then 2 lines
   }
   EXPECT_EQ(messages, 1);
   EXPECT_EQ(errors, 3);  // bad CRC, truncated start, malformed line
@@ -162,8 +163,8 @@ TEST(DecodeTool, CorruptFramesAreCountedNeverPrinted) {
 }
 
 TEST(DecodeTool, UnknownMessageKeepsRawData) {
-  motinova::AppFrame f = motinova::make_frame(0x7B0, motinova::Mode::kReport, 0x77,
-                                              std::vector<uint8_t>{0xDE, 0xAD});
+  motinova::AppFrame f =
+      motinova::make_frame(0x7B0, motinova::Mode::kReport, 0x77, std::vector<uint8_t>{0xDE, 0xAD});
   std::string hex;
   for (uint8_t b : motinova::encode_frame(f)) hex += fmt::format("{:02X}", b);
   const auto r = decode_text(log_of(0x7B0, hex, 1763700000000000));

@@ -9,8 +9,11 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <cstdlib>
+#include <filesystem>
 #include <fstream>
 #include <map>
+#include <nlohmann/json.hpp>
 #include <random>
 #include <set>
 #include <sstream>
@@ -183,7 +186,8 @@ TEST(EndToEnd, RideReachesTheBrokerCompleteAndInOrder) {
   ASSERT_EQ(wait_exit(spawn_gateway(config, 6.0)), 0);
 
   Db db((dir.path() / "fleetgw.db").string());
-  const int64_t next = db.scalar("SELECT CAST(value AS INTEGER) FROM meta WHERE key = 'storage.next_seq'");
+  const int64_t next =
+      db.scalar("SELECT CAST(value AS INTEGER) FROM meta WHERE key = 'storage.next_seq'");
   const int64_t stored = db.scalar("SELECT count(*) FROM telemetry") +
                          db.scalar("SELECT count(*) FROM rides WHERE state = 'closed'") +
                          db.scalar("SELECT count(*) FROM fault_events") +
@@ -283,6 +287,57 @@ TEST(CrashSafety, KilledWhileIngestingKeepsTheStoreIntact) {
     EXPECT_GT(seqs.size(), previous.size()) << "round " << round << " committed nothing new";
     previous = seqs;
   }
+}
+
+// Issue 7: `fleetgw status` against a running gateway on the simulated bike shows the nodes,
+// faults and lock states of the scenario, and exits non-zero when something needs attention
+// (here: the broker is unreachable and a lock never answers).
+TEST(Status, ShowsTheScenarioAndFlagsAnUnreachableBroker) {
+  TempDir dir("fleetgw-status");
+  const std::string socket = (dir.path() / "status.sock").string();
+  std::ostringstream c;
+  c << "[vehicle]\nid = \"" << kVehicle << "\"\n[log]\nlevel = \"error\"\n"
+    << "[can]\ntransport = \"sim\"\n[sim]\nscenario = \"" << FLEETGW_SOURCE_DIR
+    << "/config/scenarios/faults.toml\"\nspeed = 4\n[storage]\npath = \""
+    << (dir.path() / "db").string() << "\"\n[status]\nsocket = \"" << socket << "\"\n"
+    << "[mqtt]\nenabled = true\nuri = \"tcp://127.0.0.1:9\"\n";
+  const std::string config = (dir.path() / "fleetgw.toml").string();
+  std::ofstream(config) << c.str();
+  const pid_t gateway = spawn_gateway(config, 20.0);
+  ASSERT_TRUE(wait_for([&] { return std::filesystem::exists(socket); }, 10s));
+  std::this_thread::sleep_for(6s);  // the scenario's lock jam and the offline timeouts happen
+
+  const std::string out = (dir.path() / "status.json").string();
+  const std::string cmd =
+      std::string(FLEETGW_BINARY) + " status --json --socket " + socket + " > " + out;
+  const int rc = std::system(cmd.c_str());
+  kill(gateway, SIGTERM);
+  EXPECT_EQ(wait_exit(gateway), 0);
+  ASSERT_TRUE(WIFEXITED(rc));
+  EXPECT_EQ(WEXITSTATUS(rc), 1) << "needs attention: broker unreachable, silent lock";
+
+  const auto doc = nlohmann::json::parse(read_file(out));
+  EXPECT_EQ(doc["vehicle_id"], kVehicle);
+  EXPECT_EQ(doc["bus"]["state"], "up");
+  EXPECT_EQ(doc["broker"]["enabled"], true);
+  EXPECT_EQ(doc["broker"]["connected"], false);
+  std::map<std::string, bool> online;
+  for (const auto& n : doc["nodes"]) online[n["name"]] = n["online"];
+  EXPECT_TRUE(online["mc"]);
+  EXPECT_TRUE(online["bms"]);
+  EXPECT_TRUE(online["obc"]);
+  EXPECT_FALSE(online["lock3"]) << "the faults scenario's silent lock";
+  std::map<std::string, std::string> locks;
+  for (const auto& l : doc["locks"]) locks[l["kind"]] = l["state"];
+  EXPECT_EQ(locks.size(), 5u);
+  EXPECT_EQ(locks["steering"], "unknown");
+  EXPECT_NE(locks["seat"], "unknown");
+
+  // With the gateway gone the command says so with its own exit code.
+  const int gone = std::system(
+      (std::string(FLEETGW_BINARY) + " status --socket " + socket + " > /dev/null 2>&1").c_str());
+  ASSERT_TRUE(WIFEXITED(gone));
+  EXPECT_EQ(WEXITSTATUS(gone), 3);
 }
 
 }  // namespace

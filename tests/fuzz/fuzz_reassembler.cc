@@ -43,8 +43,8 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   options.bms_current_charge_positive = (selector & 0x80) != 0;
   const CrcOrder crc_order = static_cast<CrcOrder>(selector % 3);
 
-  Reassembler reassembler(ReassemblerOptions{.gap_timeout = Micros(100'000),
-                                             .crc_order = crc_order});
+  Reassembler reassembler(
+      ReassemblerOptions{.gap_timeout = Micros(100'000), .crc_order = crc_order});
   CheckingSink sink;
   sink.options = &options;
   Micros now{0};

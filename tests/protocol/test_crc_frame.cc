@@ -15,17 +15,17 @@ using test::hex;
 
 TEST(Crc32, CheckValueOfAsciiDigits) {
   const std::string digits = "123456789";
-  EXPECT_EQ(crc32({reinterpret_cast<const uint8_t*>(digits.data()), digits.size()}),
-            0x1556F485u);
+  EXPECT_EQ(crc32({reinterpret_cast<const uint8_t*>(digits.data()), digits.size()}), 0x1556F485u);
 }
 
-TEST(Crc32, EmptyInputIsInitValue) { EXPECT_EQ(crc32({}), 0xFFFFFFFFu); }
+TEST(Crc32, EmptyInputIsInitValue) {
+  EXPECT_EQ(crc32({}), 0xFFFFFFFFu);
+}
 
 TEST(Crc32, IsNotZlibCrc) {
   // zlib's CRC-32 of "123456789" is 0xCBF43926; the MOTINOVA CRC must differ.
   const std::string digits = "123456789";
-  EXPECT_NE(crc32({reinterpret_cast<const uint8_t*>(digits.data()), digits.size()}),
-            0xCBF43926u);
+  EXPECT_NE(crc32({reinterpret_cast<const uint8_t*>(digits.data()), digits.size()}), 0xCBF43926u);
 }
 
 TEST(Crc32, UpdateIsIncremental) {
@@ -122,14 +122,14 @@ INSTANTIATE_TEST_SUITE_P(Spec, SpecVector, ::testing::ValuesIn(kVectors),
                          [](const auto& info) { return std::string(info.param.name); });
 
 TEST(SpecLittleEndianVectors, AsPrinted) {
-  EXPECT_TRUE(parse_frame(0x712, hex("55 AA 11 03 22 01 00 22 51 29 01 F0"), CrcOrder::kLittle)
-                  .ok());
+  EXPECT_TRUE(
+      parse_frame(0x712, hex("55 AA 11 03 22 01 00 22 51 29 01 F0"), CrcOrder::kLittle).ok());
   EXPECT_TRUE(parse_frame(0x767, hex("55 AA 16 08 83 06 55 4E 4C 4F 43 4B 96 4B 0B 84 F0"),
                           CrcOrder::kLittle)
                   .ok());
-  EXPECT_TRUE(parse_frame(0x710, hex("55 AA 0C 07 13 05 52 45 41 44 59 43 7A 42 69 F0"),
-                          CrcOrder::kLittle)
-                  .ok());
+  EXPECT_TRUE(
+      parse_frame(0x710, hex("55 AA 0C 07 13 05 52 45 41 44 59 43 7A 42 69 F0"), CrcOrder::kLittle)
+          .ok());
 }
 
 // CDL<->APP link frames carry the ID inside the frame; their CRC is the plain CRC of everything
@@ -148,8 +148,8 @@ TEST(DecoderVectors, FramesOfSpecSection25) {
   const auto r = parse_frame(0x710, mc, CrcOrder::kBig);
   ASSERT_TRUE(r.ok()) << frame_error_name(r.error);
   EXPECT_EQ(r.frame.command(), 0x1020);
-  const auto lock = hex(
-      "55 AA 0C 12 10 10 2E E0 00 96 41 02 00 01 00 00 00 00 00 00 00 00 3C 35 01 BD F0");
+  const auto lock =
+      hex("55 AA 0C 12 10 10 2E E0 00 96 41 02 00 01 00 00 00 00 00 00 00 00 3C 35 01 BD F0");
   const auto l = parse_frame(0x770, lock, CrcOrder::kBig);
   ASSERT_TRUE(l.ok());
   EXPECT_EQ(l.frame.command(), 0x1010);
@@ -162,13 +162,15 @@ TEST(Segmentation, SpecExamples) {
     std::vector<const char*> segments;
   };
   const Case cases[] = {
-      {0x712, "55 AA 11 03 22 01 00 01 29 51 22 F0",
-       {"55 AA 11 03 22 01 00 01", "29 51 22 F0"}},
-      {0x767, "55 AA 16 08 83 06 55 4E 4C 4F 43 4B 84 0B 4B 96 F0",
+      {0x712, "55 AA 11 03 22 01 00 01 29 51 22 F0", {"55 AA 11 03 22 01 00 01", "29 51 22 F0"}},
+      {0x767,
+       "55 AA 16 08 83 06 55 4E 4C 4F 43 4B 84 0B 4B 96 F0",
        {"55 AA 16 08 83 06 55 4E", "4C 4F 43 4B 84 0B 4B 96", "F0"}},
-      {0x710, "55 AA 0C 07 13 05 52 45 41 44 59 69 42 7A 43 F0",
+      {0x710,
+       "55 AA 0C 07 13 05 52 45 41 44 59 69 42 7A 43 F0",
        {"55 AA 0C 07 13 05 52 45", "41 44 59 69 42 7A 43 F0"}},
-      {0x760, "55 AA 0C 0A 10 08 53 48 55 54 44 4F 57 4E F8 FF C9 A0 F0",
+      {0x760,
+       "55 AA 0C 0A 10 08 53 48 55 54 44 4F 57 4E F8 FF C9 A0 F0",
        {"55 AA 0C 0A 10 08 53 48", "55 54 44 4F 57 4E F8 FF", "C9 A0 F0"}},
   };
   for (const auto& c : cases) {

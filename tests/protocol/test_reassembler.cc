@@ -16,12 +16,16 @@ using test::can_frame;
 using test::hex;
 using test::RecordingSink;
 
-constexpr Micros ms(int64_t v) { return Micros(v * 1000); }
+constexpr Micros ms(int64_t v) {
+  return Micros(v * 1000);
+}
 
-const char* kT2 = "55 AA 16 08 83 06 55 4E 4C 4F 43 4B 84 0B 4B 96 F0";  // 0x767 UNLOCK
+const char* kT2 = "55 AA 16 08 83 06 55 4E 4C 4F 43 4B 84 0B 4B 96 F0";        // 0x767 UNLOCK
 const char* kT7 = "55 AA 0C 0A 10 08 53 48 55 54 44 4F 57 4E F8 FF C9 A0 F0";  // 0x760
 
-std::vector<CanFrame> segs(uint16_t id, const char* frame) { return segment(id, hex(frame)); }
+std::vector<CanFrame> segs(uint16_t id, const char* frame) {
+  return segment(id, hex(frame));
+}
 
 void push_all(Reassembler& r, const std::vector<CanFrame>& frames, RecordingSink& sink,
               Micros start = ms(0), Micros step = ms(1)) {

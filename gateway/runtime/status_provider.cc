@@ -1,0 +1,103 @@
+#include "gateway/runtime/status_provider.h"
+
+namespace fleetgw::runtime {
+namespace {
+
+double seconds(Micros d) {
+  return static_cast<double>(d.count()) / 1e6;
+}
+
+}  // namespace
+
+nlohmann::json make_status_json(const StatusInputs& in) {
+  using nlohmann::json;
+  json j;
+  j["schema"] = 1;
+  j["version"] = FLEETGW_VERSION;
+  j["vehicle_id"] = in.config.vehicle.id;
+  j["uptime_s"] = seconds(in.now - in.started);
+
+  const auto& h = in.transport.health();
+  json frame_errors = json::object();
+  const auto& bus = in.core.bus_stats();
+  for (std::size_t k = 0; k < motinova::kReassemblyErrorKinds; ++k) {
+    frame_errors[std::string(motinova::reassembly_error_name(
+        static_cast<motinova::ReassemblyError>(k)))] = bus.errors[k];
+  }
+  j["bus"] = {{"transport", in.config.can.transport},
+              {"interface", std::string(in.transport.name())},
+              {"state", std::string(can::link_state_name(h.state))},
+              {"rx_frames", h.rx_frames},
+              {"tx_frames", h.tx_frames},
+              {"tx_failures", h.tx_failures},
+              {"error_frames", h.error_frames},
+              {"reopens", h.reopens},
+              {"frame_errors", frame_errors},
+              {"detail", h.detail}};
+
+  // Every node a standard bike has, plus the fitted locks.
+  std::vector<motinova::Node> expected{motinova::Node::kMc, motinova::Node::kBms,
+                                       motinova::Node::kObc};
+  for (int k = 0; k < motinova::kLockCount; ++k) {
+    if (!in.config.protocol.lock_kinds[static_cast<std::size_t>(k)].empty()) {
+      expected.push_back(motinova::lock_node(k));
+    }
+  }
+  json nodes = json::array();
+  const auto& registry = in.core.node().registry();
+  for (const auto n : expected) {
+    const auto& s = registry.node(n);
+    json node = {{"name", std::string(motinova::node_name(n))}, {"online", s.online}};
+    node["last_heard_age_s"] = s.present ? json(seconds(in.now - s.last_heard)) : json(nullptr);
+    node["firmware"] = s.model ? json(s.model->fw) : json(nullptr);
+    node["model"] = s.model ? json(s.model->model) : json(nullptr);
+    node["fault_word"] = std::string(node::fault_state_name(registry.fault_word(n, in.now).state));
+    nodes.push_back(std::move(node));
+  }
+  j["nodes"] = std::move(nodes);
+
+  json faults = json::array();
+  for (const auto& f : in.core.live().faults) {
+    faults.push_back({{"node", f.node},
+                      {"code", f.code >= 0 ? json(f.code) : json(nullptr)},
+                      {"name", f.name},
+                      {"severity", f.severity}});
+  }
+  j["faults"] = std::move(faults);
+  json locks = json::array();
+  for (std::size_t k = 0; k < in.core.live().locks.size(); ++k) {
+    const auto& kind = in.config.protocol.lock_kinds[k];
+    if (kind.empty()) continue;  // not fitted
+    const auto& l = in.core.live().locks[k];
+    locks.push_back({{"kind", kind}, {"state", l.state_raw < 0 ? "unknown" : l.state}});
+  }
+  j["locks"] = std::move(locks);
+
+  json broker = {
+      {"enabled", in.uplink != nullptr}, {"connected", false}, {"uri", ""}, {"last_error", ""}};
+  if (in.uplink) {
+    const auto s = in.uplink->stats();
+    broker["connected"] = s.state == uplink::LinkState::kConnected;
+    broker["state"] = std::string(uplink::to_string(s.state));
+    broker["uri"] = uplink::redact_uri(in.config.mqtt.uri);
+    broker["acked_records"] = s.acked_records;
+    broker["reconnects"] = s.reconnects;
+    broker["last_publish_ok_us"] = s.last_publish_ok_us;
+    if (s.state != uplink::LinkState::kConnected && s.connect_failures > 0) {
+      broker["last_error"] = "connect failed " + std::to_string(s.connect_failures) + " time(s)";
+    }
+  }
+  j["broker"] = std::move(broker);
+
+  uint64_t depth = 0;
+  for (const auto& d : in.store.outbox_depth()) depth += d.entries;
+  const auto oldest = in.store.oldest_unsent_us();
+  j["outbox"] = {{"depth", depth},
+                 {"oldest_unsent_age_s",
+                  oldest ? json(std::max(0.0, seconds(in.now - Micros(*oldest)))) : json(nullptr)}};
+  j["disk"] = {{"used_bytes", in.store.live_bytes()},
+               {"budget_bytes", static_cast<uint64_t>(in.config.storage.max_mb) * 1024 * 1024}};
+  return j;
+}
+
+}  // namespace fleetgw::runtime

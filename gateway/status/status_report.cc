@@ -1,0 +1,219 @@
+#include "gateway/status/status_report.h"
+
+#include <fmt/format.h>
+
+#include <cmath>
+#include <optional>
+
+namespace fleetgw::status {
+namespace {
+
+using nlohmann::json;
+
+// Defensive accessors: the document comes over a socket from another process (possibly another
+// version), so a missing or mistyped field is a finding, never an exception.
+const json* member(const json& j, const char* key) {
+  if (!j.is_object()) return nullptr;
+  const auto it = j.find(key);
+  return it == j.end() ? nullptr : &*it;
+}
+
+std::string str(const json& j, const char* key, std::string fallback = "?") {
+  const json* v = member(j, key);
+  return v && v->is_string() ? v->get<std::string>() : fallback;
+}
+
+std::optional<double> num(const json& j, const char* key) {
+  const json* v = member(j, key);
+  if (v && v->is_number()) return v->get<double>();
+  return std::nullopt;
+}
+
+std::optional<bool> boolean(const json& j, const char* key) {
+  const json* v = member(j, key);
+  if (v && v->is_boolean()) return v->get<bool>();
+  return std::nullopt;
+}
+
+uint64_t count(const json& j, const char* key) {
+  const auto v = num(j, key);
+  return v && *v > 0 ? static_cast<uint64_t>(*v) : 0;
+}
+
+std::string age_text(double seconds) {
+  if (seconds < 0) seconds = 0;
+  if (seconds < 60) return fmt::format("{:.1f} s", seconds);
+  if (seconds < 3600) return fmt::format("{:.1f} min", seconds / 60);
+  if (seconds < 48 * 3600) return fmt::format("{:.1f} h", seconds / 3600);
+  return fmt::format("{:.1f} d", seconds / 86400);
+}
+
+std::string bytes_text(double b) {
+  if (b < 1024) return fmt::format("{:.0f} B", b);
+  if (b < 1024.0 * 1024) return fmt::format("{:.1f} KiB", b / 1024);
+  if (b < 1024.0 * 1024 * 1024) return fmt::format("{:.1f} MiB", b / (1024.0 * 1024));
+  return fmt::format("{:.2f} GiB", b / (1024.0 * 1024 * 1024));
+}
+
+}  // namespace
+
+std::vector<Attention> evaluate(const json& status, const AttentionRules& rules) {
+  std::vector<Attention> out;
+  auto section = [&](const char* key, bool array) -> const json* {
+    const json* s = member(status, key);
+    if (!s || (array ? !s->is_array() : !s->is_object())) {
+      out.push_back(
+          {"malformed", fmt::format("status has no \"{}\" {}", key, array ? "list" : "section")});
+      return nullptr;
+    }
+    return s;
+  };
+
+  if (const json* bus = section("bus", false)) {
+    const std::string state = str(*bus, "state");
+    if (state != "up") {
+      const std::string detail = str(*bus, "detail", "");
+      out.push_back({"bus", fmt::format("CAN bus {} is {}{}{}", str(*bus, "interface"), state,
+                                        detail.empty() ? "" : ": ", detail)});
+    }
+  }
+  if (const json* nodes = section("nodes", true)) {
+    for (const auto& n : *nodes) {
+      if (boolean(n, "online").value_or(false)) continue;
+      const auto age = num(n, "last_heard_age_s");
+      out.push_back({"node", fmt::format("node {} offline ({})", str(n, "name"),
+                                         age ? "last heard " + age_text(*age) + " ago"
+                                             : std::string("never heard"))});
+    }
+  }
+  if (const json* faults = section("faults", true)) {
+    for (const auto& f : *faults) {
+      if (str(f, "severity") != "critical") continue;
+      out.push_back({"fault", fmt::format("critical fault on {}: {} (code {})", str(f, "node"),
+                                          str(f, "name"), count(f, "code"))});
+    }
+  }
+  section("locks", true);  // informational, but a provider that drops it is broken
+  if (const json* broker = section("broker", false)) {
+    const bool enabled = boolean(*broker, "enabled").value_or(true);
+    if (enabled && !boolean(*broker, "connected").value_or(false)) {
+      const std::string err = str(*broker, "last_error", "");
+      out.push_back({"broker", fmt::format("broker {} not connected{}{}", str(*broker, "uri"),
+                                           err.empty() ? "" : ": ", err)});
+    }
+  }
+  if (const json* disk = section("disk", false)) {
+    const double used = num(*disk, "used_bytes").value_or(0);
+    const double budget = num(*disk, "budget_bytes").value_or(0);
+    if (budget > 0 && used > rules.disk_fraction * budget) {
+      out.push_back(
+          {"disk", fmt::format("store uses {} of its {} budget ({:.0f} %)", bytes_text(used),
+                               bytes_text(budget), 100.0 * used / budget)});
+    }
+  }
+  if (const json* outbox = section("outbox", false)) {
+    const auto age = num(*outbox, "oldest_unsent_age_s");
+    const auto limit = static_cast<double>(rules.outbox_max_age.count());
+    if (age && *age > limit) {
+      out.push_back({"outbox", fmt::format("oldest unsent record is {} old ({} records waiting)",
+                                           age_text(*age), count(*outbox, "depth"))});
+    }
+  }
+  return out;
+}
+
+std::string format_summary(const json& s, const std::vector<Attention>& findings) {
+  std::string out;
+  auto line = [&](std::string_view label, const std::string& text) {
+    out += fmt::format("{:<8} {}\n", label, text);
+  };
+  const json empty = json::object();
+  auto sec = [&](const char* key) -> const json& {
+    const json* v = member(s, key);
+    return v ? *v : empty;
+  };
+
+  std::string head = fmt::format("fleetgw {}  vehicle {}", str(s, "version"), str(s, "vehicle_id"));
+  if (const auto up = num(s, "uptime_s")) head += "  up " + age_text(*up);
+  out += head + '\n';
+
+  const json& bus = sec("bus");
+  std::string bus_text =
+      fmt::format("{} ({}): {}  rx {}  tx {}  tx failures {}  error frames {}  reopens {}",
+                  str(bus, "interface"), str(bus, "transport"), str(bus, "state"),
+                  count(bus, "rx_frames"), count(bus, "tx_frames"), count(bus, "tx_failures"),
+                  count(bus, "error_frames"), count(bus, "reopens"));
+  if (const json* fe = member(bus, "frame_errors"); fe && fe->is_object()) {
+    std::string errs;
+    for (const auto& [k, v] : fe->items()) {
+      if (v.is_number() && v.get<double>() > 0) errs += fmt::format(" {} {}", k, v.dump());
+    }
+    bus_text += "\n         frame errors:" + (errs.empty() ? std::string(" none") : errs);
+  }
+  line("bus", bus_text);
+
+  std::string nodes_text;
+  if (const json* nodes = member(s, "nodes"); nodes && nodes->is_array()) {
+    for (const auto& n : *nodes) {
+      const auto age = num(n, "last_heard_age_s");
+      if (!nodes_text.empty()) nodes_text += "\n         ";
+      nodes_text += fmt::format("{:<6} {:<8} {:<22} firmware {}", str(n, "name"),
+                                boolean(n, "online").value_or(false) ? "online" : "OFFLINE",
+                                age ? "heard " + age_text(*age) + " ago" : "never heard",
+                                str(n, "firmware", "unknown"));
+    }
+  }
+  line("nodes", nodes_text.empty() ? "none" : nodes_text);
+
+  std::string faults_text;
+  if (const json* faults = member(s, "faults"); faults && faults->is_array()) {
+    for (const auto& f : *faults) {
+      if (!faults_text.empty()) faults_text += "\n         ";
+      faults_text += fmt::format("{} {} (code {}, {})", str(f, "node"), str(f, "name"),
+                                 count(f, "code"), str(f, "severity"));
+    }
+  }
+  line("faults", faults_text.empty() ? "none" : faults_text);
+
+  std::string locks_text;
+  if (const json* locks = member(s, "locks"); locks && locks->is_array()) {
+    for (const auto& l : *locks) {
+      if (!locks_text.empty()) locks_text += "  ";
+      locks_text += fmt::format("{}: {}", str(l, "kind"), str(l, "state"));
+    }
+  }
+  line("locks", locks_text.empty() ? "none" : locks_text);
+
+  const json& broker = sec("broker");
+  if (!boolean(broker, "enabled").value_or(true)) {
+    line("broker", "disabled (mqtt.enabled = false)");
+  } else {
+    const bool connected = boolean(broker, "connected").value_or(false);
+    const std::string err = str(broker, "last_error", "");
+    line("broker",
+         fmt::format("{}: {}{}", str(broker, "uri"), connected ? "connected" : "DISCONNECTED",
+                     !connected && !err.empty() ? " (" + err + ")" : ""));
+  }
+
+  const json& outbox = sec("outbox");
+  const auto oldest = num(outbox, "oldest_unsent_age_s");
+  line("outbox", fmt::format("{} records{}", count(outbox, "depth"),
+                             oldest ? ", oldest unsent " + age_text(*oldest) + " ago" : ""));
+
+  const json& disk = sec("disk");
+  const double used = num(disk, "used_bytes").value_or(0);
+  const double budget = num(disk, "budget_bytes").value_or(0);
+  line("disk", budget > 0 ? fmt::format("{} of {} ({:.1f} %)", bytes_text(used), bytes_text(budget),
+                                        100.0 * used / budget)
+                          : bytes_text(used));
+
+  out += '\n';
+  if (findings.empty()) {
+    out += "OK\n";
+  } else {
+    for (const auto& f : findings) out += fmt::format("ATTENTION: {}\n", f.detail);
+  }
+  return out;
+}
+
+}  // namespace fleetgw::status

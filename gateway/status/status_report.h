@@ -1,0 +1,58 @@
+// The status document the running service publishes on its status socket, the rules that decide
+// whether it needs a technician's attention, and its human-readable rendering.
+//
+// Contract (schema 1; the runtime's provider fills it, `fleetgw status` reads it):
+//   {
+//     "schema": 1, "version": "0.1.0", "vehicle_id": "bike-0001", "uptime_s": 3600,
+//     "bus":    {"transport": "socketcan", "interface": "can0", "state": "up",
+//                "rx_frames": 0, "tx_frames": 0, "tx_failures": 0, "error_frames": 0,
+//                "reopens": 0, "frame_errors": {"crc": 0, ...}, "detail": ""},
+//     "nodes":  [{"name": "mc", "online": true, "last_heard_age_s": 0.2 | null,
+//                 "firmware": "V1.2" | null}],          // every node the bike is expected to have
+//     "faults": [{"node": "bms", "code": 12, "name": "...", "severity": "critical"}],  // active
+//     "locks":  [{"kind": "seat", "state": "locked"}],
+//     "broker": {"enabled": true, "connected": false, "uri": "ssl://...", "last_error": ""},
+//     "outbox": {"depth": 12, "oldest_unsent_age_s": 120.5 | null},
+//     "disk":   {"used_bytes": 1048576, "budget_bytes": 268435456}
+//   }
+//   Ages are computed by the service on its own clock, so the client needs no clock agreement.
+//   Unknown keys are ignored (newer services may add some).
+//
+// Attention rules (the only place they are defined): the document needs attention when
+//   * a required section is missing or has the wrong type ("malformed"),
+//   * the bus state is anything but "up" ("bus"),
+//   * an expected node is offline ("node"),
+//   * an active fault has severity "critical" ("fault"),
+//   * the broker is enabled and not connected ("broker"),
+//   * disk use exceeds disk_fraction of the budget ("disk"),
+//   * the oldest unsent outbox record is older than outbox_max_age ("outbox").
+// Evaluation never throws, whatever the JSON holds.
+#pragma once
+
+#include <nlohmann/json.hpp>
+
+#include <chrono>
+#include <string>
+#include <vector>
+
+namespace fleetgw::status {
+
+inline constexpr int kStatusSchema = 1;
+
+struct AttentionRules {
+  double disk_fraction = 0.90;                                 // of storage.max_mb
+  std::chrono::seconds outbox_max_age{std::chrono::hours(6)};  // uplink stalled this long
+};
+
+struct Attention {
+  std::string rule;    // "malformed", "bus", "node", "fault", "broker", "disk", "outbox"
+  std::string detail;  // one line for the technician
+};
+
+std::vector<Attention> evaluate(const nlohmann::json& status, const AttentionRules& rules = {});
+
+// Multi-line summary for a terminal, ending with either "OK" or one "ATTENTION: ..." line per
+// finding.
+std::string format_summary(const nlohmann::json& status, const std::vector<Attention>& findings);
+
+}  // namespace fleetgw::status

@@ -1,0 +1,109 @@
+#!/usr/bin/env bash
+# Cross-builds fleetgw for arm64 (deploy/toolchains/aarch64-linux-gnu.cmake), runs the unit tests
+# that need neither a broker nor a network under qemu-aarch64-static, and reports the stripped
+# binary size and the protocol benchmark -- EMULATED figures, not arm64 hardware figures.
+#
+# Usage: arm64-cross.sh [SOURCE_DIR] [BUILD_DIR]
+#   defaults: the repository containing this script, and SOURCE_DIR/build-arm64.
+# Environment: JOBS (default nproc), BENCH_MIN_TIME (default 0.2 s per benchmark).
+# Exit: 0 all passed, 1 a build or test failed, 77 (skip) only when the cross packages cannot be
+# installed (not root, or apt cannot reach them).
+set -euo pipefail
+HERE=$(cd "$(dirname "$0")" && pwd)
+SRC=$(cd "${1:-$HERE/../..}" && pwd)
+BUILD=${2:-$SRC/build-arm64}
+JOBS=${JOBS:-$(nproc)}
+BENCH_MIN_TIME=${BENCH_MIN_TIME:-0.2}
+TRIPLE=aarch64-linux-gnu
+QEMU=qemu-aarch64-static
+SECONDS=0
+
+# What the cross build needs: the compiler, the project's -dev libraries for arm64 (headers-only
+# and Architecture: all ones need no :arm64; libtomlplusplus-dev is per-architecture), the host's protoc, and qemu to run tests.
+PACKAGES=(
+  crossbuild-essential-arm64 qemu-user-static protobuf-compiler
+  libsqlite3-dev:arm64 libprotobuf-dev:arm64 libspdlog-dev:arm64 libfmt-dev:arm64
+  libgtest-dev:arm64 libgmock-dev:arm64 libbenchmark-dev:arm64
+  libpaho-mqttpp-dev:arm64 libpaho-mqtt-dev:arm64 libssl-dev:arm64 libsystemd-dev:arm64
+  libtomlplusplus-dev:arm64 libcli11-dev nlohmann-json3-dev libasio-dev
+)
+# Unit tests with no broker, no network and no CAN hardware.
+TESTS=(protocol_tests status_tests storage_tests node_tests domain_tests sim_tests)
+
+skip() { echo "arm64-cross: SKIP: $*"; exit 77; }
+step() { echo "== arm64-cross [$((SECONDS / 60))m$((SECONDS % 60))s] $*"; }
+
+missing=()
+for p in "${PACKAGES[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if [ ${#missing[@]} -gt 0 ]; then
+  step "installing ${missing[*]}"
+  [ "$(id -u)" -eq 0 ] || skip "missing ${missing[*]} and not root to install them"
+  if ! dpkg --print-foreign-architectures | grep -qx arm64; then dpkg --add-architecture arm64; fi
+  apt-get update -qq || skip "apt-get update failed (no package mirror reachable?)"
+  for p in "${missing[@]}"; do
+    apt-cache policy "$p" 2>/dev/null | grep -q "Candidate: [0-9]" || skip "no package $p in the archive"
+  done
+  DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends "${missing[@]}" ||
+    skip "apt-get install of the cross packages failed"
+fi
+# protoc runs on the host, libprotobuf on the target: their versions must be the same release.
+host_protoc=$(dpkg-query -W -f='${Version}' protobuf-compiler)
+arm_protobuf=$(dpkg-query -W -f='${Version}' libprotobuf-dev:arm64)
+if [ "$host_protoc" != "$arm_protobuf" ]; then
+  echo "arm64-cross: protoc $host_protoc does not match libprotobuf-dev:arm64 $arm_protobuf" >&2
+  exit 1
+fi
+
+step "configure ($BUILD)"
+cmake -S "$SRC" -B "$BUILD" -DCMAKE_TOOLCHAIN_FILE="$SRC/deploy/toolchains/$TRIPLE.cmake" \
+  -DCMAKE_BUILD_TYPE=RelWithDebInfo -DFLEETGW_WERROR=ON -DFLEETGW_BUILD_BENCH=ON \
+  -DCMAKE_GTEST_DISCOVER_TESTS_DISCOVERY_MODE=PRE_TEST >"$BUILD.configure.log" 2>&1 ||
+  { cat "$BUILD.configure.log"; exit 1; }
+
+targets=(fleetgw bench_protocol)
+help=$(cmake --build "$BUILD" --target help)
+present=()
+for t in "${TESTS[@]}"; do
+  # An area whose tests do not exist yet is not a failure of the cross build.
+  if grep -qx "\.\.\. $t" <<<"$help"; then targets+=("$t"); present+=("$t"); fi
+done
+step "build ${targets[*]}"
+cmake --build "$BUILD" -j "$JOBS" --target "${targets[@]}"
+
+step "check the binary is arm64"
+bin="$BUILD/gateway/app/fleetgw"
+kind=$(file -L "$bin")
+echo "$kind"
+grep -q "ARM aarch64" <<<"$kind" || { echo "not an arm64 binary" >&2; exit 1; }
+"$TRIPLE-strip" -o "$BUILD/fleetgw.stripped" "$bin"
+size_bytes=$(stat -c %s "$BUILD/fleetgw.stripped")
+"$QEMU" "$bin" --version
+
+status=0
+results=()
+for t in "${present[@]}"; do
+  exe=$(find "$BUILD/tests" -type f -name "$t" -perm -u+x | head -1)
+  [ -n "$exe" ] || continue
+  step "run $t under $QEMU"
+  start=$SECONDS
+  if (cd "$(dirname "$exe")" && "$QEMU" "$exe" --gtest_brief=1); then
+    results+=("$t: passed ($((SECONDS - start)) s emulated)")
+  else
+    results+=("$t: FAILED")
+    status=1
+  fi
+done
+
+step "protocol benchmark under $QEMU"
+bench=$(find "$BUILD/bench" -type f -name bench_protocol -perm -u+x | head -1)
+"$QEMU" "$bench" --benchmark_min_time="$BENCH_MIN_TIME" | tee "$BUILD/bench_protocol.emulated.txt"
+
+echo
+echo "== arm64 summary (EMULATED: qemu-aarch64-static user mode on $(uname -m); not arm64 hardware figures)"
+printf '  %s\n' "${results[@]}"
+echo "  fleetgw stripped arm64 binary: $size_bytes bytes ($((size_bytes / 1024)) KiB)"
+echo "  protocol benchmark (emulated): $BUILD/bench_protocol.emulated.txt"
+echo "  total time: $((SECONDS / 60)) min $((SECONDS % 60)) s"
+exit "$status"

@@ -1,0 +1,121 @@
+#!/usr/bin/env bash
+# Builds the Debian package, installs it on THIS machine with dpkg, checks what it installed and
+# that it started nothing, checks that a technician's config edit survives a reinstall (conffile),
+# removes it (data and config stay), purges it (nothing stays). Root required: the test really
+# installs, as issue 7 asks. Idempotent: a leftover fleetgw package from an aborted run is purged
+# first, and the trap purges again whatever happens.
+#
+# Usage: package-test.sh BUILD_DIR
+# Exit: 0 pass, 1 fail, 77 skip (not root, or dpkg absent).
+set -euo pipefail
+BUILD=$(cd "$1" && pwd)
+SECONDS=0
+
+[ "$(id -u)" -eq 0 ] || { echo "SKIP: must run as root (it installs the package)"; exit 77; }
+command -v dpkg >/dev/null || { echo "SKIP: not a dpkg system"; exit 77; }
+
+# Two builds' test runs must not install at the same time.
+exec 9>/var/lock/fleetgw-package-test.lock
+flock -w 600 9 || { echo "FAIL: another package test holds the lock" >&2; exit 1; }
+
+failures=0
+fail() { echo "FAIL: $*"; failures=$((failures + 1)); }
+ok() { echo "ok: $*"; }
+installed() { dpkg-query -W -f='${Status}' fleetgw 2>/dev/null | grep -q "ok installed"; }
+known() { dpkg-query -W -f='${Status}' fleetgw >/dev/null 2>&1; }
+purge() { if known; then dpkg --purge fleetgw >/dev/null 2>&1 || true; fi; }
+# fleetgw processes started from the installed binary (other fleetgw builds may run here).
+running_installed() {
+  local p
+  for p in /proc/[0-9]*; do
+    [ "$(readlink "$p/exe" 2>/dev/null)" = /usr/bin/fleetgw ] && return 0
+  done
+  return 1
+}
+
+trap purge EXIT
+purge
+
+echo "== build the package"
+rm -f "$BUILD"/fleetgw_*.deb
+cmake --build "$BUILD" --target package >"$BUILD/package-build.log" 2>&1 ||
+  { tail -30 "$BUILD/package-build.log"; exit 1; }
+deb=$(ls -t "$BUILD"/fleetgw_*.deb | head -1)
+echo "package: $(basename "$deb") ($(stat -c %s "$deb") bytes)"
+
+echo "== package contents"
+contents=$(dpkg-deb -c "$deb")
+for f in ./usr/bin/fleetgw ./etc/fleetgw/fleetgw.toml ./lib/systemd/system/fleetgw.service \
+         ./usr/libexec/fleetgw/fleetgw-can-setup ./usr/share/doc/fleetgw/deployment.md \
+         ./usr/share/doc/fleetgw/examples/80-can.network; do
+  grep -q " $f\$" <<<"$contents" && ok "contains $f" || fail "package lacks $f"
+done
+conffiles=$(dpkg-deb --ctrl-tarfile "$deb" | tar -xO ./conffiles)
+[ "$conffiles" = /etc/fleetgw/fleetgw.toml ] && ok "conffile /etc/fleetgw/fleetgw.toml" ||
+  fail "conffiles is \"$conffiles\""
+depends=$(dpkg-deb -f "$deb" Depends)
+echo "Depends: $depends"
+# dpkg-shlibdeps must have found the real runtime libraries, not left only the manual ones.
+for lib in libc6 libstdc++6 libsqlite3-0 libprotobuf32 libpaho-mqttpp3 adduser; do
+  grep -q "$lib" <<<"$depends" && ok "depends on $lib" || fail "Depends lacks $lib"
+done
+[ "$(dpkg-deb -f "$deb" Architecture)" = "$(dpkg --print-architecture)" ] ||
+  fail "architecture $(dpkg-deb -f "$deb" Architecture)"
+unpacked=$(mktemp -d)
+dpkg-deb -x "$deb" "$unpacked"
+kind=$(file -b "$unpacked/usr/bin/fleetgw")
+rm -rf "$unpacked"
+[[ $kind == *", stripped"* ]] && ok "binary is stripped" || fail "binary: $kind"
+
+echo "== install"
+dpkg -i "$deb" || { fail "dpkg -i failed"; exit 1; }
+installed && ok "installed" || fail "dpkg does not list fleetgw as installed"
+[ -x /usr/bin/fleetgw ] && ok "/usr/bin/fleetgw" || fail "no /usr/bin/fleetgw"
+[ -f /lib/systemd/system/fleetgw.service ] && ok "unit" || fail "no unit"
+dpkg-query -W -f='${Conffiles}\n' fleetgw | grep -q "/etc/fleetgw/fleetgw.toml" &&
+  ok "dpkg tracks the conffile" || fail "conffile not registered"
+getent passwd fleetgw >/dev/null && ok "system user fleetgw" || fail "no fleetgw user"
+[ "$(stat -c '%U:%G %a' /var/lib/fleetgw 2>/dev/null)" = "fleetgw:fleetgw 750" ] &&
+  ok "/var/lib/fleetgw fleetgw:fleetgw 0750" || fail "/var/lib/fleetgw: $(stat -c '%U:%G %a' /var/lib/fleetgw 2>&1)"
+[ "$(stat -c '%U:%G %a' /etc/fleetgw/fleetgw.toml)" = "root:fleetgw 640" ] &&
+  ok "config root:fleetgw 0640" || fail "config permissions $(stat -c '%U:%G %a' /etc/fleetgw/fleetgw.toml)"
+
+version=$(/usr/bin/fleetgw --version)
+pkg_version=$(dpkg-query -W -f='${Version}' fleetgw)
+[ "$version" = "fleetgw ${pkg_version%-*}" ] && ok "--version: $version" ||
+  fail "--version says \"$version\", package is $pkg_version"
+if out=$(/usr/bin/fleetgw check-config /etc/fleetgw/fleetgw.toml 2>&1); then
+  ok "check-config: $out"
+else
+  fail "check-config of the packaged config: $out"
+fi
+# Nothing started: no process runs the installed binary, the unit is not enabled.
+sleep 0.5
+running_installed && fail "a fleetgw process runs from /usr/bin/fleetgw" || ok "nothing started"
+[ -e /etc/systemd/system/multi-user.target.wants/fleetgw.service ] &&
+  fail "the unit was enabled by the package" || ok "unit not enabled"
+
+echo "== a technician's edit survives a reinstall (conffile)"
+sed -i 's/^id = .*/id = "bike-test-4711"/' /etc/fleetgw/fleetgw.toml
+dpkg -i "$deb" >/dev/null || fail "reinstall failed"
+grep -q '^id = "bike-test-4711"' /etc/fleetgw/fleetgw.toml && ok "edit kept" || fail "edit lost"
+
+echo "== remove keeps data and configuration"
+echo "fake db" >/var/lib/fleetgw/fleetgw.db
+mkdir -p /etc/fleetgw/certs && echo "fake key" >/etc/fleetgw/certs/client.key
+dpkg -r fleetgw >/dev/null || fail "dpkg -r failed"
+[ ! -e /usr/bin/fleetgw ] && ok "binary removed" || fail "binary left after remove"
+[ -f /var/lib/fleetgw/fleetgw.db ] && [ -f /etc/fleetgw/fleetgw.toml ] &&
+  ok "data and config kept" || fail "remove deleted data or config"
+
+echo "== purge leaves nothing"
+dpkg --purge fleetgw >/dev/null || fail "dpkg --purge failed"
+for p in /etc/fleetgw /var/lib/fleetgw /usr/bin/fleetgw /lib/systemd/system/fleetgw.service \
+         /usr/libexec/fleetgw /usr/share/doc/fleetgw; do
+  [ ! -e "$p" ] && ok "gone: $p" || fail "left after purge: $p"
+done
+getent passwd fleetgw >/dev/null && fail "user fleetgw left" || ok "user removed"
+known && fail "dpkg still knows fleetgw" || ok "dpkg forgot fleetgw"
+
+echo "== $failures failure(s), $SECONDS s"
+[ "$failures" -eq 0 ]
