@@ -13,23 +13,34 @@ bool is_valid_mode(uint8_t mode) {
 
 std::string_view mode_name(Mode m) {
   switch (m) {
-    case Mode::kRead: return "read";
-    case Mode::kWrite: return "write";
-    case Mode::kReport: return "report";
+    case Mode::kRead:
+      return "read";
+    case Mode::kWrite:
+      return "write";
+    case Mode::kReport:
+      return "report";
   }
   return "invalid";
 }
 
 std::string_view frame_error_name(FrameError e) {
   switch (e) {
-    case FrameError::kNone: return "none";
-    case FrameError::kBadHeader: return "bad_header";
-    case FrameError::kBadMode: return "bad_mode";
-    case FrameError::kBadLength: return "bad_length";
-    case FrameError::kLengthMismatch: return "length_mismatch";
-    case FrameError::kTruncated: return "truncated";
-    case FrameError::kBadTail: return "bad_tail";
-    case FrameError::kBadCrc: return "bad_crc";
+    case FrameError::kNone:
+      return "none";
+    case FrameError::kBadHeader:
+      return "bad_header";
+    case FrameError::kBadMode:
+      return "bad_mode";
+    case FrameError::kBadLength:
+      return "bad_length";
+    case FrameError::kLengthMismatch:
+      return "length_mismatch";
+    case FrameError::kTruncated:
+      return "truncated";
+    case FrameError::kBadTail:
+      return "bad_tail";
+    case FrameError::kBadCrc:
+      return "bad_crc";
   }
   return "unknown";
 }

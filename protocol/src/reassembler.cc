@@ -20,17 +20,28 @@ bool plausible_start(const CanFrame& can) {
 
 std::string_view reassembly_error_name(ReassemblyError e) {
   switch (e) {
-    case ReassemblyError::kBadHeader: return "bad_header";
-    case ReassemblyError::kBadMode: return "bad_mode";
-    case ReassemblyError::kBadLength: return "bad_length";
-    case ReassemblyError::kLengthMismatch: return "length_mismatch";
-    case ReassemblyError::kBadTail: return "bad_tail";
-    case ReassemblyError::kBadCrc: return "bad_crc";
-    case ReassemblyError::kTruncated: return "truncated";
-    case ReassemblyError::kGapTimeout: return "gap_timeout";
-    case ReassemblyError::kRestarted: return "restarted";
-    case ReassemblyError::kForeignId: return "foreign_id";
-    case ReassemblyError::kCount: break;
+    case ReassemblyError::kBadHeader:
+      return "bad_header";
+    case ReassemblyError::kBadMode:
+      return "bad_mode";
+    case ReassemblyError::kBadLength:
+      return "bad_length";
+    case ReassemblyError::kLengthMismatch:
+      return "length_mismatch";
+    case ReassemblyError::kBadTail:
+      return "bad_tail";
+    case ReassemblyError::kBadCrc:
+      return "bad_crc";
+    case ReassemblyError::kTruncated:
+      return "truncated";
+    case ReassemblyError::kGapTimeout:
+      return "gap_timeout";
+    case ReassemblyError::kRestarted:
+      return "restarted";
+    case ReassemblyError::kForeignId:
+      return "foreign_id";
+    case ReassemblyError::kCount:
+      break;
   }
   return "unknown";
 }
@@ -47,8 +58,7 @@ void Reassembler::fail(ReassemblyError why, uint32_t id, Micros ts, uint16_t byt
   sink.on_error(ReassemblyErrorEvent{why, id, ts, bytes});
 }
 
-void Reassembler::drop(Slot& slot, uint32_t id, ReassemblyError why, Micros ts,
-                       FrameSink& sink) {
+void Reassembler::drop(Slot& slot, uint32_t id, ReassemblyError why, Micros ts, FrameSink& sink) {
   const uint16_t bytes = slot.have;
   slot.have = 0;
   slot.need = 0;

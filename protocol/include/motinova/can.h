@@ -51,13 +51,23 @@ inline constexpr uint16_t make_can_id(Node src, Node dst) {
   return static_cast<uint16_t>(0x700 | (static_cast<unsigned>(src) << 4) |
                                static_cast<unsigned>(dst));
 }
-inline constexpr Node source_of(uint32_t id) { return static_cast<Node>((id >> 4) & 0xF); }
-inline constexpr Node target_of(uint32_t id) { return static_cast<Node>(id & 0xF); }
+inline constexpr Node source_of(uint32_t id) {
+  return static_cast<Node>((id >> 4) & 0xF);
+}
+inline constexpr Node target_of(uint32_t id) {
+  return static_cast<Node>(id & 0xF);
+}
 
-inline constexpr bool is_lock(Node n) { return n >= Node::kLock1 && n <= Node::kLock5; }
+inline constexpr bool is_lock(Node n) {
+  return n >= Node::kLock1 && n <= Node::kLock5;
+}
 // 0-based lock index (LOCK 1 = node 7 -> 0).
-inline constexpr int lock_index(Node n) { return static_cast<int>(n) - 7; }
-inline constexpr Node lock_node(int index) { return static_cast<Node>(7 + index); }
+inline constexpr int lock_index(Node n) {
+  return static_cast<int>(n) - 7;
+}
+inline constexpr Node lock_node(int index) {
+  return static_cast<Node>(7 + index);
+}
 
 // Lower-case short name used in JSON and logs: "mc", "bms", "obc", "hmi", "cdl", "iot",
 // "lock1".."lock5", "all" for broadcast, "node12".."node15" for reserved numbers.

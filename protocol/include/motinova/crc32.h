@@ -17,7 +17,9 @@ inline constexpr uint32_t kCrcInit = 0xFFFFFFFFu;
 // Continues a CRC over `data`, starting from `state` (kCrcInit for a fresh CRC).
 uint32_t crc32_update(uint32_t state, std::span<const uint8_t> data);
 
-inline uint32_t crc32(std::span<const uint8_t> data) { return crc32_update(kCrcInit, data); }
+inline uint32_t crc32(std::span<const uint8_t> data) {
+  return crc32_update(kCrcInit, data);
+}
 
 // CRC of an application frame on `can_id`: covers 55 AA, then the ID (high byte first), then
 // MODE, LENGTH, COMMAND and DATA. `frame_body` starts at the 55 AA header and ends with the last

@@ -27,7 +27,7 @@ struct FaultDef {
   std::string_view name;  // stable snake_case identifier, e.g. "over_current_protect"
   std::string_view text;  // English name as printed, e.g. "Over Current Protect"
   Severity severity;
-  bool uncertain;         // [G] reading (U6, U18, U20, U22): name table may be overridden
+  bool uncertain;  // [G] reading (U6, U18, U20, U22): name table may be overridden
 };
 
 // All defined bits of one source, in bit order.

@@ -18,8 +18,8 @@ namespace motinova {
 inline constexpr uint8_t kHeader0 = 0x55;
 inline constexpr uint8_t kHeader1 = 0xAA;
 inline constexpr uint8_t kTail = 0xF0;
-inline constexpr std::size_t kMaxData = 253;             // LENGTH <= 0xFF, n = LENGTH - 2
-inline constexpr std::size_t kFrameOverhead = 11;        // header 2, mode, length, cmd 2, crc 4, tail
+inline constexpr std::size_t kMaxData = 253;       // LENGTH <= 0xFF, n = LENGTH - 2
+inline constexpr std::size_t kFrameOverhead = 11;  // header 2, mode, length, cmd 2, crc 4, tail
 inline constexpr std::size_t kMaxFrameSize = kMaxData + kFrameOverhead;  // 264 bytes
 
 // MODE byte. Other values are rejected as framing errors.

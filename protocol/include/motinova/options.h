@@ -13,9 +13,9 @@ namespace motinova {
 
 // U3: how a 4-byte fault word is laid out on the wire.
 enum class FaultWordLayout : uint8_t {
-  kDocumented,      // one uint32 in data byte order; groups as documented in §3 (best guess)
-  kSwappedGroups,   // one uint32, but the documented high and low 16-bit groups swapped
-  kTwoWordsLowFirst // two independent 16-bit words (data byte order), low word sent first
+  kDocumented,       // one uint32 in data byte order; groups as documented in §3 (best guess)
+  kSwappedGroups,    // one uint32, but the documented high and low 16-bit groups swapped
+  kTwoWordsLowFirst  // two independent 16-bit words (data byte order), low word sent first
 };
 
 // U9: order of the MC 0x1020 voltage (offset 6) and current (offset 8) fields.
@@ -29,18 +29,17 @@ struct DecodeOptions {
   CrcOrder crc_order = CrcOrder::kBig;     // U1 (used by the reassembler / encoder)
   ByteOrder data_order = ByteOrder::kBig;  // U2
 
-  FaultWordLayout mc_fault_layout = FaultWordLayout::kDocumented;    // U3
-  FaultWordLayout bms_fault_layout = FaultWordLayout::kDocumented;   // U3
-  FaultWordLayout other_fault_layout = FaultWordLayout::kDocumented; // U3: OBC, IOT, locks
+  FaultWordLayout mc_fault_layout = FaultWordLayout::kDocumented;     // U3
+  FaultWordLayout bms_fault_layout = FaultWordLayout::kDocumented;    // U3
+  FaultWordLayout other_fault_layout = FaultWordLayout::kDocumented;  // U3: OBC, IOT, locks
 
   bool bms_current_charge_positive = true;  // U4: BMS 0x1010 current, charge = + (best guess)
   bool mc_current_signed = false;           // U4: MC 0x1020 current as s16
   McVoltageCurrentOrder mc_voltage_current_order = McVoltageCurrentOrder::kVoltageFirst;  // U9
 
   // U19: names of lock-state values 0..6.
-  std::array<std::string, 7> lock_state_names{"unknown",  "unlocked",      "locked",
-                                              "unlocking", "locking",      "unlock_failed",
-                                              "lock_failed"};
+  std::array<std::string, 7> lock_state_names{"unknown", "unlocked",      "locked",     "unlocking",
+                                              "locking", "unlock_failed", "lock_failed"};
   // U21: lock kind fitted at lock node 7..B (LOCK 1..5). Empty = not fitted.
   std::array<std::string, 5> lock_kinds{"seat", "frame", "steering", "battery", "other"};
 

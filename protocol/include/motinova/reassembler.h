@@ -86,8 +86,8 @@ class Reassembler {
  private:
   struct Slot {
     std::array<uint8_t, kMaxFrameSize> buf{};
-    uint16_t have = 0;   // bytes collected; 0 = idle
-    uint16_t need = 0;   // LENGTH + 9 once known
+    uint16_t have = 0;  // bytes collected; 0 = idle
+    uint16_t need = 0;  // LENGTH + 9 once known
     Micros last{0};
   };
   void drop(Slot& slot, uint32_t id, ReassemblyError why, Micros ts, FrameSink& sink);

@@ -13,7 +13,9 @@ namespace motinova {
 
 inline constexpr std::size_t kMaxSegments = (kMaxFrameSize + 7) / 8;  // 33
 
-inline std::size_t segment_count(std::size_t frame_bytes) { return (frame_bytes + 7) / 8; }
+inline std::size_t segment_count(std::size_t frame_bytes) {
+  return (frame_bytes + 7) / 8;
+}
 
 // Calls `emit(const CanFrame&)` once per segment, in order.
 template <typename Emit>
