@@ -318,7 +318,7 @@ int run_service(const config::Config& config, const ServiceOptions& options,
   recorder.flush(bus.replay ? last_frame_ts : now());
   if (up) {
     // Give the last records a moment to leave, then publish the retained offline status.
-    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(2);
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(5);
     while (std::chrono::steady_clock::now() < deadline && outbox.stats().depth > 0 &&
            up->state() == uplink::LinkState::kConnected) {
       up->poll(system_now());

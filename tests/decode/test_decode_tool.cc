@@ -4,6 +4,8 @@
 
 #include <fmt/format.h>
 
+#include <unistd.h>
+
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <sstream>
@@ -49,7 +51,10 @@ struct Run {
 
 Run decode_text(const std::string& text, bool errors = false,
                 motinova::DecodeOptions protocol = {}) {
-  const auto path = testing::TempDir() + "/decode_input.log";
+  // One file per test: CTest runs the tests of this binary in parallel processes.
+  const auto* info = testing::UnitTest::GetInstance()->current_test_info();
+  const auto path =
+      testing::TempDir() + "/decode_" + info->name() + "_" + std::to_string(::getpid()) + ".log";
   std::ofstream(path) << text;
   DecodeCommandOptions o;
   o.input = path;
