@@ -52,21 +52,6 @@ v1::CommandResultCode code_of(LockOutcome o) {
   return v1::COMMAND_RESULT_CODE_UNSPECIFIED;
 }
 
-std::string_view code_name(v1::CommandResultCode c) {
-  switch (c) {
-    case v1::COMMAND_RESULT_CODE_SUCCEEDED:
-      return "succeeded";
-    case v1::COMMAND_RESULT_CODE_FAILED:
-      return "failed";
-    case v1::COMMAND_RESULT_CODE_TIMEOUT:
-      return "timeout";
-    case v1::COMMAND_RESULT_CODE_REJECTED:
-      return "rejected";
-    default:
-      return "unspecified";
-  }
-}
-
 v1::CommandResultCode code_from_name(std::string_view s) {
   if (s == "succeeded") return v1::COMMAND_RESULT_CODE_SUCCEEDED;
   if (s == "failed") return v1::COMMAND_RESULT_CODE_FAILED;
@@ -290,7 +275,7 @@ struct CommandService::Impl : std::enable_shared_from_this<CommandService::Impl>
       storage::CommandResult row;
       row.command_id = r.command_id();
       row.ts_us = now.count();
-      row.result = std::string(code_name(r.result()));
+      row.result = std::string(command_result_name(r.result()));
       row.reason = r.reason();
       row.final_state = r.final_lock_state_name();
       row.duration_ms = static_cast<std::int64_t>(r.duration_ms());
@@ -303,14 +288,15 @@ struct CommandService::Impl : std::enable_shared_from_this<CommandService::Impl>
     }
     if (journal_expires) {
       b.commands.push_back({r.command_id(), received.value_or(now).count(),
-                            std::string(code_name(r.result())), journal_expires->count()});
+                            std::string(command_result_name(r.result())),
+                            journal_expires->count()});
     }
     try {
       context.store.write(b);
     } catch (const std::exception& e) {
       ++stats.storage_errors;
       spdlog::error("command {}: result {} could not be stored: {}", r.command_id(),
-                    code_name(r.result()), e.what());
+                    command_result_name(r.result()), e.what());
       return false;
     }
     if (observer) observer(r, false);
@@ -418,7 +404,7 @@ struct CommandService::Impl : std::enable_shared_from_this<CommandService::Impl>
                     e.what());
     }
     spdlog::info("command {}: duplicate delivery; stored result '{}' queued again",
-                 entry.command_id, code_name(r.result()));
+                 entry.command_id, command_result_name(r.result()));
     if (observer) observer(r, true);
     return Disposition::kDuplicateAnswered;
   }
@@ -692,8 +678,8 @@ struct CommandService::Impl : std::enable_shared_from_this<CommandService::Impl>
     }
     out.set_duration_ms(static_cast<std::uint64_t>(to_ms(now - r.received)));
     count(out);
-    spdlog::info("command {}: {} ({}) in {} ms{}", out.command_id(), code_name(out.result()),
-                 out.final_lock_state_name(), out.duration_ms(),
+    spdlog::info("command {}: {} ({}) in {} ms{}", out.command_id(),
+                 command_result_name(out.result()), out.final_lock_state_name(), out.duration_ms(),
                  out.reason().empty() ? "" : ": " + out.reason());
     const Micros expires = r.cmd.expires_at;
     const Micros received = r.received;

@@ -40,21 +40,6 @@ bool valid_id_chars(std::string_view id) {
   return true;
 }
 
-std::string_view code_name(v1::CommandResultCode c) {
-  switch (c) {
-    case v1::COMMAND_RESULT_CODE_SUCCEEDED:
-      return "succeeded";
-    case v1::COMMAND_RESULT_CODE_FAILED:
-      return "failed";
-    case v1::COMMAND_RESULT_CODE_TIMEOUT:
-      return "timeout";
-    case v1::COMMAND_RESULT_CODE_REJECTED:
-      return "rejected";
-    default:
-      return "unspecified";
-  }
-}
-
 std::string_view state_name(v1::LockState s) {
   switch (s) {
     case v1::LOCK_STATE_LOCKED:
@@ -72,7 +57,7 @@ nlohmann::json to_json(const v1::CommandResult& r, std::string_view vehicle, Mic
   nlohmann::json j;
   j["command_id"] = r.command_id();
   j["vehicle_id"] = vehicle;
-  j["result"] = code_name(r.result());
+  j["result"] = command_result_name(r.result());
   j["reason"] = r.reason();
   j["final_lock_state"] = state_name(r.final_lock_state());
   j["final_lock_state_name"] = r.final_lock_state_name();
@@ -81,7 +66,7 @@ nlohmann::json to_json(const v1::CommandResult& r, std::string_view vehicle, Mic
   nlohmann::json locks = nlohmann::json::array();
   for (const auto& l : r.locks()) {
     locks.push_back({{"lock_kind", l.lock_kind()},
-                     {"result", code_name(l.result())},
+                     {"result", command_result_name(l.result())},
                      {"reason", l.reason()},
                      {"final_lock_state_name", l.final_lock_state_name()},
                      {"duration_ms", l.duration_ms()},

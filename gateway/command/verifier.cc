@@ -234,4 +234,19 @@ VerifyResult CommandVerifier::verify(std::span<const std::uint8_t> payload, Micr
   return r;
 }
 
+std::string_view command_result_name(v1::CommandResultCode code) {
+  switch (code) {
+    case v1::COMMAND_RESULT_CODE_SUCCEEDED:
+      return "succeeded";
+    case v1::COMMAND_RESULT_CODE_FAILED:
+      return "failed";
+    case v1::COMMAND_RESULT_CODE_TIMEOUT:
+      return "timeout";
+    case v1::COMMAND_RESULT_CODE_REJECTED:
+      return "rejected";
+    default:
+      return "unspecified";
+  }
+}
+
 }  // namespace fleetgw::command

@@ -38,6 +38,7 @@
 #include <string_view>
 #include <variant>
 
+#include "fleetgw/v1/command.pb.h"
 #include "gateway/command/ed25519.h"
 #include "gateway/node/lock_actuator.h"
 #include "motinova/can.h"
@@ -72,6 +73,10 @@ enum class RejectReason : std::uint8_t {
 // "replayed", "lock_not_fitted", "lock_offline", "interlock_moving", "interlock_motion_unknown",
 // "lock_busy", "shutting_down", "storage_error".
 std::string_view reject_reason_name(RejectReason reason);
+
+// "succeeded", "failed", "timeout", "rejected" or "unspecified": the result names used in logs,
+// the journal and the operator tool's JSON.
+std::string_view command_result_name(v1::CommandResultCode code);
 
 struct Rejection {
   RejectReason reason = RejectReason::kMalformed;
