@@ -115,6 +115,11 @@ int run_cli(int argc, char** argv) {
   run_cmd->add_option("--config", run_config, "configuration file (TOML)")->required();
   run_cmd->add_option("--duration", run_duration, "stop after this many seconds")
       ->check(CLI::PositiveNumber);
+  double run_bus_duration = 0;
+  run_cmd
+      ->add_option("--bus-duration", run_bus_duration,
+                   "stop after this many seconds of bus time (simulated or replayed)")
+      ->check(CLI::PositiveNumber);
   run_cmd->add_flag("--live", run_live, "print a live view of the bike every second");
   run_cmd->add_option("--transport", run_transport, "override can.transport")
       ->check(CLI::IsMember({"socketcan", "replay", "udp", "sim"}));
@@ -233,6 +238,9 @@ int run_cli(int argc, char** argv) {
       runtime::ServiceOptions opts;
       if (run_duration > 0) {
         opts.duration = std::chrono::milliseconds(static_cast<int64_t>(run_duration * 1000));
+      }
+      if (run_bus_duration > 0) {
+        opts.bus_duration = motinova::Micros(static_cast<int64_t>(run_bus_duration * 1e6));
       }
       opts.live_view = run_live;
       return runtime::run_service(cfg, opts);

@@ -144,7 +144,9 @@ int run_service(const config::Config& config, const ServiceOptions& options,
   // The transport's timeline (see the header).
   Micros last_frame_ts{0};
   auto now = [&]() -> Micros {
-    if (bus.sim) return bus.sim->virtual_now();
+    // The simulator's frames carry its virtual time; once they flow they are the clock, so a
+    // machine too slow for the acceleration sees a consistent (if slower) timeline.
+    if (bus.sim) return last_frame_ts.count() > 0 ? last_frame_ts : bus.sim->virtual_now();
     if (bus.replay) return last_frame_ts;
     return system_now();
   };
@@ -204,6 +206,13 @@ int run_service(const config::Config& config, const ServiceOptions& options,
       if (!bus.replay) {
         const Micros t = now();
         if (t >= core.next_event()) core.tick(t);
+      }
+      // Measured on the frames actually delivered: a paced simulator's clock can run ahead of
+      // a slow machine, the traffic cannot.
+      if (options.bus_duration && first_ts.count() >= 0 &&
+          last_frame_ts - first_ts >= *options.bus_duration) {
+        stop("bus duration reached");
+        return;
       }
       arm_tick();
     });

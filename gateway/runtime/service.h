@@ -22,8 +22,11 @@ namespace fleetgw::runtime {
 
 struct ServiceOptions {
   std::optional<std::chrono::milliseconds> duration;  // stop after this much real time
-  bool live_view = false;                             // print LiveState::line() every second
-  std::ostream* live_out = nullptr;                   // default std::cout
+  // Stop once this much bus time has passed (simulated or replayed timelines run faster than
+  // the wall clock; this makes a run cover the same traffic however fast the machine is).
+  std::optional<Micros> bus_duration;
+  bool live_view = false;            // print LiveState::line() every second
+  std::ostream* live_out = nullptr;  // default std::cout
   // Called once with the core before the loop starts (tests and the demo attach listeners).
   std::function<void(GatewayCore&)> on_core;
 };

@@ -58,7 +58,8 @@ std::string write_config(const TempDir& dir, const std::string& scenario, double
   std::ostringstream c;
   c << "[vehicle]\nid = \"" << kVehicle << "\"\n[log]\nlevel = \"warn\"\n"
     << "[can]\ntransport = \"sim\"\n[sim]\nscenario = \"" << scenario << "\"\nspeed = " << speed
-    << "\n[storage]\npath = \"" << (dir.path() / "fleetgw.db").string() << "\"\n";
+    << "\n[storage]\npath = \"" << (dir.path() / "fleetgw.db").string() << "\"\n"
+    << "[ride]\nstationary_end_s = 120\n";  // the ride closes soon after the scenario's end
   if (!broker_uri.empty()) {
     c << "[mqtt]\nenabled = true\nuri = \"" << broker_uri << "\"\ntelemetry_qos = 1\n"
       << "reconnect_min_ms = 100\nreconnect_max_ms = 500\n";
@@ -68,12 +69,20 @@ std::string write_config(const TempDir& dir, const std::string& scenario, double
   return path;
 }
 
-pid_t spawn_gateway(const std::string& config, double duration_s) {
+// Runs `fleetgw run` for `duration_s` of wall time, or until `bus_s` seconds of (simulated) bus
+// time have passed when given: bus time makes a run cover the same ride on a slow machine.
+pid_t spawn_gateway(const std::string& config, double duration_s, double bus_s = 0) {
   const pid_t pid = fork();
   if (pid == 0) {
     const std::string d = std::to_string(duration_s);
-    execl(FLEETGW_BINARY, FLEETGW_BINARY, "run", "--config", config.c_str(), "--duration",
-          d.c_str(), static_cast<char*>(nullptr));
+    const std::string b = std::to_string(bus_s);
+    if (bus_s > 0) {
+      execl(FLEETGW_BINARY, FLEETGW_BINARY, "run", "--config", config.c_str(), "--duration",
+            d.c_str(), "--bus-duration", b.c_str(), static_cast<char*>(nullptr));
+    } else {
+      execl(FLEETGW_BINARY, FLEETGW_BINARY, "run", "--config", config.c_str(), "--duration",
+            d.c_str(), static_cast<char*>(nullptr));
+    }
     _exit(127);
   }
   return pid;
@@ -183,7 +192,7 @@ TEST(EndToEnd, RideReachesTheBrokerCompleteAndInOrder) {
   broker.start();
   Subscriber sub(broker.uri());
   const auto config = write_config(dir, ride_scenario(dir, 8), 400.0, broker.uri());
-  ASSERT_EQ(wait_exit(spawn_gateway(config, 6.0)), 0);
+  ASSERT_EQ(wait_exit(spawn_gateway(config, 120.0, 1900.0)), 0);
 
   Db db((dir.path() / "fleetgw.db").string());
   const int64_t next =
@@ -222,7 +231,7 @@ TEST(CrashSafety, KilledWhileDrainingLosesNothing) {
   const std::string uri = broker.uri();
   {
     const auto config = write_config(dir, ride_scenario(dir, 1), 400.0, uri);
-    ASSERT_EQ(wait_exit(spawn_gateway(config, 5.0)), 0);
+    ASSERT_EQ(wait_exit(spawn_gateway(config, 120.0, 1900.0)), 0);
   }
   int64_t backlog = 0;
   {
@@ -271,7 +280,7 @@ TEST(CrashSafety, KilledWhileIngestingKeepsTheStoreIntact) {
   for (int round = 0; round < 5; ++round) {
     const auto config = write_config(dir, ride_scenario(dir, 10 + round), 2000.0, "");
     const pid_t pid = spawn_gateway(config, 30.0);
-    std::this_thread::sleep_for(std::chrono::milliseconds(400 + rng() % 900));
+    std::this_thread::sleep_for(std::chrono::milliseconds(1000 + rng() % 1500));
     kill(pid, SIGKILL);
     ASSERT_EQ(wait_exit(pid), 128 + SIGKILL);
 

@@ -37,7 +37,9 @@ TEST(ServiceE2E, RideScenarioEndsUpAsRideAndTelemetryInTheStore) {
   const auto cfg =
       make_config(service_config(dir, "ride", 1500, "[ride]\nstationary_end_s = 120\n"));
   ServiceOptions opts;
-  opts.duration = std::chrono::milliseconds(1400);
+  // Bus time, not wall time, bounds the run: a slow (sanitizer) build covers the same ride.
+  opts.bus_duration = sec(1900);
+  opts.duration = std::chrono::milliseconds(120'000);
   ServiceReport report;
   ASSERT_EQ(run_service(cfg, opts, &report), 0);
 
@@ -77,7 +79,8 @@ TEST(ServiceE2E, ServiceKeepsRunningThroughBusTrouble) {
   TempDir dir;
   const auto cfg = make_config(service_config(dir, "bus-trouble", 500));
   ServiceOptions opts;
-  opts.duration = std::chrono::milliseconds(1000);
+  opts.bus_duration = sec(450);
+  opts.duration = std::chrono::milliseconds(120'000);
   ServiceReport report;
   ASSERT_EQ(run_service(cfg, opts, &report), 0);
   EXPECT_GE(report.virtual_seconds, 420.0);  // past every corruption/garbage event
