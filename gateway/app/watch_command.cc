@@ -10,6 +10,7 @@
 #include <random>
 #include <thread>
 
+#include "fleetgw/v1/command.pb.h"
 #include "fleetgw/v1/envelope.pb.h"
 #include "fleetgw/v1/status.pb.h"
 
@@ -33,6 +34,10 @@ std::string to_json(const google::protobuf::Message& m) {
 }  // namespace
 
 int run_watch(const WatchOptions& options, std::ostream& out) {
+  // Undecodable payloads are reported as JSON lines; protobuf's own stderr log would only
+  // duplicate them.
+  google::protobuf::SetLogHandler(
+      [](google::protobuf::LogLevel, const char*, int, const std::string&) {});
   std::signal(SIGINT, on_signal);
   std::signal(SIGTERM, on_signal);
   std::mt19937_64 rng(std::random_device{}());
@@ -65,7 +70,17 @@ int run_watch(const WatchOptions& options, std::ostream& out) {
     if (!client.try_consume_message_for(&msg, std::chrono::milliseconds(200)) || !msg) continue;
     const std::string& payload = msg->get_payload();
     fleetgw::v1::Envelope envelope;
-    if (payload.size() > (1u << 20) || !envelope.ParseFromString(payload)) {
+    fleetgw::v1::SignedCommand signed_command;
+    fleetgw::v1::Command command;
+    const bool is_command_topic =
+        msg->get_topic().size() >= 4 &&
+        msg->get_topic().compare(msg->get_topic().size() - 4, 4, "/cmd") == 0;
+    if (is_command_topic && signed_command.ParseFromString(payload) &&
+        command.ParseFromString(signed_command.command())) {
+      // Commands travel the other way (backend to bike); show what was asked and by which key.
+      out << R"({"topic":")" << msg->get_topic() << R"(","key_id":")" << signed_command.key_id()
+          << R"(","command":)" << to_json(command) << "}" << std::endl;
+    } else if (payload.size() > (1u << 20) || !envelope.ParseFromString(payload)) {
       // Retained status messages may be published bare by older gateways; show both forms.
       out << R"({"topic":")" << msg->get_topic() << R"(","error":"not a fleetgw.v1.Envelope ()"
           << payload.size() << " bytes)\"}" << std::endl;
