@@ -9,13 +9,12 @@
 //  * BM_CommandMqttRoundTrip: the full path on loopback: an operator-side Paho client publishes
 //    the SignedCommand -> mosquitto -> real Uplink -> CommandService -> IotNode -> bus -> lock ->
 //    confirmation -> result stored in the SQLite outbox -> Uplink -> mosquitto -> the operator's
-//    subscriber. Median and p99 over 1,000 commands.
+//    subscriber. Median and p99 over 1,000 commands. Both ends set TCP_NODELAY as the product
+//    does (uplink.tcp_nodelay, `fleetgw command`); broker_nodelay:1 is the broker as
+//    deploy/mosquitto/mosquitto.conf configures it, broker_nodelay:0 mosquitto's default.
 #include <benchmark/benchmark.h>
 #include <fcntl.h>
 #include <mqtt/async_client.h>
-#include <netinet/in.h>
-#include <netinet/tcp.h>
-#include <sys/socket.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -34,6 +33,7 @@
 #include "gateway/runtime/gateway_core.h"
 #include "gateway/runtime/store_outbox.h"
 #include "gateway/sim/virtual_bus.h"
+#include "gateway/uplink/tcp_nodelay.h"
 #include "gateway/uplink/uplink.h"
 #include "motinova/reassembler.h"
 #include "motinova/segmenter.h"
@@ -143,8 +143,8 @@ struct Gateway {
     core->start(bus.now());
     service = std::make_unique<command::CommandService>(
         command::make_command_service_config(cfg),
-        command::CommandContext{core->node(), *store, nullptr,
-                                command::default_clock_synchronised});
+        command::CommandContext{
+            core->node(), *store, nullptr, command::default_clock_synchronised, {}});
     service->set_result_observer([this](const v1::CommandResult& r, bool) { last = r; });
     bus.run_for(2s);  // the lock is heard: online
   }
@@ -220,26 +220,13 @@ class Inbox {
 // The operator side runs in a child process, as the real tool does: two Paho async clients in
 // one process share Paho's network threads, which adds ~45 ms per direction (measured; see
 // docs/commands.md) that has nothing to do with the gateway.
-// Diagnostic for the arg nodelay=1 variant: Paho C 1.3 has no TCP_NODELAY option, so Nagle holds
-// a PUBLISH that follows our own PUBACK until the broker's delayed ACK (~40 ms on Linux). Setting
-// TCP_NODELAY on every TCP socket of the process afterwards shows the path without that artefact.
-void set_nodelay_on_all_sockets() {
-  for (int fd = 0; fd < 1024; ++fd) {
-    int type = 0;
-    socklen_t len = sizeof type;
-    if (::getsockopt(fd, SOL_SOCKET, SO_TYPE, &type, &len) != 0 || type != SOCK_STREAM) continue;
-    const int one = 1;
-    ::setsockopt(fd, IPPROTO_TCP, TCP_NODELAY, &one, sizeof one);
-  }
-}
-
 struct OperatorTimes {
   double total_us = 0;
   bool succeeded = false;
 };
 
 [[noreturn]] void operator_process(const std::string& uri, const command::Ed25519PrivateKey& key,
-                                   int iterations, bool nodelay, int go_fd, int out_fd) {
+                                   int iterations, int go_fd, int out_fd) {
   char go = 0;
   if (::read(go_fd, &go, 1) != 1) ::_exit(2);
   try {
@@ -250,7 +237,8 @@ struct OperatorTimes {
     co.set_clean_session(true);
     op.connect(co)->wait();
     op.subscribe(std::string("fleet/v1/") + kVehicle + "/cmd/result", 1)->wait();
-    if (nodelay) set_nodelay_on_all_sockets();
+    // As `fleetgw command` does after connecting.
+    if (const auto port = uplink::broker_port(uri)) uplink::enable_tcp_nodelay_to_port(*port);
     const std::string cmd_topic = std::string("fleet/v1/") + kVehicle + "/cmd";
     for (int i = 0; i < iterations; ++i) {
       const std::string id = "rt-" + std::to_string(i);
@@ -286,7 +274,8 @@ struct OperatorTimes {
 void BM_CommandMqttRoundTrip(benchmark::State& state) {
   const int iterations = static_cast<int>(state.max_iterations);
   fleetgw::testing::MosquittoOptions mo;
-  if (state.range(0) != 0) mo.extra_config = "set_tcp_nodelay true\n";  // the broker's hops too
+  // 1: the broker as deploy/mosquitto/mosquitto.conf configures it; 0: mosquitto's default.
+  mo.tcp_nodelay = state.range(0) != 0;
   fleetgw::testing::MosquittoBroker broker(mo);
   broker.start();
   Gateway gw(wall_now());
@@ -300,7 +289,7 @@ void BM_CommandMqttRoundTrip(benchmark::State& state) {
   if (child == 0) {
     ::close(go[1]);
     ::close(out[0]);
-    operator_process(broker.uri(), gw.key, iterations, state.range(0) != 0, go[0], out[1]);
+    operator_process(broker.uri(), gw.key, iterations, go[0], out[1]);
   }
   ::close(go[0]);
   ::close(out[1]);
@@ -333,7 +322,6 @@ void BM_CommandMqttRoundTrip(benchmark::State& state) {
   const auto connect_deadline = Clock::now() + 30s;
   while (link.state() != uplink::LinkState::kConnected && Clock::now() < connect_deadline) step();
   for (const auto end = Clock::now() + 1s; Clock::now() < end;) step();
-  if (state.range(0) != 0) set_nodelay_on_all_sockets();
   const char g = 1;
   (void)!::write(go[1], &g, 1);
   ::close(go[1]);
@@ -371,7 +359,7 @@ void BM_CommandMqttRoundTrip(benchmark::State& state) {
   link.stop(wall_now(), 2s);
 }
 BENCHMARK(BM_CommandMqttRoundTrip)
-    ->ArgName("nodelay")
+    ->ArgName("broker_nodelay")
     ->Arg(0)
     ->Arg(1)
     ->Iterations(1000)

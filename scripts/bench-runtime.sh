@@ -7,12 +7,16 @@
 #      service would use at the real-time load of that ride.
 #   2. Real time: the first REALTIME_S seconds of the same log replayed at recorded speed
 #      (can.replay_speed = 1), measured directly (includes the 20 ms tick timer's wake-ups).
+#   4. Real time with the uplink: the same REALTIME_S seconds with [mqtt] enabled, over TLS to a
+#      local mosquitto (certificates made with openssl for the run), so the figure includes Paho
+#      and OpenSSL; the resident memory of each mapping is listed (UPLINK=0 skips this run).
 #   3. Saturated bus: the ride log's valid MOTINOVA traffic time-compressed to SAT_FPS frames/s
 #      (default 2200, a 250 kbit/s bus at ~100 % load with 8-byte frames) for SAT_S seconds,
 #      replayed as fast as possible: speed = bus seconds / wall seconds (target >= 100x).
 #
 # The store is a temporary SQLite file, MQTT is disabled, log level warn.
-# Environment: BUILD_DIR (default build-bench-runtime, configured as Release if absent),
+# Environment: BUILD_DIR (default build-bench-runtime, configured like the package:
+#   RelWithDebInfo, static protobuf/SQLite),
 #   FLEETGW (binary; overrides BUILD_DIR), RIDE_S (1800), REALTIME_S (60), SAT_S (60),
 #   SAT_FPS (2200), KEEP=1 keeps the work directory.
 set -euo pipefail
@@ -26,7 +30,7 @@ SAT_FPS=${SAT_FPS:-2200}
 if [[ -z ${FLEETGW:-} ]]; then
   BUILD_DIR=${BUILD_DIR:-build-bench-runtime}
   if [[ ! -f $BUILD_DIR/CMakeCache.txt ]]; then
-    cmake -S "$ROOT" -B "$BUILD_DIR" -DCMAKE_BUILD_TYPE=Release -DFLEETGW_BUILD_TESTS=OFF \
+    cmake -S "$ROOT" -B "$BUILD_DIR" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DFLEETGW_BUILD_TESTS=OFF \
       -DFLEETGW_BUILD_BENCH=OFF >/dev/null
   fi
   cmake --build "$BUILD_DIR" --target fleetgw -j "$(nproc)" >/dev/null
@@ -133,6 +137,54 @@ SAT_CPU=$CPU SAT_RSS=$RSS SAT_WALL=$WALL
 SAT_SPEED=$(echo "$SAT_S / $SAT_WALL" | bc -l)
 SAT_CHECK=$("$FLEETGW" decode "$WORK/saturated.log" 2>&1 >/dev/null | tail -1)
 
+# 4. Real time with the uplink over TLS.
+UP_RSS=0
+if [[ ${UPLINK:-1} != 0 ]] && command -v mosquitto >/dev/null && command -v openssl >/dev/null; then
+  TLS=$WORK/tls
+  mkdir -p "$TLS"
+  chmod 755 "$WORK" "$TLS"
+  openssl req -x509 -newkey ec -pkeyopt ec_paramgen_curve:prime256v1 -nodes -days 2 \
+    -subj /CN=bench-ca -keyout "$TLS/ca.key" -out "$TLS/ca.crt" 2>/dev/null
+  openssl req -newkey ec -pkeyopt ec_paramgen_curve:prime256v1 -nodes -subj /CN=localhost \
+    -keyout "$TLS/broker.key" -out "$TLS/broker.csr" 2>/dev/null
+  printf 'subjectAltName=DNS:localhost,IP:127.0.0.1\n' >"$TLS/san.ext"
+  openssl x509 -req -in "$TLS/broker.csr" -CA "$TLS/ca.crt" -CAkey "$TLS/ca.key" \
+    -CAcreateserial -days 2 -extfile "$TLS/san.ext" -out "$TLS/broker.crt" 2>/dev/null
+  chmod 644 "$TLS"/*
+  PORT=$(python3 -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1",0)); print(s.getsockname()[1])')
+  {
+    [[ $(id -u) == 0 ]] && echo "user root"
+    echo "listener $PORT 127.0.0.1"
+    echo "allow_anonymous true"
+    echo "set_tcp_nodelay true"
+    echo "cafile $TLS/ca.crt"
+    echo "certfile $TLS/broker.crt"
+    echo "keyfile $TLS/broker.key"
+  } >"$TLS/mosquitto.conf"
+  mosquitto -c "$TLS/mosquitto.conf" 2>"$TLS/mosquitto.log" &
+  BROKER=$!
+  sleep 0.5
+  config "$WORK/uplink.toml" 1.0
+  sed -i '/^\[mqtt\]/,$d' "$WORK/uplink.toml"
+  printf '[mqtt]\nenabled = true\nuri = "ssl://localhost:%s"\nca_file = "%s"\n[vehicle]\nid = "bench-bike"\n' \
+    "$PORT" "$TLS/ca.crt" >>"$WORK/uplink.toml"
+  (
+    sleep $((REALTIME_S - 5))
+    pid=$(pgrep -n -f -- "--config $WORK/uplink.toml" || true)
+    [[ -n $pid ]] && awk '/^[0-9a-f]+-[0-9a-f]+ / { name = ($6 == "" ? "[anon]" : $6) }
+      /^Rss:/ { rss[name] += $2 }
+      END { for (n in rss) if (rss[n] >= 100) { m = n; sub(/.*\//, "", m); printf "%6d KB  %s\n", rss[n], m } }' \
+      "/proc/$pid/smaps" | sort -rn >"$WORK/uplink.maps"
+  ) &
+  SAMPLER=$!
+  measure uplink -- "$FLEETGW" run --config "$WORK/uplink.toml" --replay "$WORK/realtime.log"
+  wait "$SAMPLER" || true
+  kill "$BROKER" 2>/dev/null || true
+  UP_RSS=$RSS UP_CPU=$CPU UP_WALL=$WALL
+  grep -q "connected from .* as bench-bike" "$TLS/mosquitto.log" ||
+    echo "bench-runtime: warning: the uplink never connected (see $WORK/tls/mosquitto.log)" >&2
+fi
+
 printf '\n%-44s %12s %12s %12s %12s\n' "run" "bus time" "wall" "CPU (u+s)" "max RSS"
 printf '%-44s %10ss %10.2fs %10.2fs %9.1f MB\n' \
   "30-min ride ($RIDE_FRAMES frames), as fast as possible" "$RIDE_S" "$RIDE_WALL" "$RIDE_CPU" \
@@ -140,6 +192,11 @@ printf '%-44s %10ss %10.2fs %10.2fs %9.1f MB\n' \
 printf '%-44s %10ss %10.2fs %10.2fs %9.1f MB\n' \
   "ride at recorded speed (real time)" "$REALTIME_S" "$RT_WALL" "$RT_CPU" \
   "$(echo "$RT_RSS / 1024" | bc -l)"
+if [[ $UP_RSS != 0 ]]; then
+  printf '%-44s %10ss %10.2fs %10.2fs %9.1f MB\n' \
+    "real time + uplink (MQTT over TLS, mosquitto)" "$REALTIME_S" "$UP_WALL" "$UP_CPU" \
+    "$(echo "$UP_RSS / 1024" | bc -l)"
+fi
 printf '%-44s %10s %10s %10s %9.1f MB\n' \
   "process baseline (fleetgw --version)" "-" "-" "-" "$(echo "$BASE_RSS / 1024" | bc -l)"
 printf '%-44s %10ss %10.2fs %10.2fs %9.1f MB\n' \
@@ -155,3 +212,8 @@ printf 'Peak RSS at real-time load:                      %.1f MB (target < 10 MB
 printf 'Saturated 250 kbit/s bus replay speed:           %.0fx real time (target >= 100x)\n' \
   "$SAT_SPEED"
 echo "Saturated log check (fleetgw decode):           $SAT_CHECK"
+if [[ $UP_RSS != 0 ]]; then
+  printf 'Peak RSS at real-time load with the TLS uplink:  %.1f MB; resident by mapping near the end:\n' \
+    "$(echo "$UP_RSS / 1024" | bc -l)"
+  sed 's/^/    /' "$WORK/uplink.maps"
+fi

@@ -27,6 +27,7 @@ cat > "$DEMO/mosquitto.conf" <<CONF
 listener $PORT 127.0.0.1
 allow_anonymous true
 persistence false
+set_tcp_nodelay true
 log_dest stderr
 CONF
 mosquitto -c "$DEMO/mosquitto.conf" 2> "$DEMO/mosquitto.log" &

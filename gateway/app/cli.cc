@@ -160,17 +160,11 @@ int run_cli(int argc, char** argv) {
                         "only rows at or after this time (us since epoch)");
 
   // watch
+  // Options are validated here (so `fleetgw watch --help` and typos behave like every other
+  // subcommand), then the same arguments go to fleetgw-watch.
   auto* watch_cmd = app.add_subcommand("watch", "print the Envelopes a broker receives, as JSON");
   WatchOptions watch_options;
-  watch_cmd->add_option("--broker", watch_options.broker, "broker URI");
-  watch_cmd->add_option("--topic", watch_options.topic, "topic filter");
-  watch_cmd->add_option("--ca-file", watch_options.ca_file, "CA bundle (TLS)");
-  watch_cmd->add_option("--cert-file", watch_options.cert_file, "client certificate (mutual TLS)");
-  watch_cmd->add_option("--key-file", watch_options.key_file, "client key (mutual TLS)");
-  watch_cmd->add_option("--username", watch_options.username, "user name");
-  watch_cmd->add_option("--password", watch_options.password, "password");
-  watch_cmd->add_option("--count", watch_options.max_messages, "stop after this many messages");
-  watch_cmd->add_option("--duration", watch_options.duration_s, "stop after this many seconds");
+  add_watch_options(*watch_cmd, watch_options);
 
   // status
   auto* status_cmd = app.add_subcommand(
@@ -271,7 +265,11 @@ int run_cli(int argc, char** argv) {
       }
       return 0;
     }
-    if (watch_cmd->parsed()) return run_watch(watch_options, std::cout);
+    if (watch_cmd->parsed()) {
+      int first = 1;
+      while (first < argc && std::string_view(argv[first]) != "watch") ++first;
+      return exec_watch(first < argc ? argc - first - 1 : 0, argv + first + 1);
+    }
     if (status_cmd->parsed())
       return status::run_status_command(status_options, std::cout, std::cerr);
     if (keygen_cmd->parsed()) return command::run_keygen(keygen_prefix, std::cout);

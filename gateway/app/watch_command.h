@@ -6,10 +6,18 @@
 // Contract: runs until SIGINT/SIGTERM or `max_messages`/`duration_s`; a payload that is not an
 // Envelope is reported as {"topic", "error"} and the watch goes on. Retained status messages
 // are shown too. Exit status 0, or 1 when the broker cannot be reached.
+//
+// It runs as its own program, fleetgw-watch (`fleetgw watch ...` execs it): JSON needs protobuf's
+// reflection, and linking that into the service costs the IoT node about a megabyte of resident
+// memory (docs/performance.md). The service binary never contains it.
 #pragma once
 
 #include <ostream>
 #include <string>
+
+namespace CLI {
+class App;
+}
 
 namespace fleetgw::app {
 
@@ -25,6 +33,13 @@ struct WatchOptions {
   double duration_s = 0;  // 0 = until a signal
 };
 
+// The watch's command-line options, shared by `fleetgw watch --help` and fleetgw-watch.
+void add_watch_options(CLI::App& app, WatchOptions& options);
+
 int run_watch(const WatchOptions& options, std::ostream& out);
+
+// `fleetgw watch ARGS...`: replaces this process with fleetgw-watch ARGS..., found next to the
+// running executable or else on PATH. Returns only on failure (exit status 127, as a shell).
+int exec_watch(int argc, char** argv);
 
 }  // namespace fleetgw::app

@@ -175,6 +175,8 @@ struct CommandService::Impl : std::enable_shared_from_this<CommandService::Impl>
   std::map<std::string, std::pair<std::string, Micros>, std::less<>> known;
   static constexpr std::size_t kMaxKnown = 10'000;
 
+  Micros wall(Micros now) const { return context.wall_clock ? context.wall_clock() : now; }
+
   void remember(const VerifiedCommand& c, Micros keep_until) {
     if (known.size() >= kMaxKnown) known.erase(known.begin());
     known[c.command_id] = {c.command_bytes, keep_until};
@@ -340,7 +342,7 @@ struct CommandService::Impl : std::enable_shared_from_this<CommandService::Impl>
       return Disposition::kDropped;
     }
     std::optional<Micros> keep;
-    if (journal) keep = std::max(*expires, now + config.rejected_retention);
+    if (journal) keep = std::max(*expires, wall(now) + config.rejected_retention);
     store_result(r, now, keep, now);
     return Disposition::kRejected;
   }
@@ -450,19 +452,20 @@ struct CommandService::Impl : std::enable_shared_from_this<CommandService::Impl>
       return duplicate(*entry, now);
     }
 
-    const bool synced = context.clock_synchronised(now);
+    const Micros wall_now = wall(now);
+    const bool synced = context.clock_synchronised(wall_now);
     const auto seen = [this](std::string_view id, Micros at) {
       return context.store.command_seen(id, at.count());
     };
-    if (auto rej = verifier.check(cmd, now, synced, seen)) {
+    if (auto rej = verifier.check(cmd, wall_now, synced, seen)) {
       // A replay whose journal entry is gone (purged) gets no new journal row either.
       const bool journal = rej->reason != RejectReason::kReplayed;
-      if (journal) remember(cmd, std::max(cmd.expires_at, now + config.rejected_retention));
+      if (journal) remember(cmd, std::max(cmd.expires_at, wall_now + config.rejected_retention));
       return reject(*rej, now, journal ? std::optional<Micros>(cmd.expires_at) : std::nullopt,
                     !journal);
     }
     if (auto rej = preflight(cmd, now)) {
-      remember(cmd, std::max(cmd.expires_at, now + config.rejected_retention));
+      remember(cmd, std::max(cmd.expires_at, wall_now + config.rejected_retention));
       return reject(*rej, now, cmd.expires_at);
     }
     return start(std::move(cmd), now);
@@ -539,7 +542,7 @@ struct CommandService::Impl : std::enable_shared_from_this<CommandService::Impl>
                     now, std::nullopt);
     }
     ++stats.accepted;
-    remember(cmd, std::max(cmd.expires_at, now + config.rejected_retention));
+    remember(cmd, std::max(cmd.expires_at, wall(now) + config.rejected_retention));
     auto run = std::make_unique<Running>();
     run->received = now;
     for (const int k : lock_indices(cmd)) {
@@ -705,11 +708,12 @@ struct CommandService::Impl : std::enable_shared_from_this<CommandService::Impl>
   }
 
   void tick(Micros now) {
-    if (now >= next_purge && context.clock_synchronised(now)) {
+    const Micros wall_now = wall(now);
+    if (now >= next_purge && context.clock_synchronised(wall_now)) {
       next_purge = now + config.purge_interval;
-      std::erase_if(known, [now](const auto& kv) { return kv.second.second <= now; });
+      std::erase_if(known, [wall_now](const auto& kv) { return kv.second.second <= wall_now; });
       try {
-        const std::size_t n = context.store.purge_expired_commands(now.count());
+        const std::size_t n = context.store.purge_expired_commands(wall_now.count());
         if (n > 0) spdlog::debug("command: forgot {} expired command id(s)", n);
       } catch (const std::exception& e) {
         spdlog::error("command: purging expired command ids failed: {}", e.what());

@@ -119,6 +119,11 @@ struct CommandContext {
   storage::Store& store;
   domain::DomainTrackers* trackers = nullptr;
   std::function<bool(Micros)> clock_synchronised = default_clock_synchronised;
+  // The wall clock commands are judged by. Commands carry wall-clock issued/expiry times, so
+  // freshness, replay retention and purging must follow the wall clock even when the bus
+  // timeline is simulated faster than real time or replayed from a log; timeouts and the
+  // interlocks follow the `now` of the calls (the bus timeline). Empty: `now` is the wall clock.
+  std::function<Micros()> wall_clock;
 };
 
 enum class Disposition : std::uint8_t {

@@ -12,6 +12,7 @@
 #include "fleetgw/v1/command.pb.h"
 #include "fleetgw/v1/envelope.pb.h"
 #include "gateway/command/verifier.h"
+#include "gateway/uplink/tcp_nodelay.h"
 
 namespace fleetgw::command {
 namespace {
@@ -257,6 +258,9 @@ int run_command_tool(const CommandToolOptions& o) {
         err << "command: no connection to the broker within " << o.timeout.count() << " s\n";
         return kExitNoAnswer;
       }
+      // The result arrives right after our command's PUBACK; see uplink/tcp_nodelay.h.
+      if (const auto port = uplink::broker_port(o.broker))
+        uplink::enable_tcp_nodelay_to_port(*port);
       // Subscribe first: a result published before our subscription existed would be lost.
       if (!client.subscribe(result_topic, 1)->wait_for(remaining())) {
         err << "command: subscribe to " << result_topic << " timed out\n";

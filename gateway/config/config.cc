@@ -280,6 +280,7 @@ Config parse_root(const toml::table& root, const std::string& name) {
       s.string("password", c.mqtt.password);
       s.boolean("verify_server", c.mqtt.verify_server);
       s.integer("keepalive_s", c.mqtt.keepalive_s, 5, 3600);
+      s.boolean("tcp_nodelay", c.mqtt.tcp_nodelay);
       s.integer("max_inflight", c.mqtt.max_inflight, 1, 10'000);
       s.integer("telemetry_qos", c.mqtt.telemetry_qos, 0, 1);
       s.integer("batch_max_samples", c.mqtt.batch_max_samples, 1, 10'000);

@@ -89,6 +89,7 @@ struct MqttConfig {
   std::string password;
   bool verify_server = true;
   int keepalive_s = 30;
+  bool tcp_nodelay = true;
   int max_inflight = 64;
   int telemetry_qos = 0;
   int batch_max_samples = 200;

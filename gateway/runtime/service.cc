@@ -99,6 +99,7 @@ uplink::UplinkConfig make_uplink_config(const config::Config& c) {
   u.username = c.mqtt.username;
   u.password = c.mqtt.password;
   u.keep_alive = std::chrono::seconds(c.mqtt.keepalive_s);
+  u.tcp_nodelay = c.mqtt.tcp_nodelay;
   u.reconnect_min = std::chrono::milliseconds(c.mqtt.reconnect_min_ms);
   u.reconnect_max = std::chrono::milliseconds(c.mqtt.reconnect_max_ms);
   u.max_in_flight = static_cast<std::size_t>(c.mqtt.max_inflight);
@@ -246,7 +247,7 @@ int run_service(const config::Config& config, const ServiceOptions& options,
     commands = std::make_unique<command::CommandService>(
         command::make_command_service_config(config),
         command::CommandContext{core.node(), *store, &recorder.trackers(),
-                                command::default_clock_synchronised});
+                                command::default_clock_synchronised, system_now});
   } catch (const std::exception& e) {
     spdlog::critical("invalid [command] configuration: {}", e.what());
     return 1;

@@ -20,6 +20,7 @@
 #include "fleetgw/v1/command.pb.h"
 #include "fleetgw/v1/envelope.pb.h"
 #include "gateway/uplink/backoff.h"
+#include "gateway/uplink/tcp_nodelay.h"
 
 namespace fleetgw::uplink {
 
@@ -166,26 +167,26 @@ class SubscribeListener final : public mqtt::iaction_listener {
 struct KindRoute {
   std::string_view kind;
   const std::string Topics::*topic;
-  google::protobuf::Message* (*body)(v1::Envelope&);
+  google::protobuf::MessageLite* (*body)(v1::Envelope&);
 };
 
 constexpr KindRoute kRoutes[] = {
     {kind::kRide, &Topics::ride,
-     [](v1::Envelope& e) -> google::protobuf::Message* { return e.mutable_ride(); }},
+     [](v1::Envelope& e) -> google::protobuf::MessageLite* { return e.mutable_ride(); }},
     {kind::kFault, &Topics::fault,
-     [](v1::Envelope& e) -> google::protobuf::Message* { return e.mutable_fault(); }},
+     [](v1::Envelope& e) -> google::protobuf::MessageLite* { return e.mutable_fault(); }},
     {kind::kPack, &Topics::pack,
-     [](v1::Envelope& e) -> google::protobuf::Message* { return e.mutable_pack(); }},
+     [](v1::Envelope& e) -> google::protobuf::MessageLite* { return e.mutable_pack(); }},
     {kind::kLock, &Topics::lock,
-     [](v1::Envelope& e) -> google::protobuf::Message* { return e.mutable_lock(); }},
+     [](v1::Envelope& e) -> google::protobuf::MessageLite* { return e.mutable_lock(); }},
     {kind::kInfo, &Topics::info,
-     [](v1::Envelope& e) -> google::protobuf::Message* { return e.mutable_info(); }},
+     [](v1::Envelope& e) -> google::protobuf::MessageLite* { return e.mutable_info(); }},
     {kind::kStatus, &Topics::status,
-     [](v1::Envelope& e) -> google::protobuf::Message* { return e.mutable_status(); }},
+     [](v1::Envelope& e) -> google::protobuf::MessageLite* { return e.mutable_status(); }},
     {kind::kCommandResult, &Topics::cmd_result,
-     [](v1::Envelope& e) -> google::protobuf::Message* { return e.mutable_command_result(); }},
+     [](v1::Envelope& e) -> google::protobuf::MessageLite* { return e.mutable_command_result(); }},
     {kind::kEviction, &Topics::eviction,
-     [](v1::Envelope& e) -> google::protobuf::Message* { return e.mutable_eviction(); }},
+     [](v1::Envelope& e) -> google::protobuf::MessageLite* { return e.mutable_eviction(); }},
 };
 
 const KindRoute* find_route(std::string_view kind) {
@@ -345,6 +346,11 @@ struct Uplink::Impl {
     ++counters.connects;
     if (counters.connects > 1) ++counters.reconnects;
     spdlog::info("uplink: connected to {}", redact_uri(config.broker_uri));
+    if (config.tcp_nodelay) {
+      const auto port = broker_port(normalise_uri(config.broker_uri));
+      const int n = port ? enable_tcp_nodelay_to_port(*port) : 0;
+      if (n == 0) spdlog::debug("uplink: no broker socket found for TCP_NODELAY");
+    }
     try {
       client.subscribe(topics.cmd, 1, nullptr, subscribe_listener);
     } catch (const mqtt::exception& e) {

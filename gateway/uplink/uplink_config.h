@@ -43,6 +43,10 @@ struct UplinkConfig {
   // Credentials over an unencrypted connection are refused unless this is set (lab only).
   bool allow_plaintext_credentials = false;
 
+  // TCP_NODELAY on the broker connection after every connect (see tcp_nodelay.h): a command
+  // result leaves at once instead of waiting up to 40 ms behind its own PUBACK.
+  bool tcp_nodelay = true;
+
   std::chrono::seconds keep_alive{30};
   std::chrono::seconds connect_timeout{10};
   // Reconnect back-off: the n-th consecutive failure waits a random time in

@@ -152,7 +152,8 @@ struct Rig {
   }
   void make_service() {
     service = std::make_unique<CommandService>(
-        service_config(), CommandContext{core->node(), *store, trackers.get(), clock_synced});
+        service_config(),
+        CommandContext{core->node(), *store, trackers.get(), clock_synced, wall_clock});
     service->set_result_observer([this](const v1::CommandResult& r, bool resent) {
       results.push_back(r);
       resent_flags.push_back(resent);
@@ -230,6 +231,8 @@ struct Rig {
   std::unique_ptr<domain::DomainTrackers> trackers;
   std::unique_ptr<CommandService> service;
   std::function<bool(Micros)> clock_synced = default_clock_synchronised;
+  // Empty: the bus timeline is the wall clock (lockstep tests).
+  std::function<Micros()> wall_clock;
   std::function<void(CommandServiceConfig&)> tweak;
   std::vector<v1::CommandResult> results;
   std::vector<bool> resent_flags;

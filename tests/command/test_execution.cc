@@ -242,6 +242,46 @@ TEST(Execution, CommandExpiredWhileOfflineIsRejected) {
   EXPECT_EQ(rig.service->on_payload(p, rig.bus.now()), Disposition::kDuplicateAnswered);
 }
 
+// The simulator at sim.speed > 1 (or a replayed log) runs the bus timeline away from the wall
+// clock; commands carry wall-clock times and must be judged by the wall clock.
+TEST(Execution, FreshnessFollowsTheWallClockNotTheBusTimeline) {
+  Micros wall{0};
+  auto make_rig = [&wall] {
+    auto rig = std::make_unique<Rig>(quiet_scenario(), /*start_service=*/false);
+    wall = rig->bus.now();
+    rig->wall_clock = [&wall] { return wall; };
+    rig->make_service();
+    return rig;
+  };
+  auto signed_at_wall = [&wall](Rig& rig, std::string_view action, Micros expires_in) {
+    auto cmd = make_command(kVehicle, "seat", action, wall, wall + expires_in, random_command_id());
+    return sign_command(*cmd, rig.key, kKeyId);
+  };
+  {
+    // Bus 30 minutes ahead of the wall clock (accelerated simulation): still fresh.
+    auto rig = make_rig();
+    rig->bus.run_for(1800s);
+    wall += 2s;
+    const auto* r = rig->run(signed_at_wall(*rig, "unlock", 60s));
+    ASSERT_NE(r, nullptr);
+    EXPECT_EQ(r->result(), v1::COMMAND_RESULT_CODE_SUCCEEDED) << r->reason();
+    EXPECT_EQ(rig->lock_state(0), sim::LockState::kUnlocked);
+  }
+  {
+    // The wall clock passed the expiry while the bus timeline barely moved: expired.
+    auto rig = make_rig();
+    rig->bus.run_for(2s);
+    const std::string p = signed_at_wall(*rig, "unlock", 30s);
+    wall += 120s;
+    const Micros t0 = rig->bus.now();
+    const auto* r = rig->run(p, 2s);
+    ASSERT_NE(r, nullptr);
+    EXPECT_EQ(reason_code(*r), "expired") << r->reason();
+    EXPECT_EQ(rig->sender.command_frames_since(t0), 0u);
+    EXPECT_EQ(rig->lock_state(0), sim::LockState::kLocked);
+  }
+}
+
 TEST(Execution, WholeVehicleUnlockAndLockInRentalOrder) {
   Rig rig;
   rig.bus.run_for(2s);

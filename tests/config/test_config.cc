@@ -36,6 +36,7 @@ TEST(Config, ShippedDefaultFileLoadsAndMatchesTheDefaults) {
   EXPECT_EQ(file.node.bms_poll_ms, defaults.node.bms_poll_ms);
   EXPECT_EQ(file.storage.max_mb, defaults.storage.max_mb);
   EXPECT_EQ(file.mqtt.keepalive_s, defaults.mqtt.keepalive_s);
+  EXPECT_EQ(file.mqtt.tcp_nodelay, defaults.mqtt.tcp_nodelay);
 }
 
 TEST(Config, UnknownKeyNamesFileLineAndKey) {

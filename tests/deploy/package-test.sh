@@ -45,7 +45,7 @@ echo "package: $(basename "$deb") ($(stat -c %s "$deb") bytes)"
 
 echo "== package contents"
 contents=$(dpkg-deb -c "$deb")
-for f in ./usr/bin/fleetgw ./etc/fleetgw/fleetgw.toml ./lib/systemd/system/fleetgw.service \
+for f in ./usr/bin/fleetgw ./usr/bin/fleetgw-watch ./etc/fleetgw/fleetgw.toml ./lib/systemd/system/fleetgw.service \
          ./usr/libexec/fleetgw/fleetgw-can-setup ./usr/share/doc/fleetgw/deployment.md \
          ./usr/share/doc/fleetgw/examples/80-can.network; do
   grep -q " $f\$" <<<"$contents" && ok "contains $f" || fail "package lacks $f"
@@ -56,8 +56,18 @@ conffiles=$(dpkg-deb --ctrl-tarfile "$deb" | tar -xO ./conffiles)
 depends=$(dpkg-deb -f "$deb" Depends)
 echo "Depends: $depends"
 # dpkg-shlibdeps must have found the real runtime libraries, not left only the manual ones.
-for lib in libc6 libstdc++6 libsqlite3-0 libprotobuf32 libpaho-mqttpp3 adduser; do
+for lib in libc6 libstdc++6 libpaho-mqttpp3 adduser; do
   grep -q "$lib" <<<"$depends" && ok "depends on $lib" || fail "Depends lacks $lib"
+done
+# protobuf and SQLite are linked statically (FLEETGW_STATIC_DEPS, the default: resident memory).
+static_deps=$(grep -s "^FLEETGW_STATIC_DEPS:" "$BUILD/CMakeCache.txt" | cut -d= -f2 || true)
+for lib in libsqlite3-0 libprotobuf32; do
+  if [ "$static_deps" = OFF ]; then
+    grep -q "$lib" <<<"$depends" && ok "depends on $lib" || fail "Depends lacks $lib"
+  else
+    grep -q "$lib" <<<"$depends" && fail "depends on $lib, linked statically" ||
+      ok "no $lib dependency (linked statically)"
+  fi
 done
 [ "$(dpkg-deb -f "$deb" Architecture)" = "$(dpkg --print-architecture)" ] ||
   fail "architecture $(dpkg-deb -f "$deb" Architecture)"
@@ -79,6 +89,12 @@ getent passwd fleetgw >/dev/null && ok "system user fleetgw" || fail "no fleetgw
   ok "/var/lib/fleetgw fleetgw:fleetgw 0750" || fail "/var/lib/fleetgw: $(stat -c '%U:%G %a' /var/lib/fleetgw 2>&1)"
 [ "$(stat -c '%U:%G %a' /etc/fleetgw/fleetgw.toml)" = "root:fleetgw 640" ] &&
   ok "config root:fleetgw 0640" || fail "config permissions $(stat -c '%U:%G %a' /etc/fleetgw/fleetgw.toml)"
+
+# `fleetgw watch` runs the installed fleetgw-watch: no broker here, so it must say it could not
+# subscribe (its own message), not that the helper is missing.
+out=$(/usr/bin/fleetgw watch --broker tcp://127.0.0.1:1 --duration 1 2>&1 || true)
+[[ $out == *"cannot subscribe"* ]] && ok "fleetgw watch runs /usr/bin/fleetgw-watch" ||
+  fail "fleetgw watch: $out"
 
 version=$(/usr/bin/fleetgw --version)
 pkg_version=$(dpkg-query -W -f='${Version}' fleetgw)

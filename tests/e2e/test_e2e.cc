@@ -1,6 +1,7 @@
 // The whole road, as an operator runs it: `fleetgw run` (a child process) on the simulated
 // bike → SQLite → a real mosquitto → a subscriber that knows only the .proto files. And the
 // crash cases: SIGKILL while ingesting (issue 4) and while draining a backlog (issue 5).
+#include <fcntl.h>
 #include <gtest/gtest.h>
 #include <mqtt/async_client.h>
 #include <signal.h>
@@ -18,7 +19,9 @@
 #include <set>
 #include <sstream>
 #include <thread>
+#include <vector>
 
+#include "fleetgw/v1/command.pb.h"
 #include "fleetgw/v1/envelope.pb.h"
 #include "tests/support/mosquitto_fixture.h"
 
@@ -352,3 +355,80 @@ TEST(Status, ShowsTheScenarioAndFlagsAnUnreachableBroker) {
 }
 
 }  // namespace
+
+namespace {
+
+// Runs `fleetgw ARGS...` with stdout and stderr into `out`; returns its exit status.
+int run_fleetgw(const std::vector<std::string>& args, const std::string& out) {
+  const pid_t pid = fork();
+  if (pid == 0) {
+    const int fd = ::open(out.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0600);
+    ::dup2(fd, 1);
+    ::dup2(fd, 2);
+    std::vector<char*> argv{const_cast<char*>(FLEETGW_BINARY)};
+    for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+    argv.push_back(nullptr);
+    execv(FLEETGW_BINARY, argv.data());
+    _exit(127);
+  }
+  return wait_exit(pid);
+}
+
+}  // namespace
+
+// `fleetgw watch` runs the separate fleetgw-watch (protobuf reflection stays out of the service
+// binary) and prints every payload under the filter as one JSON line, read through the schema
+// compiled into it: Envelopes, signed commands, and an error line for anything else.
+TEST(Watch, PrintsEnvelopesCommandsAndErrorsAsJsonLines) {
+  TempDir dir("fleetgw-e2e-watch");
+  MosquittoBroker broker;
+  broker.start();
+  {
+    // Retained, so the watch receives them whenever it subscribes.
+    mqtt::async_client pub(broker.uri(), "e2e-watch-publisher");
+    pub.connect()->wait();
+    fleetgw::v1::Envelope env;
+    env.set_vehicle_id(kVehicle);
+    env.set_sequence(7);
+    env.mutable_ride()->set_ride_id("ride-42");
+    env.mutable_ride()->set_distance_odo_m(1234);
+    pub.publish("fleet/v1/" + kVehicle + "/ride", env.SerializeAsString(), 1, true)->wait();
+    fleetgw::v1::Command cmd;
+    cmd.set_command_id("cmd-1");
+    cmd.set_vehicle_id(kVehicle);
+    cmd.set_action(fleetgw::v1::COMMAND_ACTION_UNLOCK);
+    cmd.set_lock_kind("seat");
+    fleetgw::v1::SignedCommand signed_cmd;
+    signed_cmd.set_command(cmd.SerializeAsString());
+    signed_cmd.set_key_id("backend-1");
+    pub.publish("fleet/v1/" + kVehicle + "/cmd", signed_cmd.SerializeAsString(), 1, true)->wait();
+    pub.publish("fleet/v1/" + kVehicle + "/junk", std::string("\xff\xff\xff\xff", 4), 1, true)
+        ->wait();
+    pub.disconnect()->wait();
+  }
+  const std::string out = (dir.path() / "watch.out").string();
+  ASSERT_EQ(run_fleetgw({"watch", "--broker", broker.uri(), "--topic", "fleet/v1/#", "--count", "3",
+                         "--duration", "30"},
+                        out),
+            0)
+      << read_file(out);
+  std::map<std::string, nlohmann::json> by_topic;
+  std::istringstream lines(read_file(out));
+  for (std::string line; std::getline(lines, line);) {
+    const auto j = nlohmann::json::parse(line, nullptr, false);
+    ASSERT_FALSE(j.is_discarded()) << "not JSON: " << line;
+    by_topic[j.at("topic").get<std::string>()] = j;
+  }
+  const std::string base = "fleet/v1/" + kVehicle;
+  ASSERT_EQ(by_topic.size(), 3u) << read_file(out);
+  const auto& ride = by_topic[base + "/ride"].at("envelope");
+  EXPECT_EQ(ride.at("vehicle_id"), kVehicle);
+  EXPECT_EQ(ride.at("ride").at("ride_id"), "ride-42");
+  EXPECT_EQ(ride.at("ride").at("distance_odo_m"), "1234");  // 64-bit integers are JSON strings
+  const auto& command = by_topic[base + "/cmd"];
+  EXPECT_EQ(command.at("key_id"), "backend-1");
+  EXPECT_EQ(command.at("command").at("command_id"), "cmd-1");
+  EXPECT_EQ(command.at("command").at("action"), "COMMAND_ACTION_UNLOCK");
+  EXPECT_EQ(command.at("command").at("lock_kind"), "seat");
+  EXPECT_TRUE(by_topic[base + "/junk"].contains("error")) << by_topic[base + "/junk"];
+}

@@ -239,7 +239,8 @@ void MosquittoBroker::write_config() const {
     << "log_type all\n"
     << "listener " << port_ << " 127.0.0.1\n"
     << "max_inflight_messages 0\n"
-    << "max_queued_messages 100000\n";
+    << "max_queued_messages 100000\n"
+    << "set_tcp_nodelay " << (options_.tcp_nodelay ? "true" : "false") << "\n";
   if (options_.persistence) {
     c << "persistence true\n"
       << "persistence_location " << (dir / "").string() << "\n"

@@ -84,6 +84,9 @@ struct MosquittoOptions {
   std::string acl;
   // Keep broker state on disk across stop()/start() (retained messages, sessions).
   bool persistence = false;
+  // set_tcp_nodelay, as deploy/mosquitto/mosquitto.conf recommends; false = mosquitto's default
+  // (Nagle on).
+  bool tcp_nodelay = true;
   // Extra lines appended to the generated config.
   std::string extra_config;
 };

@@ -8,7 +8,7 @@
 #include <set>
 #include <stdexcept>
 
-#include "fleetgw/v1/envelope.pb.h"
+#include "proto/schema_reflection.h"
 
 namespace fleetgw::testing {
 
@@ -167,11 +167,13 @@ class Comparer {
 }  // namespace
 
 pb::FileDescriptorSet current_fleetgw_descriptors() {
+  // The generated classes are lite; the schema compiled into the binary is the same protoc run.
+  static const proto::SchemaReflection schema;
   std::map<std::string, const pb::FileDescriptor*> files;
   // envelope.proto imports every other file of the package, so this reaches them all; the
   // command messages that never travel inside an Envelope are named explicitly all the same.
-  collect(v1::Envelope::descriptor()->file(), files);
-  collect(v1::SignedCommand::descriptor()->file(), files);
+  collect(schema.message_type("fleetgw.v1.Envelope").file(), files);
+  collect(schema.message_type("fleetgw.v1.SignedCommand").file(), files);
   pb::FileDescriptorSet set;
   for (const auto& [name, file] : files) file->CopyTo(set.add_file());
   return set;

@@ -1,9 +1,13 @@
 // Integration tests of the uplink against a real mosquitto broker started by the test itself
 // (tests/support/mosquitto_fixture.h): delivery, outage, in-flight bound, TLS, ACL, commands,
 // last will.
+#include <arpa/inet.h>
 #include <gtest/gtest.h>
+#include <netinet/in.h>
+#include <netinet/tcp.h>
 #include <signal.h>
 #include <spawn.h>
+#include <sys/socket.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -16,6 +20,7 @@
 #include "fleetgw/v1/command.pb.h"
 #include "fleetgw/v1/envelope.pb.h"
 #include "gateway/uplink/memory_outbox.h"
+#include "gateway/uplink/tcp_nodelay.h"
 #include "gateway/uplink/uplink.h"
 #include "tests/support/mosquitto_fixture.h"
 #include "tests/uplink/uplink_test_util.h"
@@ -336,6 +341,52 @@ TEST(UplinkMqtt, BackoffIsObservableAndConnectsWhenTheBrokerAppears) {
   ASSERT_TRUE(drive(
       up, [&] { return box.stats().depth == 0; }, 10s));
   EXPECT_EQ(up.stats().connects, 1u);
+}
+
+// TCP_NODELAY of every socket of this process connected to `port` (no other client of that
+// broker lives in this test, so these are the uplink's).
+std::vector<int> nodelay_of_sockets_to(std::uint16_t port) {
+  std::vector<int> flags;
+  for (int fd = 0; fd < 1024; ++fd) {
+    sockaddr_in peer{};
+    socklen_t len = sizeof peer;
+    if (::getpeername(fd, reinterpret_cast<sockaddr*>(&peer), &len) != 0 ||
+        peer.sin_family != AF_INET || ntohs(peer.sin_port) != port) {
+      continue;
+    }
+    int flag = -1;
+    socklen_t flag_len = sizeof flag;
+    ::getsockopt(fd, IPPROTO_TCP, TCP_NODELAY, &flag, &flag_len);
+    flags.push_back(flag);
+  }
+  return flags;
+}
+
+// Without TCP_NODELAY a command result waits behind the command's PUBACK for the broker's
+// delayed ACK (~40 ms); Paho has no option for it, so the uplink sets it after every connect.
+TEST(UplinkMqtt, BrokerSocketGetsTcpNodelayAfterEveryConnect) {
+  MosquittoBroker broker;
+  broker.start();
+  MemoryOutbox box;
+  for (const bool enabled : {true, false}) {
+    auto cfg = plain_config(broker.uri(), enabled ? "bike-nodelay" : "bike-nagle");
+    cfg.tcp_nodelay = enabled;
+    Uplink up(cfg, box);
+    up.start(wall_now());
+    ASSERT_TRUE(drive(
+        up, [&] { return up.state() == LinkState::kConnected; }, 10s));
+    EXPECT_EQ(nodelay_of_sockets_to(broker.port()), std::vector<int>{enabled ? 1 : 0});
+    if (enabled) {
+      // A reconnect opens a new socket: it gets the option too.
+      broker.stop();
+      broker.start();
+      ASSERT_TRUE(drive(
+          up, [&] { return up.stats().reconnects >= 1 && up.state() == LinkState::kConnected; },
+          15s));
+      EXPECT_EQ(nodelay_of_sockets_to(broker.port()), std::vector<int>{1});
+    }
+    up.stop(wall_now(), 2s);
+  }
 }
 
 // ---- commands --------------------------------------------------------------------------------

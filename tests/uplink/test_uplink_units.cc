@@ -4,15 +4,25 @@
 
 #include <google/protobuf/descriptor.h>
 
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <netinet/tcp.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
 #include <cstdlib>
 #include <fstream>
+#include <memory>
 #include <sstream>
+#include <utility>
 
 #include "fleetgw/v1/envelope.pb.h"
 #include "gateway/uplink/backoff.h"
 #include "gateway/uplink/memory_outbox.h"
+#include "gateway/uplink/tcp_nodelay.h"
 #include "gateway/uplink/topics.h"
 #include "gateway/uplink/uplink_config.h"
+#include "proto/schema_reflection.h"
 #include "tests/uplink/proto_compat.h"
 
 namespace fleetgw::uplink {
@@ -96,6 +106,80 @@ TEST(UplinkConfig, RedactUri) {
   EXPECT_EQ(redact_uri("tcp://a@b@host:1"), "tcp://***@host:1");
 }
 
+TEST(TcpNodelay, BrokerPortFromEveryUriForm) {
+  EXPECT_EQ(broker_port("tcp://127.0.0.1:18830"), 18830);
+  EXPECT_EQ(broker_port("ssl://broker.example.com"), 8883);
+  EXPECT_EQ(broker_port("mqtts://broker.example.com:9443/"), 9443);
+  EXPECT_EQ(broker_port("mqtt://h"), 1883);
+  EXPECT_EQ(broker_port("tcp://h"), 1883);
+  EXPECT_EQ(broker_port("wss://h/mqtt"), 443);
+  EXPECT_EQ(broker_port("ws://h:8080/mqtt"), 8080);
+  EXPECT_EQ(broker_port("tcp://[::1]:1884"), 1884);
+  EXPECT_EQ(broker_port("ssl://[2001:db8::1]"), 8883);
+  EXPECT_EQ(broker_port("tcp://user:secret@h:1999"), 1999);
+  EXPECT_EQ(broker_port("tcp://h:0"), std::nullopt);
+  EXPECT_EQ(broker_port("tcp://h:70000"), std::nullopt);
+  EXPECT_EQ(broker_port("tcp://h:12x"), std::nullopt);
+  EXPECT_EQ(broker_port("localhost:1883"), std::nullopt);
+  EXPECT_EQ(broker_port("unix://path"), std::nullopt);
+}
+
+namespace {
+struct Fd {
+  int fd = -1;
+  explicit Fd(int f) : fd(f) {}
+  ~Fd() {
+    if (fd >= 0) ::close(fd);
+  }
+  Fd(const Fd&) = delete;
+  Fd& operator=(const Fd&) = delete;
+};
+
+// A listening loopback socket and its port.
+std::pair<std::unique_ptr<Fd>, std::uint16_t> listener() {
+  auto s = std::make_unique<Fd>(::socket(AF_INET, SOCK_STREAM, 0));
+  sockaddr_in a{};
+  a.sin_family = AF_INET;
+  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  EXPECT_EQ(::bind(s->fd, reinterpret_cast<sockaddr*>(&a), sizeof a), 0);
+  EXPECT_EQ(::listen(s->fd, 4), 0);
+  socklen_t len = sizeof a;
+  ::getsockname(s->fd, reinterpret_cast<sockaddr*>(&a), &len);
+  return {std::move(s), ntohs(a.sin_port)};
+}
+
+std::unique_ptr<Fd> connect_to(std::uint16_t port) {
+  auto s = std::make_unique<Fd>(::socket(AF_INET, SOCK_STREAM, 0));
+  sockaddr_in a{};
+  a.sin_family = AF_INET;
+  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  a.sin_port = htons(port);
+  EXPECT_EQ(::connect(s->fd, reinterpret_cast<sockaddr*>(&a), sizeof a), 0);
+  return s;
+}
+
+int nodelay(const Fd& s) {
+  int flag = -1;
+  socklen_t len = sizeof flag;
+  ::getsockopt(s.fd, IPPROTO_TCP, TCP_NODELAY, &flag, &len);
+  return flag;
+}
+}  // namespace
+
+TEST(TcpNodelay, SetOnTheSocketsToTheBrokerPortOnly) {
+  auto [broker, broker_port_number] = listener();
+  auto [other, other_port] = listener();
+  const auto to_broker = connect_to(broker_port_number);
+  const auto to_other = connect_to(other_port);
+  const Fd udp(::socket(AF_INET, SOCK_DGRAM, 0));
+  ASSERT_EQ(nodelay(*to_broker), 0);
+  EXPECT_EQ(enable_tcp_nodelay_to_port(broker_port_number), 1);
+  EXPECT_EQ(nodelay(*to_broker), 1);
+  EXPECT_EQ(nodelay(*to_other), 0);  // another peer is left alone
+  EXPECT_EQ(nodelay(*broker), 0);    // a listener has no peer
+  EXPECT_EQ(enable_tcp_nodelay_to_port(1), 0);
+}
+
 TEST(Topics, NamesPerVehicle) {
   const Topics t("fleet/v1", "bike-7");
   EXPECT_EQ(t.telemetry, "fleet/v1/bike-7/telemetry");
@@ -164,7 +248,8 @@ void for_each_message(const pb::Descriptor* m,
 TEST(ProtoSchema, NoFloatingPointAnywhere) {
   const auto set = testing::current_fleetgw_descriptors();
   ASSERT_GE(set.file_size(), 10);
-  const auto* pool = pb::DescriptorPool::generated_pool();
+  const proto::SchemaReflection schema;
+  const auto* pool = &schema.pool();
   for (const auto& file : set.file()) {
     const auto* fd = pool->FindFileByName(file.name());
     ASSERT_NE(fd, nullptr);
@@ -180,9 +265,29 @@ TEST(ProtoSchema, NoFloatingPointAnywhere) {
   }
 }
 
+// The generated classes are lite; `fleetgw watch` and these tests read messages through the
+// descriptor set compiled into the binary, which must describe the same wire format.
+TEST(ProtoSchema, CompiledInSchemaReadsWhatTheLiteClassesWrite) {
+  v1::Envelope env;
+  env.set_vehicle_id("bike-9");
+  env.set_sequence(42);
+  env.mutable_ride()->set_ride_id("r1");
+  env.mutable_ride()->set_distance_odo_m(4200);
+  const proto::SchemaReflection schema;
+  const auto message = schema.parse("fleetgw.v1.Envelope", env.SerializeAsString());
+  ASSERT_NE(message, nullptr);
+  const std::string json = proto::SchemaReflection::to_json(*message);
+  EXPECT_NE(json.find(R"("vehicle_id":"bike-9")"), std::string::npos) << json;
+  EXPECT_NE(json.find(R"("sequence":"42")"), std::string::npos) << json;
+  EXPECT_NE(json.find(R"("ride":{"ride_id":"r1","distance_odo_m":"4200")"), std::string::npos)
+      << json;
+  EXPECT_EQ(schema.parse("fleetgw.v1.Envelope", std::string("\xff\xff\xff", 3)), nullptr);
+  EXPECT_THROW(schema.message_type("fleetgw.v1.NoSuchMessage"), std::invalid_argument);
+}
+
 TEST(ProtoSchema, TimestampsAndDurationsCarryTheirUnit) {
-  const auto* env = v1::Envelope::descriptor();
-  EXPECT_NE(env->FindFieldByName("created_at_us"), nullptr);
+  const proto::SchemaReflection schema;
+  EXPECT_NE(schema.message_type("fleetgw.v1.Envelope").FindFieldByName("created_at_us"), nullptr);
   const auto set = testing::current_fleetgw_descriptors();
   for (const auto& file : set.file()) {
     for (const auto& m : file.message_type()) {
