@@ -6,15 +6,15 @@
 #      CPU seconds per bus-hour = (user + sys) * 3600 / 1800, i.e. the % of one core the
 #      service would use at the real-time load of that ride.
 #   2. Real time: the first REALTIME_S seconds of the same log replayed at recorded speed
-#      (can.replay_speed = 1), measured directly (includes the 20 ms tick timer's wake-ups).
-#   4. Real time with the uplink: the same REALTIME_S seconds with [mqtt] enabled, over TLS to a
-#      local mosquitto (certificates made with openssl for the run), so the figure includes Paho
-#      and OpenSSL; the resident memory of each mapping is listed (UPLINK=0 skips this run).
+#      (can.replay_speed = 1), measured directly (includes the event loop's timer wake-ups).
 #   3. Saturated bus: the ride log's valid MOTINOVA traffic time-compressed to SAT_FPS frames/s
 #      (default 2200, a 250 kbit/s bus at ~100 % load with 8-byte frames) for SAT_S seconds,
 #      replayed as fast as possible: speed = bus seconds / wall seconds (target >= 100x).
+#   4. Real time with the uplink: the same REALTIME_S seconds with [mqtt] enabled, over TLS to a
+#      local mosquitto (certificates made with openssl for the run), so the figure includes Paho
+#      and OpenSSL; the resident memory of each mapping is listed (UPLINK=0 skips this run).
 #
-# The store is a temporary SQLite file, MQTT is disabled, log level warn.
+# The store is a temporary SQLite file, MQTT is disabled (but in run 4), log level warn.
 # Environment: BUILD_DIR (default build-bench-runtime, configured like the package:
 #   RelWithDebInfo, static protobuf/SQLite),
 #   FLEETGW (binary; overrides BUILD_DIR), RIDE_S (1800), REALTIME_S (60), SAT_S (60),
