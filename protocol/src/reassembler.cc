@@ -58,10 +58,13 @@ void Reassembler::fail(ReassemblyError why, uint32_t id, Micros ts, uint16_t byt
   sink.on_error(ReassemblyErrorEvent{why, id, ts, bytes});
 }
 
-void Reassembler::drop(Slot& slot, uint32_t id, ReassemblyError why, Micros ts, FrameSink& sink) {
+// Abandons every open candidate of the slot; the oldest is reported, the newer ones lie inside
+// its bytes.
+void Reassembler::drop_all(Slot& slot, uint32_t id, ReassemblyError why, Micros ts,
+                           FrameSink& sink) {
   const uint16_t bytes = slot.have;
   slot.have = 0;
-  slot.need = 0;
+  slot.count = 0;
   fail(why, id, ts, bytes, sink);
 }
 
@@ -73,24 +76,12 @@ void Reassembler::push(const CanFrame& can, Micros ts, FrameSink& sink) {
   }
   Slot& slot = slots_[can.id & 0xFF];
   if (slot.have > 0 && ts - slot.last > options_.gap_timeout) {
-    drop(slot, can.id, ReassemblyError::kGapTimeout, ts, sink);
-  }
-  if (slot.have > 0 && plausible_start(can)) {
-    drop(slot, can.id, ReassemblyError::kRestarted, ts, sink);
+    drop_all(slot, can.id, ReassemblyError::kGapTimeout, ts, sink);
   }
   if (slot.have == 0) {
     start(slot, can, ts, sink);
-    return;
-  }
-  const std::size_t take = std::min<std::size_t>(can.len, slot.need - slot.have);
-  std::copy_n(can.data.begin(), take, slot.buf.begin() + slot.have);
-  slot.have = static_cast<uint16_t>(slot.have + take);
-  slot.last = ts;
-  if (slot.have == slot.need) {
-    finish(slot, can.id, ts, sink);
-  } else if (can.len < 8) {
-    // Only the last segment of a message may be shorter than 8 bytes.
-    drop(slot, can.id, ReassemblyError::kTruncated, ts, sink);
+  } else {
+    append(slot, can, ts, sink);
   }
 }
 
@@ -116,44 +107,99 @@ void Reassembler::start(Slot& slot, const CanFrame& can, Micros ts, FrameSink& s
     fail(ReassemblyError::kLengthMismatch, can.id, ts, can.len, sink);
     return;
   }
-  slot.need = static_cast<uint16_t>(length + 9);
-  const std::size_t take = std::min<std::size_t>(can.len, slot.need);
-  std::copy_n(can.data.begin(), take, slot.buf.begin());
-  slot.have = static_cast<uint16_t>(take);
+  if (can.len < 8) {
+    // Every message is at least 11 bytes: a short first segment can never complete.
+    fail(ReassemblyError::kTruncated, can.id, ts, can.len, sink);
+    return;
+  }
+  std::copy_n(can.data.begin(), can.len, slot.buf.begin());
+  slot.have = can.len;
+  slot.count = 1;
+  slot.candidates[0] = Candidate{0, static_cast<uint16_t>(length + 9)};
   slot.last = ts;
-  if (slot.have < slot.need && can.len < 8) {
-    drop(slot, can.id, ReassemblyError::kTruncated, ts, sink);
+}
+
+void Reassembler::append(Slot& slot, const CanFrame& can, Micros ts, FrameSink& sink) {
+  // The oldest open candidate starts at 0 and is incomplete, so have <= 256 and 8 more fit.
+  if (can.len == 8 && plausible_start(can) && slot.count < kMaxCandidates) {
+    slot.candidates[slot.count++] = Candidate{slot.have, static_cast<uint16_t>(can.data[3] + 9)};
+  }
+  const std::size_t take = std::min<std::size_t>(can.len, slot.buf.size() - slot.have);
+  std::copy_n(can.data.begin(), take, slot.buf.begin() + slot.have);
+  slot.have = static_cast<uint16_t>(slot.have + take);
+  slot.last = ts;
+  const bool last_segment = can.len < 8;  // only the last segment may be short
+
+  // The first candidate (oldest first) that completes with a valid frame wins; candidates older
+  // than it were abandoned by the sender, newer ones are its payload.
+  const uint16_t restart_bytes = slot.count > 1 ? slot.candidates[1].start : slot.have;
+  const uint16_t oldest_need = slot.candidates[0].need;
+  std::size_t kept = 0;
+  bool oldest_failed = false;
+  ReassemblyError oldest_why = ReassemblyError::kCount;
+  for (std::size_t i = 0; i < slot.count; ++i) {
+    const Candidate c = slot.candidates[i];
+    ReassemblyError why = ReassemblyError::kCount;
+    if (slot.have - c.start >= c.need) {
+      why = check(slot, c, static_cast<uint16_t>(can.id));
+      if (why == ReassemblyError::kCount) {
+        if (i > 0) fail(ReassemblyError::kRestarted, can.id, ts, restart_bytes, sink);
+        slot.have = 0;
+        slot.count = 0;
+        emit(ts, sink);
+        return;
+      }
+    } else if (last_segment) {
+      why = ReassemblyError::kTruncated;
+    } else {
+      slot.candidates[kept++] = c;
+      continue;
+    }
+    if (i == 0) {
+      oldest_failed = true;
+      oldest_why = why;
+    }
+  }
+  if (oldest_failed) {
+    if (kept > 0) {
+      fail(ReassemblyError::kRestarted, can.id, ts, restart_bytes, sink);
+    } else {
+      fail(oldest_why, can.id, ts, std::min(slot.have, oldest_need), sink);
+    }
+  }
+  // Re-base the stream on the oldest survivor.
+  slot.count = static_cast<uint8_t>(kept);
+  if (kept == 0) {
+    slot.have = 0;
+    return;
+  }
+  const uint16_t base = slot.candidates[0].start;
+  if (base > 0) {
+    std::copy(slot.buf.begin() + base, slot.buf.begin() + slot.have, slot.buf.begin());
+    slot.have = static_cast<uint16_t>(slot.have - base);
+    for (std::size_t i = 0; i < kept; ++i) slot.candidates[i].start -= base;
   }
 }
 
-void Reassembler::finish(Slot& slot, uint32_t id, Micros ts, FrameSink& sink) {
-  const std::span<const uint8_t> bytes(slot.buf.data(), slot.need);
-  const auto can_id = static_cast<uint16_t>(id);
-  // The structure was validated when the message started; check what only the end can tell.
-  ReassemblyError why = ReassemblyError::kCount;
-  if (bytes[slot.need - 1] != kTail) {
-    why = ReassemblyError::kBadTail;
-  } else if (bytes[5] != bytes[3] - 2) {
-    why = ReassemblyError::kLengthMismatch;
-  }
-  if (why != ReassemblyError::kCount) {
-    drop(slot, id, why, ts, sink);
-    return;
-  }
+ReassemblyError Reassembler::check(const Slot& slot, const Candidate& c, uint16_t can_id) {
+  const std::span<const uint8_t> bytes(slot.buf.data() + c.start, c.need);
+  // The header was validated when the candidate started; check what only the end can tell.
+  if (bytes[c.need - 1] != kTail) return ReassemblyError::kBadTail;
+  if (bytes[5] != bytes[3] - 2) return ReassemblyError::kLengthMismatch;
   ParseResult parsed = parse_frame(can_id, bytes, options_.crc_order);
-  if (!parsed.ok()) {
-    drop(slot, id, ReassemblyError::kBadCrc, ts, sink);
-    return;
-  }
-  slot.have = 0;
-  slot.need = 0;
+  if (!parsed.ok()) return ReassemblyError::kBadCrc;
+  scratch_ = parsed.frame;
+  scratch_crc_ = parsed.crc_seen;
+  return ReassemblyError::kCount;
+}
+
+void Reassembler::emit(Micros ts, FrameSink& sink) {
   ++stats_.frames_ok;
-  if (parsed.crc_seen == CrcOrder::kLittle) {
+  if (scratch_crc_ == CrcOrder::kLittle) {
     ++stats_.crc_little_endian;
   } else {
     ++stats_.crc_big_endian;
   }
-  scratch_ = parsed.frame;
   sink.on_frame(scratch_, ts);
 }
 
@@ -161,7 +207,7 @@ void Reassembler::expire(Micros now, FrameSink& sink) {
   for (std::size_t i = 0; i < slots_.size(); ++i) {
     Slot& slot = slots_[i];
     if (slot.have > 0 && now - slot.last > options_.gap_timeout) {
-      drop(slot, static_cast<uint32_t>(0x700 + i), ReassemblyError::kGapTimeout, now, sink);
+      drop_all(slot, static_cast<uint32_t>(0x700 + i), ReassemblyError::kGapTimeout, now, sink);
     }
   }
 }

@@ -148,6 +148,86 @@ TEST(Reassembler, DataSegmentStartingWith55AaIsContinued) {
   EXPECT_EQ(sink.frames[0], f);
 }
 
+// Issue 11 item 10: a BMS status with a charge current of +21.930 A (s16 0x55AA) puts 55 AA at
+// the start of its second segment, followed by bytes that look like a header. It must decode.
+TEST(Reassembler, HeaderLikeSegmentInsideAMessageDoesNotLoseIt) {
+  Reassembler r;
+  RecordingSink sink;
+  push_all(
+      r,
+      {can_frame(0x720, "55 AA 0C 12 10 10 C3 50"), can_frame(0x720, "55 AA 0C 10 10 0E 41 4B"),
+       can_frame(0x720, "01 62 01 41 00 2A 0A 49"), can_frame(0x720, "AB 2C F0")},
+      sink);
+  ASSERT_EQ(sink.frames.size(), 1u);
+  EXPECT_EQ(sink.frames[0].command(), 0x1010);
+  EXPECT_EQ(sink.frames[0].data[2], 0x55);
+  EXPECT_EQ(sink.frames[0].data[3], 0xAA);
+  EXPECT_TRUE(sink.errors.empty());
+  // Nothing is left open: the next message on the ID is received normally.
+  push_all(r, segment(make_frame(0x720, Mode::kReport, 0x13, "SHUTDOWN")), sink, ms(10));
+  ASSERT_EQ(sink.frames.size(), 2u);
+  EXPECT_EQ(sink.frames[1].command(), 0x1308);
+  EXPECT_TRUE(sink.errors.empty());
+}
+
+// Property (issue 11): any valid message whose bytes contain 55 AA followed by a plausible header
+// at any segment boundary (one or several), interleaved segment by segment with other IDs,
+// decodes exactly once and without errors.
+TEST(Reassembler, HeaderLikeBytesAtAnySegmentBoundaryNeverLoseTheMessage) {
+  std::mt19937_64 rng(20261123);
+  for (int trial = 0; trial < 3000; ++trial) {
+    const std::size_t n = 12 + rng() % 230;  // frame of n + 11 bytes: 3..31 segments
+    std::vector<uint8_t> data(n);
+    for (auto& b : data) b = static_cast<uint8_t>(rng());
+    // Frame offset of data[k] is 6 + k. Plant header-like bytes at some segment boundaries.
+    const uint8_t modes[] = {0x0C, 0x11, 0x16};
+    for (std::size_t boundary = 8; boundary + 8 <= 6 + n; boundary += 8) {
+      if (rng() % 3 != 0 && boundary != 8) continue;
+      const std::size_t k = boundary - 6;
+      const uint8_t length = static_cast<uint8_t>(2 + rng() % 254);
+      const uint8_t fake[6] = {0x55,
+                               0xAA,
+                               modes[rng() % 3],
+                               length,
+                               static_cast<uint8_t>(rng()),
+                               static_cast<uint8_t>(length - 2)};
+      for (std::size_t j = 0; j < 6 && k + j < n; ++j) data[k + j] = fake[j];
+    }
+    const uint16_t id = static_cast<uint16_t>(0x700 | (rng() & 0xFF));
+    const AppFrame f = make_frame(id, Mode::kReport, static_cast<uint8_t>(rng()), data);
+    const auto mine = segment(f);
+    // Other IDs interleaved: a complete valid message and random garbage.
+    const uint16_t other_id = static_cast<uint16_t>(id ^ 0x01);
+    const auto other = segment(make_frame(other_id, Mode::kReport, 0x10, data));
+    Reassembler r(ReassemblerOptions{.crc_order = CrcOrder::kAuto});
+    RecordingSink sink;
+    Micros t{0};
+    for (std::size_t i = 0; i < std::max(mine.size(), other.size()); ++i) {
+      if (i < mine.size()) r.push(mine[i], t += ms(1), sink);
+      if (i < other.size()) r.push(other[i], t += ms(1), sink);
+    }
+    ASSERT_EQ(sink.frames.size(), 2u) << "trial " << trial << " n " << n;
+    EXPECT_TRUE(sink.frames[0] == f || sink.frames[1] == f) << "trial " << trial;
+    EXPECT_TRUE(sink.errors.empty()) << "trial " << trial;
+  }
+}
+
+// A sender that restarts twice mid-way, each time with a header-like abandoned prefix: only the
+// complete message comes out, the abandoned attempts are reported once each.
+TEST(Reassembler, RepeatedRestartsKeepOnlyTheCompleteMessage) {
+  Reassembler r;
+  RecordingSink sink;
+  const auto t7 = segs(0x760, kT7);
+  r.push(t7[0], ms(0), sink);
+  r.push(t7[1], ms(1), sink);
+  r.push(t7[0], ms(2), sink);
+  push_all(r, t7, sink, ms(3));
+  ASSERT_EQ(sink.frames.size(), 1u);
+  EXPECT_EQ(sink.frames[0].command(), 0x1008);
+  EXPECT_GE(r.stats().error(ReassemblyError::kRestarted), 1u);
+  expect_error_counts_match(r, sink);
+}
+
 TEST(Reassembler, TruncatedMessageIsReported) {
   Reassembler r;
   RecordingSink sink;

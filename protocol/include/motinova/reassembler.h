@@ -2,16 +2,22 @@
 //
 // Contract:
 //  * One independent buffer per MOTINOVA ID (0x700-0x7FF): traffic on one ID never disturbs
-//    another. Memory is fixed (256 buffers of kMaxFrameSize bytes); nothing is allocated per frame.
+//    another. Memory is fixed (256 buffers of kMaxFrameSize bytes plus at most kMaxSegments
+//    candidate starts each); nothing is allocated per frame.
 //  * A message starts on a CAN frame whose first two bytes are 55 AA; LENGTH + 9 bytes are
 //    collected, then tail, n == LENGTH - 2 and CRC are checked. Surplus bytes in the last segment
 //    are ignored (padding to DLC 8).
+//  * Segment content never ends a message (spec §2.2 has no such rule). A full segment that
+//    looks like a header (55 AA, valid MODE, LENGTH >= 2, n == LENGTH - 2) arriving mid-way may
+//    be payload (a current of 0x55AA...) or a sender restart: both readings are kept side by
+//    side as candidates over the same byte stream, and whichever completes with a valid CRC is
+//    emitted; the others are discarded. Every live candidate started within the last 33
+//    segments (a message spans at most 33), so kMaxSegments candidates always suffice.
 //  * A partial message is dropped when the next segment arrives more than `gap_timeout` later,
-//    or when a segment that starts with a plausible header (55 AA, valid MODE, LENGTH >= 2,
-//    n == LENGTH - 2) arrives on the same ID mid-way: the sender restarted, the new start is kept.
-//    (A data segment that merely begins with 55 AA is continued: a plausible header by chance
-//    has a probability below 1e-9.)
-//  * Every dropped byte sequence is reported to the sink once, with its kind, and counted.
+//    or when a short segment ends it early (only the last segment may be shorter than 8).
+//  * Every dropped message is reported to the sink once, with its kind, and counted. A candidate
+//    that fails while an older one is still open was payload and is dropped silently; the oldest
+//    failing while a newer start is open is reported as kRestarted (bytes before the new start).
 #pragma once
 
 #include <array>
@@ -84,21 +90,34 @@ class Reassembler {
   void set_crc_order(CrcOrder order) { options_.crc_order = order; }
 
  private:
+  static constexpr std::size_t kMaxCandidates = (kMaxFrameSize + 7) / 8;  // 33
+
+  // A possible message start inside the slot's byte stream.
+  struct Candidate {
+    uint16_t start = 0;  // offset in Slot::buf (a multiple of 8)
+    uint16_t need = 0;   // LENGTH + 9
+  };
+  // The bytes received on one ID since the oldest open candidate started (it starts at 0).
   struct Slot {
     std::array<uint8_t, kMaxFrameSize> buf{};
-    uint16_t have = 0;  // bytes collected; 0 = idle
-    uint16_t need = 0;  // LENGTH + 9 once known
+    uint16_t have = 0;  // stream bytes held; 0 = idle
+    uint8_t count = 0;  // open candidates, oldest first
+    std::array<Candidate, kMaxCandidates> candidates{};
     Micros last{0};
   };
-  void drop(Slot& slot, uint32_t id, ReassemblyError why, Micros ts, FrameSink& sink);
+  void drop_all(Slot& slot, uint32_t id, ReassemblyError why, Micros ts, FrameSink& sink);
   void fail(ReassemblyError why, uint32_t id, Micros ts, uint16_t bytes, FrameSink& sink);
   void start(Slot& slot, const CanFrame& can, Micros ts, FrameSink& sink);
-  void finish(Slot& slot, uint32_t id, Micros ts, FrameSink& sink);
+  void append(Slot& slot, const CanFrame& can, Micros ts, FrameSink& sink);
+  // kCount when the candidate's bytes are a valid frame (left in scratch_), else why not.
+  ReassemblyError check(const Slot& slot, const Candidate& c, uint16_t can_id);
+  void emit(Micros ts, FrameSink& sink);
 
   ReassemblerOptions options_;
   std::array<Slot, 256> slots_{};
   ReassemblerStats stats_;
   AppFrame scratch_;
+  CrcOrder scratch_crc_ = CrcOrder::kBig;
 };
 
 }  // namespace motinova
