@@ -12,7 +12,7 @@
 
 #include "gateway/can/socketcan_transport.h"
 #include "gateway/can/udp_transport.h"
-#include "gateway/sim/recorder.h"
+#include "gateway/sim/bus_log_writer.h"
 #include "gateway/sim/scenario.h"
 #include "gateway/sim/sim_transport.h"
 
