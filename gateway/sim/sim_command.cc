@@ -137,7 +137,8 @@ int run_sim(const SimCliOptions& options) {
   };
   transport->start([&](const motinova::CanFrame& frame, Micros) { driver.receive(frame); },
                    [](const can::BusHealth& h) {
-                     spdlog::info("sim: bus {} ({})", can::link_state_name(h.state), h.detail);
+                     spdlog::info("sim: bus {} ({})", can::controller_state_name(h.state),
+                                  h.detail);
                    });
   driver.start([&](const motinova::CanFrame& frame, Micros) {
     if (!transport->send(frame)) ++tx_failures;
