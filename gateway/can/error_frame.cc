@@ -18,20 +18,20 @@ uint8_t byte_at(std::span<const uint8_t> data, std::size_t i) {
 
 ErrorFrameInfo interpret_error_frame(uint32_t error_class, std::span<const uint8_t> data) {
   ErrorFrameInfo info;
-  std::optional<LinkState> state;
+  std::optional<ControllerState> state;
   // Later, more severe findings overwrite milder ones; see the precedence in the header.
-  auto raise = [&state](LinkState s) {
-    auto rank = [](LinkState x) {
+  auto raise = [&state](ControllerState s) {
+    auto rank = [](ControllerState x) {
       switch (x) {
-        case LinkState::kUp:
+        case ControllerState::kUp:
           return 0;
-        case LinkState::kErrorWarning:
+        case ControllerState::kErrorWarning:
           return 1;
-        case LinkState::kErrorPassive:
+        case ControllerState::kErrorPassive:
           return 2;
-        case LinkState::kBusOff:
+        case ControllerState::kBusOff:
           return 3;
-        case LinkState::kDown:
+        case ControllerState::kDown:
           return 4;
       }
       return 0;
@@ -41,23 +41,23 @@ ErrorFrameInfo interpret_error_frame(uint32_t error_class, std::span<const uint8
 
   if (error_class & CAN_ERR_RESTARTED) {
     add(info.description, "controller restarted");
-    raise(LinkState::kUp);
+    raise(ControllerState::kUp);
   }
   if (error_class & CAN_ERR_CRTL) {
     const uint8_t c = byte_at(data, 1);
     if (c & CAN_ERR_CRTL_ACTIVE) {
       add(info.description, "controller: back to error-active");
-      raise(LinkState::kUp);
+      raise(ControllerState::kUp);
     }
     if (c & (CAN_ERR_CRTL_RX_WARNING | CAN_ERR_CRTL_TX_WARNING)) {
       add(info.description, (c & CAN_ERR_CRTL_TX_WARNING) ? "controller: tx error-warning"
                                                           : "controller: rx error-warning");
-      raise(LinkState::kErrorWarning);
+      raise(ControllerState::kErrorWarning);
     }
     if (c & (CAN_ERR_CRTL_RX_PASSIVE | CAN_ERR_CRTL_TX_PASSIVE)) {
       add(info.description, (c & CAN_ERR_CRTL_TX_PASSIVE) ? "controller: tx error-passive"
                                                           : "controller: rx error-passive");
-      raise(LinkState::kErrorPassive);
+      raise(ControllerState::kErrorPassive);
     }
     if (c & CAN_ERR_CRTL_RX_OVERFLOW) add(info.description, "controller: rx buffer overflow");
     if (c & CAN_ERR_CRTL_TX_OVERFLOW) add(info.description, "controller: tx buffer overflow");
@@ -65,7 +65,7 @@ ErrorFrameInfo interpret_error_frame(uint32_t error_class, std::span<const uint8
   }
   if (error_class & CAN_ERR_BUSOFF) {
     add(info.description, "bus-off");
-    raise(LinkState::kBusOff);
+    raise(ControllerState::kBusOff);
   }
   if (error_class & CAN_ERR_TX_TIMEOUT) add(info.description, "tx timeout");
   if (error_class & CAN_ERR_LOSTARB) add(info.description, "lost arbitration");

@@ -2,8 +2,8 @@
 //
 // Contract:
 //  * interpret_error_frame() is a pure function of the error class bits (can_id without
-//    CAN_ERR_FLAG) and the 8 data bytes: it says which LinkState the frame implies, if any, and
-//    gives a one-line human-readable description ("bus-off", "controller: rx error-passive").
+//    CAN_ERR_FLAG) and the 8 data bytes: it says which ControllerState the frame implies, if any,
+//    and gives a one-line human-readable description ("bus-off", "controller: rx error-passive").
 //  * State precedence within one frame: bus-off > error-passive > error-warning > back-to-active
 //    (restarted or CAN_ERR_CRTL_ACTIVE → kUp). Frames that only report bus errors, lost
 //    arbitration or a missing ACK do not change the state.
@@ -27,7 +27,7 @@ inline constexpr uint32_t kSubscribedErrorClasses =
     0x040U /*BUSOFF*/ | 0x080U /*BUSERROR*/ | 0x100U /*RESTARTED*/;
 
 struct ErrorFrameInfo {
-  std::optional<LinkState> state;  // the state this frame moves the link to, if any
+  std::optional<ControllerState> state;  // the state this frame moves the link to, if any
   std::string description;
 };
 

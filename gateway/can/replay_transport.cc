@@ -63,7 +63,7 @@ void ReplayTransport::start(FrameHandler on_frame, HealthHandler on_health) {
   alive_ = std::make_shared<int>(0);
   running_ = true;
   start_time_ = std::chrono::steady_clock::now();
-  set_state(LinkState::kUp, "replaying " + source_);
+  set_state(ControllerState::kUp, "replaying " + source_);
   if (!running_) return;  // the health handler may have stopped us
   // Deliver from the io_context, never from inside start(): the caller may not be ready yet.
   asio::post(io_, [this, token = std::weak_ptr<int>(alive_)] {
@@ -183,11 +183,11 @@ void ReplayTransport::finish() {
   spdlog::info("replay {}: end after {} lines, {} frames delivered, {} filtered, {} malformed",
                source_, summary_.lines, summary_.frames, summary_.filtered,
                summary_.malformed_lines);
-  set_state(LinkState::kDown, "end of replay " + source_);
+  set_state(ControllerState::kDown, "end of replay " + source_);
   if (on_end_) on_end_(summary_);
 }
 
-void ReplayTransport::set_state(LinkState s, std::string detail, bool force) {
+void ReplayTransport::set_state(ControllerState s, std::string detail, bool force) {
   const bool changed = force || s != health_.state || detail != health_.detail;
   health_.state = s;
   health_.detail = std::move(detail);

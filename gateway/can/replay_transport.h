@@ -90,7 +90,7 @@ class ReplayTransport final : public Transport {
   bool read_ahead();
   void finish();
   // Reports through the health handler when something changed (or always, with force).
-  void set_state(LinkState s, std::string detail, bool force = false);
+  void set_state(ControllerState s, std::string detail, bool force = false);
   std::chrono::steady_clock::time_point due_time(motinova::Micros recorded);
 
   asio::io_context& io_;

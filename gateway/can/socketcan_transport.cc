@@ -61,21 +61,26 @@ bool is_link_error(int err) {
   return err == ENETDOWN || err == ENODEV || err == ENXIO || err == ENETUNREACH || err == EIO;
 }
 
+SocketCanOptions validated(SocketCanOptions options) {
+  if (options.interface.empty() || options.interface.size() >= IFNAMSIZ) {
+    throw SocketCanError("invalid CAN interface name '" + options.interface + "' (1-" +
+                         std::to_string(IFNAMSIZ - 1) + " characters)");
+  }
+  if (options.tx_queue_limit == 0) throw SocketCanError("tx_queue_limit must be > 0");
+  if (options.rx_batch == 0) throw SocketCanError("rx_batch must be > 0");
+  return options;
+}
+
 }  // namespace
 
 SocketCanTransport::SocketCanTransport(asio::io_context& io, SocketCanOptions options)
     : io_(io),
-      options_(std::move(options)),
+      options_(validated(std::move(options))),
       name_("socketcan:" + options_.interface),
       sock_(io),
       reopen_timer_(io),
-      tx_retry_timer_(io) {
-  if (options_.interface.empty() || options_.interface.size() >= IFNAMSIZ) {
-    throw SocketCanError("invalid CAN interface name '" + options_.interface + "' (1-" +
-                         std::to_string(IFNAMSIZ - 1) + " characters)");
-  }
-  if (options_.tx_queue_limit == 0) throw SocketCanError("tx_queue_limit must be > 0");
-  if (options_.rx_batch == 0) throw SocketCanError("rx_batch must be > 0");
+      tx_retry_timer_(io),
+      tx_(io, options_.tx_queue_limit, [this] { flush_tx(); }) {
   std::string why;
   if (!open(/*fatal_errors=*/true, why)) {
     health_.detail = why;
@@ -167,7 +172,7 @@ void SocketCanTransport::close_socket() {
   std::error_code ignored;
   sock_.close(ignored);  // cancels pending waits; their handlers see operation_aborted
   tx_retry_timer_.cancel();
-  tx_waiting_ = false;
+  tx_.release();
 }
 
 void SocketCanTransport::start(FrameHandler on_frame, HealthHandler on_health) {
@@ -175,36 +180,27 @@ void SocketCanTransport::start(FrameHandler on_frame, HealthHandler on_health) {
   started_ = true;
   on_frame_ = std::move(on_frame);
   on_health_ = std::move(on_health);
+  tx_.start();
   if (sock_.is_open()) {
-    set_state(LinkState::kUp, "bound to " + options_.interface);
+    set_state(ControllerState::kUp, "bound to " + options_.interface);
     wait_readable();
-    if (!tx_queue_.empty()) flush_tx();
+    if (!tx_.empty()) flush_tx();
   } else {
-    set_state(LinkState::kDown, health_.detail, /*force=*/true);
+    set_state(ControllerState::kDown, health_.detail, /*force=*/true);
     schedule_reopen();
   }
 }
 
 bool SocketCanTransport::send(const motinova::CanFrame& frame) {
-  if (stopped_ || !sock_.is_open() || tx_queue_.size() >= options_.tx_queue_limit ||
-      frame.len > CAN_MAX_DLEN || frame.id > CAN_SFF_MASK) {
-    if (frame.len > CAN_MAX_DLEN || frame.id > CAN_SFF_MASK) {
-      spdlog::error("SocketCAN {}: refusing to send invalid frame id=0x{:X} len={}",
-                    options_.interface, frame.id, frame.len);
-    }
+  if (!is_sendable(frame)) {
+    spdlog::error("SocketCAN {}: refusing to send invalid frame id=0x{:X} len={}",
+                  options_.interface, frame.id, frame.len);
     ++health_.tx_failures;
     return false;
   }
-  tx_queue_.push_back(frame);
-  if (!tx_waiting_ && started_) {
-    // Write from the loop, not from inside send(): the caller gets no re-entrant health
-    // callbacks, and frames sent in one go leave in one flush.
-    tx_waiting_ = true;
-    asio::post(io_, [this, token = std::weak_ptr<int>(alive_)] {
-      if (token.expired()) return;
-      tx_waiting_ = false;
-      flush_tx();
-    });
+  if (stopped_ || !sock_.is_open() || !tx_.push(frame)) {
+    ++health_.tx_failures;
+    return false;
   }
   return true;
 }
@@ -212,6 +208,7 @@ bool SocketCanTransport::send(const motinova::CanFrame& frame) {
 void SocketCanTransport::stop() {
   stopped_ = true;
   alive_.reset();
+  tx_.stop();
   reopen_timer_.cancel();
   close_socket();
 }
@@ -307,8 +304,8 @@ void SocketCanTransport::handle_error_frame(uint32_t error_class, const uint8_t*
 }
 
 void SocketCanTransport::flush_tx() {
-  while (!tx_queue_.empty() && sock_.is_open()) {
-    const motinova::CanFrame& f = tx_queue_.front();
+  while (!tx_.empty() && sock_.is_open()) {
+    const motinova::CanFrame& f = tx_.front();
     can_frame cf{};
     cf.can_id = f.id;
     cf.can_dlc = f.len;
@@ -316,7 +313,7 @@ void SocketCanTransport::flush_tx() {
     const ssize_t put = ::write(sock_.native_handle(), &cf, sizeof cf);
     if (put == static_cast<ssize_t>(sizeof cf)) {
       ++health_.tx_frames;
-      tx_queue_.pop_front();
+      tx_.pop();
       continue;
     }
     const int err = put < 0 ? errno : EIO;
@@ -328,12 +325,12 @@ void SocketCanTransport::flush_tx() {
     if (err == ENOBUFS) {
       // The driver's TX queue is full; poll() does not signal when it drains, so retry later.
       ++stats_.tx_enobufs_retries;
-      tx_waiting_ = true;
+      tx_.hold();
       tx_retry_timer_.expires_after(options_.tx_retry_interval);
       tx_retry_timer_.async_wait(
           [this, token = std::weak_ptr<int>(alive_)](const std::error_code& ec) {
             if (ec || token.expired()) return;
-            tx_waiting_ = false;
+            tx_.release();
             flush_tx();
           });
       return;
@@ -346,16 +343,16 @@ void SocketCanTransport::flush_tx() {
     spdlog::error("SocketCAN {}: dropping frame id=0x{:03X}: write failed: {}", options_.interface,
                   f.id, errno_text(err));
     ++health_.tx_failures;
-    tx_queue_.pop_front();
+    tx_.pop();
   }
 }
 
 void SocketCanTransport::wait_writable() {
-  tx_waiting_ = true;
+  tx_.hold();
   sock_.async_wait(asio::posix::stream_descriptor::wait_write,
                    [this, token = std::weak_ptr<int>(alive_)](const std::error_code& ec) {
                      if (token.expired() || ec == asio::error::operation_aborted) return;
-                     tx_waiting_ = false;
+                     tx_.release();
                      if (ec) {
                        link_lost(ec.value(), "wait for write");
                        return;
@@ -370,9 +367,8 @@ void SocketCanTransport::link_lost(int err, std::string_view during) {
   spdlog::warn("SocketCAN {}: {} during {}; closing, re-opening every {} ms", options_.interface,
                errno_text(err), during, options_.reopen_interval.count());
   close_socket();
-  health_.tx_failures += tx_queue_.size();
-  tx_queue_.clear();
-  set_state(LinkState::kDown,
+  health_.tx_failures += tx_.drop_all();
+  set_state(ControllerState::kDown,
             std::string(err_name != nullptr ? err_name : "error") + " on " + options_.interface,
             /*force=*/true);
   if (!stopped_) schedule_reopen();
@@ -398,13 +394,13 @@ void SocketCanTransport::schedule_reopen() {
     ++health_.reopens;
     spdlog::info("SocketCAN {}: interface back, socket re-opened (re-open #{})", options_.interface,
                  health_.reopens);
-    set_state(LinkState::kUp, "re-opened " + options_.interface, /*force=*/true);
+    set_state(ControllerState::kUp, "re-opened " + options_.interface, /*force=*/true);
     if (token.expired() || !sock_.is_open()) return;  // the health handler may have stopped us
     wait_readable();
   });
 }
 
-void SocketCanTransport::set_state(LinkState s, std::string detail, bool force) {
+void SocketCanTransport::set_state(ControllerState s, std::string detail, bool force) {
   const bool changed = force || s != health_.state || detail != health_.detail;
   health_.state = s;
   health_.detail = std::move(detail);

@@ -14,10 +14,9 @@
 //  * Frame timestamps are the kernel's receive timestamps (SO_TIMESTAMPNS), microseconds since
 //    the Unix epoch, not the time user space got around to reading. They never run backwards by
 //    less than a second (see TimestampGuard: small regressions are clamped, bigger ones are wall
-//    clock steps and pass through); both are counted in stats(). They never run backwards by
-//    less than a second (see TimestampGuard: small regressions are clamped, bigger ones are wall
 //    clock steps and pass through); both are counted in stats().
-//  * send() never blocks: frames go into a bounded queue (tx_queue_limit) drained in order; a full
+//  * send() never blocks: frames go into a bounded TxQueue (tx_queue_limit) drained in order; a
+//  full
 //    queue or a down link makes send() return false and counts a tx failure. ENOBUFS (driver
 //    queue full, common at 250 kbit/s) is retried after tx_retry_interval; frames are never
 //    reordered.
@@ -31,7 +30,6 @@
 
 #include <chrono>
 #include <cstddef>
-#include <deque>
 #include <memory>
 #include <stdexcept>
 #include <string>
@@ -42,6 +40,7 @@
 
 #include "gateway/can/timestamp_guard.h"
 #include "gateway/can/transport.h"
+#include "gateway/can/tx_queue.h"
 
 namespace fleetgw::can {
 
@@ -83,7 +82,7 @@ class SocketCanTransport final : public Transport {
   std::string_view name() const override { return name_; }
 
   const SocketCanStats& stats() const { return stats_; }
-  std::size_t tx_queue_size() const { return tx_queue_.size(); }
+  std::size_t tx_queue_size() const { return tx_.size(); }
 
  private:
   // Opens and binds a socket; returns false with `why` set on a transient failure (interface
@@ -97,7 +96,7 @@ class SocketCanTransport final : public Transport {
   void wait_writable();
   void link_lost(int err, std::string_view during);
   void schedule_reopen();
-  void set_state(LinkState s, std::string detail, bool force = false);
+  void set_state(ControllerState s, std::string detail, bool force = false);
 
   asio::io_context& io_;
   SocketCanOptions options_;
@@ -105,8 +104,7 @@ class SocketCanTransport final : public Transport {
   asio::posix::stream_descriptor sock_;
   asio::steady_timer reopen_timer_;
   asio::steady_timer tx_retry_timer_;
-  std::deque<motinova::CanFrame> tx_queue_;
-  bool tx_waiting_ = false;  // a write-readiness wait or ENOBUFS retry is pending
+  TxQueue tx_;  // held while a write-readiness wait or ENOBUFS retry is pending
 
   FrameHandler on_frame_;
   HealthHandler on_health_;

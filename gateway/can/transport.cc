@@ -2,17 +2,17 @@
 
 namespace fleetgw::can {
 
-std::string_view link_state_name(LinkState s) {
+std::string_view controller_state_name(ControllerState s) {
   switch (s) {
-    case LinkState::kUp:
+    case ControllerState::kUp:
       return "up";
-    case LinkState::kErrorWarning:
+    case ControllerState::kErrorWarning:
       return "error_warning";
-    case LinkState::kErrorPassive:
+    case ControllerState::kErrorPassive:
       return "error_passive";
-    case LinkState::kBusOff:
+    case ControllerState::kBusOff:
       return "bus_off";
-    case LinkState::kDown:
+    case ControllerState::kDown:
       return "down";
   }
   return "?";

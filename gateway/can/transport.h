@@ -21,11 +21,13 @@
 
 namespace fleetgw::can {
 
-enum class LinkState : uint8_t { kUp, kErrorWarning, kErrorPassive, kBusOff, kDown };
-std::string_view link_state_name(LinkState s);
+// State of the CAN controller / interface as the bus sees it (ISO 11898 error states plus
+// "interface down"); not to be confused with uplink::LinkState, the MQTT connection.
+enum class ControllerState : uint8_t { kUp, kErrorWarning, kErrorPassive, kBusOff, kDown };
+std::string_view controller_state_name(ControllerState s);
 
 struct BusHealth {
-  LinkState state = LinkState::kDown;
+  ControllerState state = ControllerState::kDown;
   uint64_t rx_frames = 0;
   uint64_t tx_frames = 0;
   uint64_t tx_failures = 0;

@@ -115,8 +115,11 @@ asio::ip::udp::endpoint make_endpoint(const std::string& address, uint16_t port,
 }  // namespace
 
 UdpTransport::UdpTransport(asio::io_context& io, UdpOptions options)
-    : io_(io), options_(std::move(options)), socket_(io), rx_buffer_(65536) {
-  if (options_.tx_queue_limit == 0) throw std::invalid_argument("tx_queue_limit must be > 0");
+    : io_(io),
+      options_(std::move(options)),
+      socket_(io),
+      rx_buffer_(65536),
+      tx_(io, options_.tx_queue_limit, [this] { send_next(); }) {
   const auto local = make_endpoint(options_.local_address, options_.local_port, "local");
   std::error_code ec;
   socket_.open(local.protocol(), ec);
@@ -148,34 +151,19 @@ void UdpTransport::start(FrameHandler on_frame, HealthHandler on_health) {
   started_ = true;
   on_frame_ = std::move(on_frame);
   on_health_ = std::move(on_health);
-  health_.state = LinkState::kUp;
+  health_.state = ControllerState::kUp;
   health_.detail = "listening on " + options_.local_address + ":" + std::to_string(local_port());
   if (on_health_) on_health_(health_);
   if (stopped_) return;
   receive();
-  if (!pending_.empty()) flush();
+  tx_.start();
+  send_next();
 }
 
 bool UdpTransport::send(const motinova::CanFrame& frame) {
-  if (stopped_ || !remote_ || queued_frames_ >= options_.tx_queue_limit || frame.len > 8 ||
-      frame.id > candump::kSffMask) {
+  if (stopped_ || !remote_ || !is_sendable(frame) || !tx_.push(frame)) {
     ++health_.tx_failures;
     return false;
-  }
-  cannelloni::WireFrame w;
-  w.can_id = frame.id;
-  w.len = frame.len;
-  std::copy_n(frame.data.begin(), frame.len, w.data.begin());
-  pending_.push_back(w);
-  ++queued_frames_;
-  if (!flush_posted_ && started_) {
-    // Collect everything sent in this turn of the loop into one datagram.
-    flush_posted_ = true;
-    asio::post(io_, [this, token = std::weak_ptr<int>(alive_)] {
-      if (token.expired()) return;
-      flush_posted_ = false;
-      flush();
-    });
   }
   return true;
 }
@@ -183,55 +171,47 @@ bool UdpTransport::send(const motinova::CanFrame& frame) {
 void UdpTransport::stop() {
   stopped_ = true;
   alive_.reset();
+  tx_.stop();
   std::error_code ignored;
   socket_.close(ignored);
 }
 
-void UdpTransport::flush() {
-  // Pack by actual encoded size: 5 bytes of frame header plus the data bytes.
-  std::size_t begin = 0;
-  std::size_t size = cannelloni::kHeaderSize;
-  auto emit = [&](std::size_t end) {
-    tx_datagrams_.push_back(cannelloni::encode(
-        tx_sequence_++,
-        std::span<const cannelloni::WireFrame>(pending_.data() + begin, end - begin)));
-    tx_frame_counts_.push_back(end - begin);
-    begin = end;
-    size = cannelloni::kHeaderSize;
-  };
-  for (std::size_t i = 0; i < pending_.size(); ++i) {
-    const std::size_t frame_size = 5 + pending_[i].len;
-    if (size + frame_size > kMaxDatagram) emit(i);
-    size += frame_size;
-  }
-  if (begin < pending_.size()) emit(pending_.size());
-  pending_.clear();
-  if (!sending_) send_next();
-}
-
 void UdpTransport::send_next() {
-  if (tx_datagrams_.empty() || stopped_) return;
-  sending_ = true;
-  socket_.async_send_to(
-      asio::buffer(tx_datagrams_.front()), *remote_,
-      [this, token = std::weak_ptr<int>(alive_)](const std::error_code& ec, std::size_t) {
-        if (token.expired()) return;
-        sending_ = false;
-        const std::size_t frames = tx_frame_counts_.front();
-        tx_frame_counts_.pop_front();
-        tx_datagrams_.pop_front();
-        queued_frames_ -= frames;
-        if (ec) {
-          // UDP has no link to lose; a failed send (e.g. ICMP unreachable reported back) costs
-          // this datagram only.
-          health_.tx_failures += frames;
-          spdlog::warn("UDP CAN {}: send failed: {}", name_, ec.message());
-        } else {
-          ++stats_.datagrams_tx;
-          health_.tx_frames += frames;
-        }
-        send_next();
-      });
+  if (tx_.held() || tx_.empty() || stopped_) return;
+  // One datagram with as many queued frames as fit, packed by encoded size (5 bytes of frame
+  // header plus the data bytes). The frames stay queued (and count against the limit) until
+  // the socket has taken the datagram.
+  std::vector<cannelloni::WireFrame> frames;
+  std::size_t size = cannelloni::kHeaderSize;
+  while (frames.size() < tx_.size()) {
+    const motinova::CanFrame& f = tx_[frames.size()];
+    const std::size_t frame_size = 5 + f.len;
+    if (!frames.empty() && size + frame_size > kMaxDatagram) break;
+    size += frame_size;
+    cannelloni::WireFrame& w = frames.emplace_back();
+    w.can_id = f.id;
+    w.len = f.len;
+    std::copy_n(f.data.begin(), f.len, w.data.begin());
+  }
+  tx_datagram_ = cannelloni::encode(tx_sequence_++, frames);
+  tx_.hold();
+  socket_.async_send_to(asio::buffer(tx_datagram_), *remote_,
+                        [this, frames = frames.size(), token = std::weak_ptr<int>(alive_)](
+                            const std::error_code& ec, std::size_t) {
+                          if (token.expired()) return;
+                          tx_.release();
+                          tx_.pop(frames);
+                          if (ec) {
+                            // UDP has no link to lose; a failed send (e.g. ICMP unreachable
+                            // reported back) costs this datagram only.
+                            health_.tx_failures += frames;
+                            spdlog::warn("UDP CAN {}: send failed: {}", name_, ec.message());
+                          } else {
+                            ++stats_.datagrams_tx;
+                            health_.tx_frames += frames;
+                          }
+                          send_next();
+                        });
 }
 
 void UdpTransport::receive() {

@@ -8,9 +8,10 @@
 //   byte and up to 64 data bytes).
 //
 // Contract:
-//  * Frames passed to send() in one io_context turn leave as one datagram (split when a
-//    datagram would exceed kMaxDatagram), in order; send() never blocks and returns false when
-//    the bounded queue (tx_queue_limit frames) is full.
+//  * Frames leave in order, as few datagrams as fit (at most kMaxDatagram bytes each): frames
+//    passed to send() in one io_context turn go out together, with any still waiting for the
+//    datagram in flight. send() never blocks and returns false when the bounded TxQueue
+//    (tx_queue_limit frames, the datagram in flight included) is full.
 //  * Received datagrams are validated completely before any frame is delivered: a malformed
 //    datagram (short header, wrong version or op code, truncated frame, classic frame longer
 //    than 8 bytes, trailing bytes) is rejected as a whole, logged (rate-limited) and counted;
@@ -24,7 +25,6 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
-#include <deque>
 #include <memory>
 #include <optional>
 #include <span>
@@ -35,6 +35,7 @@
 #include <asio/ip/udp.hpp>
 
 #include "gateway/can/transport.h"
+#include "gateway/can/tx_queue.h"
 
 namespace fleetgw::can {
 
@@ -110,7 +111,6 @@ class UdpTransport final : public Transport {
   void receive();
   void handle_datagram(std::size_t size);
   void reject(std::string_view what);
-  void flush();
   void send_next();
 
   asio::io_context& io_;
@@ -121,12 +121,8 @@ class UdpTransport final : public Transport {
   asio::ip::udp::endpoint sender_;
   std::vector<uint8_t> rx_buffer_;
 
-  std::vector<cannelloni::WireFrame> pending_;     // frames sent this turn, not yet packed
-  std::deque<std::vector<uint8_t>> tx_datagrams_;  // packed, waiting for the socket
-  std::size_t queued_frames_ = 0;                  // frames in pending_ + tx_datagrams_
-  std::deque<std::size_t> tx_frame_counts_;        // frames per queued datagram
-  bool flush_posted_ = false;
-  bool sending_ = false;
+  TxQueue tx_;                        // held while a datagram is in flight
+  std::vector<uint8_t> tx_datagram_;  // the datagram in flight
   uint8_t tx_sequence_ = 0;
   std::optional<uint8_t> rx_sequence_;
 

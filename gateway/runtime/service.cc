@@ -235,7 +235,7 @@ int run_service(const config::Config& config, const ServiceOptions& options,
         core.on_can_frame(frame, ts);
       },
       [&](const can::BusHealth& h) {
-        spdlog::info("bus {}: {}{}{}", bus.transport->name(), can::link_state_name(h.state),
+        spdlog::info("bus {}: {}{}{}", bus.transport->name(), can::controller_state_name(h.state),
                      h.detail.empty() ? "" : ": ", h.detail);
       });
   const Micros start = bus.replay ? Micros(0) : now();

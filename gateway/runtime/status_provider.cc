@@ -26,7 +26,7 @@ nlohmann::json make_status_json(const StatusInputs& in) {
   }
   j["bus"] = {{"transport", in.config.can.transport},
               {"interface", std::string(in.transport.name())},
-              {"state", std::string(can::link_state_name(h.state))},
+              {"state", std::string(can::controller_state_name(h.state))},
               {"rx_frames", h.rx_frames},
               {"tx_frames", h.tx_frames},
               {"tx_failures", h.tx_failures},

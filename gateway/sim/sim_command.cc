@@ -12,7 +12,7 @@
 
 #include "gateway/can/socketcan_transport.h"
 #include "gateway/can/udp_transport.h"
-#include "gateway/sim/recorder.h"
+#include "gateway/sim/bus_log_writer.h"
 #include "gateway/sim/scenario.h"
 #include "gateway/sim/sim_transport.h"
 
@@ -137,7 +137,8 @@ int run_sim(const SimCliOptions& options) {
   };
   transport->start([&](const motinova::CanFrame& frame, Micros) { driver.receive(frame); },
                    [](const can::BusHealth& h) {
-                     spdlog::info("sim: bus {} ({})", can::link_state_name(h.state), h.detail);
+                     spdlog::info("sim: bus {} ({})", can::controller_state_name(h.state),
+                                  h.detail);
                    });
   driver.start([&](const motinova::CanFrame& frame, Micros) {
     if (!transport->send(frame)) ++tx_failures;

@@ -84,7 +84,7 @@ void SimTransport::start(FrameHandler on_frame, HealthHandler on_health) {
   started_ = true;
   on_frame_ = std::move(on_frame);
   on_health_ = std::move(on_health);
-  health_.state = can::LinkState::kUp;
+  health_.state = can::ControllerState::kUp;
   health_.detail = "simulated bus, scenario " + bike_.scenario().name;
   if (on_health_) on_health_(health_);
   driver_.start([this](const motinova::CanFrame& frame, Micros ts) {
@@ -114,7 +114,7 @@ void SimTransport::stop() {
   driver_.stop();
   alive_.reset();
   if (started_) {
-    health_.state = can::LinkState::kDown;
+    health_.state = can::ControllerState::kDown;
     health_.detail = "stopped";
     if (on_health_) on_health_(health_);
   }

@@ -222,23 +222,23 @@ TEST(CandumpLineReader, KeepsOnlyBoundedErrorsButCountsAll) {
 TEST(ErrorFrame, MapsControllerStatesAndBusOff) {
   const uint8_t none[8] = {};
   auto info = interpret_error_frame(0x040, none);  // CAN_ERR_BUSOFF
-  EXPECT_EQ(info.state, LinkState::kBusOff);
+  EXPECT_EQ(info.state, ControllerState::kBusOff);
   EXPECT_EQ(info.description, "bus-off");
 
   const uint8_t passive[8] = {0, 0x20, 0, 0, 0, 0, 0, 0};  // TX_PASSIVE
   info = interpret_error_frame(0x004, passive);
-  EXPECT_EQ(info.state, LinkState::kErrorPassive);
+  EXPECT_EQ(info.state, ControllerState::kErrorPassive);
   EXPECT_EQ(info.description, "controller: tx error-passive");
 
   const uint8_t warning[8] = {0, 0x04, 0, 0, 0, 0, 0, 0};  // RX_WARNING
-  EXPECT_EQ(interpret_error_frame(0x004, warning).state, LinkState::kErrorWarning);
+  EXPECT_EQ(interpret_error_frame(0x004, warning).state, ControllerState::kErrorWarning);
 
   const uint8_t active[8] = {0, 0x40, 0, 0, 0, 0, 0, 0};  // back to error-active
-  EXPECT_EQ(interpret_error_frame(0x004, active).state, LinkState::kUp);
-  EXPECT_EQ(interpret_error_frame(0x100, none).state, LinkState::kUp);  // restarted
+  EXPECT_EQ(interpret_error_frame(0x004, active).state, ControllerState::kUp);
+  EXPECT_EQ(interpret_error_frame(0x100, none).state, ControllerState::kUp);  // restarted
 
   // Bus-off wins over everything else in the same frame.
-  EXPECT_EQ(interpret_error_frame(0x004 | 0x040 | 0x100, passive).state, LinkState::kBusOff);
+  EXPECT_EQ(interpret_error_frame(0x004 | 0x040 | 0x100, passive).state, ControllerState::kBusOff);
 
   // No state change for a missing ACK, but a description with the counters.
   const uint8_t counters[8] = {0, 0, 0, 0, 0, 0, 96, 12};

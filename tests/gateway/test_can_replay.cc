@@ -110,9 +110,9 @@ TEST(ReplayTransport, FastModeDeliversTheFileFramesAndTimestamps) {
 
   // Health: up, bus-off from the error frame, down at the end of the file.
   ASSERT_GE(health.size(), 3U);
-  EXPECT_EQ(health.front().state, LinkState::kUp);
-  EXPECT_EQ(health[1].state, LinkState::kBusOff);
-  EXPECT_EQ(health.back().state, LinkState::kDown);
+  EXPECT_EQ(health.front().state, ControllerState::kUp);
+  EXPECT_EQ(health[1].state, ControllerState::kBusOff);
+  EXPECT_EQ(health.back().state, ControllerState::kDown);
   EXPECT_NE(health.back().detail.find("end of replay"), std::string::npos);
   EXPECT_EQ(replay.health().rx_frames, 3U);
   EXPECT_EQ(replay.health().error_frames, 1U);

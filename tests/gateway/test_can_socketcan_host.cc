@@ -59,10 +59,10 @@ TEST(SocketCanHost, InvalidOptionsAreRejectedBeforeTouchingTheKernel) {
   EXPECT_THROW(SocketCanTransport(io, o), SocketCanError);
 }
 
-TEST(SocketCanHost, LinkStateNames) {
-  EXPECT_EQ(link_state_name(LinkState::kUp), "up");
-  EXPECT_EQ(link_state_name(LinkState::kBusOff), "bus_off");
-  EXPECT_EQ(link_state_name(LinkState::kDown), "down");
+TEST(SocketCanHost, ControllerStateNames) {
+  EXPECT_EQ(controller_state_name(ControllerState::kUp), "up");
+  EXPECT_EQ(controller_state_name(ControllerState::kBusOff), "bus_off");
+  EXPECT_EQ(controller_state_name(ControllerState::kDown), "down");
 }
 
 TEST(TimestampGuard, ClampsSmallRegressionsPassesClockSteps) {

@@ -129,7 +129,7 @@ TEST(UdpTransport, CarriesFramesBothWaysInOrder) {
   std::vector<std::pair<CanFrame, Micros>> at_a, at_b;
   p.a.start([&](const CanFrame& f, Micros ts) { at_a.emplace_back(f, ts); }, nullptr);
   p.b.start([&](const CanFrame& f, Micros ts) { at_b.emplace_back(f, ts); }, nullptr);
-  EXPECT_EQ(p.a.health().state, LinkState::kUp);
+  EXPECT_EQ(p.a.health().state, ControllerState::kUp);
 
   std::vector<CanFrame> sent;
   for (int i = 0; i < 300; ++i) {  // more than one datagram's worth: exercises splitting
@@ -243,9 +243,9 @@ TEST(UdpTransport, RejectsMalformedAndForeignDatagramsAndFilters) {
   EXPECT_EQ(t.stats().unsupported_frames, 1U);
   EXPECT_EQ(t.stats().datagrams_rx, 1U);
   EXPECT_EQ(t.health().error_frames, 1U);
-  EXPECT_EQ(t.health().state, LinkState::kBusOff);
+  EXPECT_EQ(t.health().state, ControllerState::kBusOff);
   ASSERT_FALSE(health.empty());
-  EXPECT_EQ(health.back().state, LinkState::kBusOff);
+  EXPECT_EQ(health.back().state, ControllerState::kBusOff);
 }
 
 // The child process: echoes every frame back with the ID's target nibble set to 0xF and the

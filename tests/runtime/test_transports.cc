@@ -12,7 +12,7 @@
 
 #include "gateway/can/replay_transport.h"
 #include "gateway/runtime/service.h"
-#include "gateway/sim/recorder.h"
+#include "gateway/sim/bus_log_writer.h"
 #include "runtime_test_util.h"
 
 namespace fleetgw::runtime::testing {

@@ -8,7 +8,7 @@
 #include <sstream>
 
 #include "gateway/sim/bike.h"
-#include "gateway/sim/recorder.h"
+#include "gateway/sim/bus_log_writer.h"
 #include "sim_test_util.h"
 
 namespace fleetgw::sim {

@@ -28,7 +28,7 @@ TEST(SimTransport, DeliversVirtualTimestampsAndAnswersRequests) {
   const Scenario s = bundled("parked");
   SimTransport transport(io, s, /*acceleration=*/100.0);
   Probe probe;
-  std::vector<can::LinkState> health;
+  std::vector<can::ControllerState> health;
   Micros last_ts{0};
   bool monotonic = true;
   transport.start(
@@ -39,7 +39,7 @@ TEST(SimTransport, DeliversVirtualTimestampsAndAnswersRequests) {
       },
       [&](const can::BusHealth& h) { health.push_back(h.state); });
   ASSERT_EQ(health.size(), 1u);
-  EXPECT_EQ(health[0], can::LinkState::kUp);
+  EXPECT_EQ(health[0], can::ControllerState::kUp);
 
   // After 0.1 s real (10 s virtual) the gateway asks the BMS for its pack statistics.
   asio::steady_timer ask(io);
@@ -64,7 +64,7 @@ TEST(SimTransport, DeliversVirtualTimestampsAndAnswersRequests) {
   const auto* stats = probe.first(0x725, 0x50, asked);
   ASSERT_NE(stats, nullptr);
   EXPECT_LT(stats->ts - asked, seconds(1));
-  EXPECT_EQ(transport.health().state, can::LinkState::kDown);
+  EXPECT_EQ(transport.health().state, can::ControllerState::kDown);
   EXPECT_EQ(transport.health().tx_frames, 2u);
   EXPECT_EQ(transport.health().rx_frames, probe.can_frames);
   EXPECT_FALSE(transport.send(motinova::CanFrame{}));  // stopped
@@ -74,12 +74,12 @@ TEST(SimTransport, DeliversVirtualTimestampsAndAnswersRequests) {
 class FakeBus final : public can::Transport {
  public:
   explicit FakeBus(std::vector<motinova::CanFrame>& sink) : sink_(sink) {}
-  void start(FrameHandler, HealthHandler) override { health_.state = can::LinkState::kUp; }
+  void start(FrameHandler, HealthHandler) override { health_.state = can::ControllerState::kUp; }
   bool send(const motinova::CanFrame& f) override {
     sink_.push_back(f);
     return true;
   }
-  void stop() override { health_.state = can::LinkState::kDown; }
+  void stop() override { health_.state = can::ControllerState::kDown; }
   const can::BusHealth& health() const override { return health_; }
   std::string_view name() const override { return "fake"; }
 

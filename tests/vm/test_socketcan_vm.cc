@@ -150,7 +150,7 @@ class SocketCanVm : public ::testing::Test {
 TEST_F(SocketCanVm, KernelFilterPassesOnlyStandardDataFramesInMotinovaRange) {
   SocketCanTransport t(io, options());
   t.start(on_frame(), on_health());
-  EXPECT_EQ(t.health().state, LinkState::kUp);
+  EXPECT_EQ(t.health().state, ControllerState::kUp);
   Peer peer;
   peer.send(0x123, {1});                           // outside the range
   peer.send(0x6FF, {2});                           // just below
@@ -249,12 +249,12 @@ TEST_F(SocketCanVm, ErrorFramesDriveHealth) {
   Peer peer;
   // vcan delivers whatever is written, so a peer can play the controller reporting errors.
   peer.send(CAN_ERR_FLAG | CAN_ERR_CRTL, {0, CAN_ERR_CRTL_TX_PASSIVE, 0, 0, 0, 0, 0, 0});
-  ASSERT_TRUE(run_until(io, [&] { return t.health().state == LinkState::kErrorPassive; }));
+  ASSERT_TRUE(run_until(io, [&] { return t.health().state == ControllerState::kErrorPassive; }));
   peer.send(CAN_ERR_FLAG | CAN_ERR_BUSOFF, {0, 0, 0, 0, 0, 0, 0, 0});
-  ASSERT_TRUE(run_until(io, [&] { return t.health().state == LinkState::kBusOff; }));
+  ASSERT_TRUE(run_until(io, [&] { return t.health().state == ControllerState::kBusOff; }));
   EXPECT_EQ(t.health().detail, "bus-off");
   peer.send(CAN_ERR_FLAG | CAN_ERR_RESTARTED, {0, 0, 0, 0, 0, 0, 0, 0});
-  ASSERT_TRUE(run_until(io, [&] { return t.health().state == LinkState::kUp; }));
+  ASSERT_TRUE(run_until(io, [&] { return t.health().state == ControllerState::kUp; }));
   // Lost arbitration is not subscribed: it must not even arrive.
   peer.send(CAN_ERR_FLAG | CAN_ERR_LOSTARB, {0, 0, 0, 0, 0, 0, 0, 0});
   peer.send(0x710, {1});
@@ -271,18 +271,18 @@ TEST_F(SocketCanVm, RecoversWhenTheInterfaceGoesDownAndUp) {
   ASSERT_TRUE(run_until(io, [&] { return rx.size() == 1; }));
 
   sh(std::string("ip link set ") + kIf + " down");
-  ASSERT_TRUE(run_until(io, [&] { return t.health().state == LinkState::kDown; }))
+  ASSERT_TRUE(run_until(io, [&] { return t.health().state == ControllerState::kDown; }))
       << "transport did not notice the interface going down";
   EXPECT_NE(t.health().detail.find("ENETDOWN"), std::string::npos) << t.health().detail;
   EXPECT_FALSE(t.send(frame(0x760, {}))) << "send() must fail while the link is down";
   run_until(
       io, [] { return false; }, 200ms);  // several failed re-open attempts
-  EXPECT_EQ(t.health().state, LinkState::kDown);
+  EXPECT_EQ(t.health().state, ControllerState::kDown);
   EXPECT_EQ(t.health().reopens, 0U);
   EXPECT_GE(t.stats().reopen_attempts, 2U);
 
   sh(std::string("ip link set ") + kIf + " up");
-  ASSERT_TRUE(run_until(io, [&] { return t.health().state == LinkState::kUp; }))
+  ASSERT_TRUE(run_until(io, [&] { return t.health().state == ControllerState::kUp; }))
       << "transport did not come back";
   EXPECT_EQ(t.health().reopens, 1U);
   Peer peer2;  // the old peer socket saw ENETDOWN too; a fresh one avoids that noise
@@ -294,23 +294,23 @@ TEST_F(SocketCanVm, RecoversWhenTheInterfaceGoesDownAndUp) {
 
   // The health handler saw up → down → up.
   ASSERT_GE(health.size(), 3U);
-  EXPECT_EQ(health.front().state, LinkState::kUp);
+  EXPECT_EQ(health.front().state, ControllerState::kUp);
   bool saw_down = false;
-  for (const auto& h : health) saw_down = saw_down || h.state == LinkState::kDown;
+  for (const auto& h : health) saw_down = saw_down || h.state == ControllerState::kDown;
   EXPECT_TRUE(saw_down);
-  EXPECT_EQ(health.back().state, LinkState::kUp);
+  EXPECT_EQ(health.back().state, ControllerState::kUp);
 }
 
 TEST_F(SocketCanVm, StartsDownWhenTheInterfaceIsDownAndComesUpLater) {
   sh(std::string("ip link set ") + kIf + " down");
   SocketCanTransport t(io, options());
   t.start(on_frame(), on_health());
-  EXPECT_EQ(t.health().state, LinkState::kDown);
+  EXPECT_EQ(t.health().state, ControllerState::kDown);
   EXPECT_NE(t.health().detail.find("is down"), std::string::npos) << t.health().detail;
   run_until(
       io, [] { return false; }, 100ms);
   sh(std::string("ip link set ") + kIf + " up");
-  ASSERT_TRUE(run_until(io, [&] { return t.health().state == LinkState::kUp; }));
+  ASSERT_TRUE(run_until(io, [&] { return t.health().state == ControllerState::kUp; }));
   Peer peer;
   peer.send(0x713, {9});
   ASSERT_TRUE(run_until(io, [&] { return rx.size() == 1; }));

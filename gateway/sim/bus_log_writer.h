@@ -1,5 +1,6 @@
-// Writing simulated bus traffic as a candump -L log (the format of gateway/can/candump.h), for
-// the bundled sample logs and for replay-versus-simulation equivalence tests.
+// The bus log writer: simulated bus traffic as a candump -L log (the format of
+// gateway/can/candump.h), for the bundled sample logs and for replay-versus-simulation equivalence
+// tests.
 //
 // Contract: deterministic (the output depends only on the scenario and the duration); lines are
 // in bus order with the virtual timestamps of the scenario timeline, byte-identical to what

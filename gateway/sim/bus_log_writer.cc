@@ -1,4 +1,4 @@
-#include "gateway/sim/recorder.h"
+#include "gateway/sim/bus_log_writer.h"
 
 #include <ostream>
 
