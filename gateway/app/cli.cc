@@ -5,6 +5,7 @@
 
 #include <iostream>
 
+#include "gateway/app/check_config.h"
 #include "gateway/app/logging.h"
 #include "gateway/app/watch_command.h"
 #include "gateway/command/command_tool.h"
@@ -170,8 +171,14 @@ int run_cli(int argc, char** argv) {
   auto* status_cmd = app.add_subcommand(
       "status", "health of the running service (exit 1: needs attention, 3: no answer)");
   status::StatusCommandOptions status_options;
-  status_cmd->add_option("--socket", status_options.socket_path, "status socket")
-      ->capture_default_str();
+  std::string status_config;
+  auto* status_socket_opt =
+      status_cmd->add_option("--socket", status_options.socket_path, "status socket")
+          ->capture_default_str();
+  status_cmd
+      ->add_option("--config", status_config,
+                   "take the socket from this configuration file (status.socket)")
+      ->excludes(status_socket_opt);
   status_cmd->add_flag("--json", status_options.json, "print the raw JSON document");
 
   // keygen
@@ -210,7 +217,9 @@ int run_cli(int argc, char** argv) {
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-    return app.exit(e);
+    // --help and --version are "errors" with code 0; every usage error is exit 2, the usual
+    // convention (CLI11's own codes, 104-109, mean nothing to a shell script).
+    return app.exit(e) == 0 ? 0 : 2;
   }
 
   try {
@@ -220,14 +229,16 @@ int run_cli(int argc, char** argv) {
       return decode::run_decode(decode_options, std::cout, std::cerr);
     }
     if (run_cmd->parsed()) {
-      config::Config cfg = config::load_config(run_config);
-      if (!run_transport.empty()) cfg.can.transport = run_transport;
-      if (!run_scenario.empty()) cfg.sim.scenario = run_scenario;
-      if (run_sim_speed > 0) cfg.sim.speed = run_sim_speed;
-      if (!run_replay.empty()) {
-        cfg.can.transport = "replay";
-        cfg.can.replay_file = run_replay;
-      }
+      // The same checks as check-config, after the command line's overrides.
+      const config::Config cfg = load_runnable_config(run_config, [&](config::Config& c) {
+        if (!run_transport.empty()) c.can.transport = run_transport;
+        if (!run_scenario.empty()) c.sim.scenario = run_scenario;
+        if (run_sim_speed > 0) c.sim.speed = run_sim_speed;
+        if (!run_replay.empty()) {
+          c.can.transport = "replay";
+          c.can.replay_file = run_replay;
+        }
+      });
       setup_logging(cfg.log.level);
       runtime::ServiceOptions opts;
       if (run_duration > 0) {
@@ -270,22 +281,26 @@ int run_cli(int argc, char** argv) {
       while (first < argc && std::string_view(argv[first]) != "watch") ++first;
       return exec_watch(first < argc ? argc - first - 1 : 0, argv + first + 1);
     }
-    if (status_cmd->parsed())
+    if (status_cmd->parsed()) {
+      if (!status_config.empty()) {
+        status_options.socket_path = config::load_config(status_config).status.socket;
+        if (status_options.socket_path.empty()) {
+          std::cerr << "fleetgw status: " << status_config
+                    << " turns the status socket off (status.socket = \"\")\n";
+          return status::kStatusUnreachable;
+        }
+      }
       return status::run_status_command(status_options, std::cout, std::cerr);
+    }
     if (keygen_cmd->parsed()) return command::run_keygen(keygen_prefix, std::cout);
     if (command_cmd->parsed()) {
       cmd_options.timeout = std::chrono::seconds(cmd_timeout_s);
       cmd_options.expires_in = std::chrono::seconds(cmd_expires_s);
       return command::run_command_tool(cmd_options);
     }
-    if (check_cmd->parsed()) {
-      config::load_config(check_file);
-      std::cout << check_file << ": OK\n";
-      return 0;
-    }
+    if (check_cmd->parsed()) return run_check_config(check_file, std::cout, std::cerr);
   } catch (const config::ConfigError& e) {
-    for (const auto& p : e.problems) std::cerr << p << '\n';
-    std::cerr << e.problems.size() << " problem(s) in the configuration\n";
+    print_config_error(e, std::cerr);
     return 1;
   } catch (const std::exception& e) {
     std::cerr << "fleetgw: " << e.what() << '\n';

@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <toml++/toml.h>
+#include <cmath>
 #include <fstream>
 #include <set>
 #include <sstream>
@@ -24,8 +25,12 @@ std::string join(const std::vector<std::string>& lines) {
 class Section {
  public:
   Section(const toml::table* table, std::string path, std::string file,
-          std::vector<std::string>& problems)
-      : table_(table), path_(std::move(path)), file_(std::move(file)), problems_(problems) {}
+          std::vector<std::string>& problems, std::map<std::string, int, std::less<>>& lines)
+      : table_(table),
+        path_(std::move(path)),
+        file_(std::move(file)),
+        problems_(problems),
+        lines_(lines) {}
 
   ~Section() { report_unknown(); }
   Section(const Section&) = delete;
@@ -41,7 +46,7 @@ class Section {
         if (!t) problem(*n, key, "expected a table");
       }
     }
-    return Section(t, qualify(key), file_, problems_);
+    return Section(t, qualify(key), file_, problems_, lines_);
   }
 
   void string(std::string_view key, std::string& out) {
@@ -94,6 +99,11 @@ class Section {
         return;
       }
       const double v = *n->value<double>();
+      if (!std::isfinite(v)) {
+        // nan compares false with everything, so the range check alone would let it through.
+        problem(*n, key, fmt::format("{} is not a finite number", v));
+        return;
+      }
       if (v < min || v > max) {
         problem(*n, key, fmt::format("{} is out of range [{}, {}]", v, min, max));
         return;
@@ -139,6 +149,7 @@ class Section {
     if (!table_) return;
     for (const auto& [k, v] : *table_) {
       seen_.insert(std::string(k.str()));
+      lines_[qualify(k.str())] = static_cast<int>(v.source().begin.line);
       if (!v.is_string()) {
         problem(v, k.str(), "expected a string");
         continue;
@@ -155,7 +166,9 @@ class Section {
  private:
   const toml::node* find(std::string_view key) {
     seen_.insert(std::string(key));
-    return table_ ? table_->get(key) : nullptr;
+    const toml::node* n = table_ ? table_->get(key) : nullptr;
+    if (n) lines_[qualify(key)] = static_cast<int>(n->source().begin.line);
+    return n;
   }
   std::string qualify(std::string_view key) const {
     return path_.empty() ? std::string(key) : path_ + "." + std::string(key);
@@ -178,6 +191,7 @@ class Section {
   std::string path_;
   std::string file_;
   std::vector<std::string>& problems_;
+  std::map<std::string, int, std::less<>>& lines_;
   std::set<std::string> seen_;
 };
 
@@ -206,14 +220,18 @@ void read_protocol(Section& s, motinova::DecodeOptions& p, std::vector<std::stri
 Config parse_root(const toml::table& root, const std::string& name) {
   std::vector<std::string> problems;
   Config c;
+  c.display_name = name;
   {
-    Section top(&root, "", name, problems);
+    Section top(&root, "", name, problems, c.key_lines);
     {
       auto s = top.sub("vehicle");
       s.string("id", c.vehicle.id);
-      if (c.vehicle.id.empty() || c.vehicle.id.find_first_of("/+#") != std::string::npos) {
-        s.invalid("id", "must be non-empty and contain no MQTT wildcard or '/'");
-      }
+      // The rule the command verifier and the uplink apply (one topic level, the MQTT client id).
+      const bool id_ok = !c.vehicle.id.empty() && c.vehicle.id.size() <= 64 &&
+                         c.vehicle.id.find_first_not_of(
+                             "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789._-") ==
+                             std::string::npos;
+      if (!id_ok) s.invalid("id", "must be 1..64 characters of [A-Za-z0-9._-]");
     }
     {
       auto s = top.sub("log");
@@ -331,6 +349,13 @@ Config parse_root(const toml::table& root, const std::string& name) {
 
 }  // namespace
 
+std::string Config::where(std::string_view key) const {
+  const std::string file = display_name.empty() ? std::string("(defaults)") : display_name;
+  const auto it = key_lines.find(key);
+  if (it == key_lines.end()) return fmt::format("{}: {}", file, key);
+  return fmt::format("{}:{}: {}", file, it->second, key);
+}
+
 ConfigError::ConfigError(std::vector<std::string> p)
     : std::runtime_error(join(p)), problems(std::move(p)) {}
 
@@ -346,10 +371,17 @@ Config parse_config(std::string_view text, const std::string& name) {
 }
 
 Config load_config(const std::filesystem::path& file) {
+  std::error_code ec;
+  // An ifstream opens a directory and reads it as empty: that would be the default config.
+  if (std::filesystem::is_directory(file, ec)) {
+    throw ConfigError({fmt::format("{}: is a directory, not a configuration file", file.string())});
+  }
   std::ifstream in(file, std::ios::binary);
   if (!in) throw ConfigError({fmt::format("{}: cannot open configuration file", file.string())});
   std::stringstream buffer;
   buffer << in.rdbuf();
+  if (in.bad())
+    throw ConfigError({fmt::format("{}: cannot read configuration file", file.string())});
   Config c = parse_config(buffer.str(), file.string());
   c.source = file;
   return c;

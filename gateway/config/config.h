@@ -5,7 +5,12 @@
 // EVERY problem found, each naming file, line and key ("fleetgw.toml:12: can.transport: expected
 // one of socketcan, replay, udp, sim, got \"cam\""). Unknown keys, wrong types and out-of-range
 // values are all errors: a typo must never silently fall back to a default. Every option has a
-// default, so an empty file is a valid configuration.
+// default, so an empty file is a valid configuration. Numbers must be finite (nan/inf are
+// refused), and the path must name a regular file (a directory is refused, never read as empty).
+//
+// These are the checks of the file on its own. The checks that need the machine (files named
+// by the config exist, trusted keys decode, broker credentials policy...) live in
+// gateway/app/check_config.h, shared by `fleetgw check-config` and `fleetgw run`.
 #pragma once
 
 #include <array>
@@ -127,6 +132,10 @@ struct StatusConfig {
 
 struct Config {
   std::filesystem::path source;  // file it was loaded from (empty for defaults)
+  // Line of every key present in the file ("mqtt.uri" -> 12), for messages about values that
+  // are checked after loading.
+  std::map<std::string, int, std::less<>> key_lines;
+  std::string display_name;  // the file name messages use (the `name` given to parse_config)
   VehicleConfig vehicle;
   LogConfig log;
   CanConfig can;
@@ -140,6 +149,10 @@ struct Config {
   FaultConfig faults;
   CommandConfig command;
   StatusConfig status;
+
+  // "fleetgw.toml:12: mqtt.uri" (or "fleetgw.toml: mqtt.uri" for a key the file does not set):
+  // the prefix of a message about `key`, in the loader's format.
+  std::string where(std::string_view key) const;
 };
 
 // Loads and validates a TOML file.

@@ -1,5 +1,7 @@
 #include "gateway/runtime/status_provider.h"
 
+#include <chrono>
+
 namespace fleetgw::runtime {
 namespace {
 
@@ -11,6 +13,10 @@ double seconds(Micros d) {
 
 nlohmann::json make_status_json(const StatusInputs& in) {
   using nlohmann::json;
+  const Micros wall_now =
+      in.wall_now.count() > 0
+          ? in.wall_now
+          : std::chrono::duration_cast<Micros>(std::chrono::system_clock::now().time_since_epoch());
   json j;
   j["schema"] = 1;
   j["version"] = FLEETGW_VERSION;
@@ -86,6 +92,21 @@ nlohmann::json make_status_json(const StatusInputs& in) {
     if (s.state != uplink::LinkState::kConnected && s.connect_failures > 0) {
       broker["last_error"] = "connect failed " + std::to_string(s.connect_failures) + " time(s)";
     }
+    broker["connect_failures"] = s.connect_failures;
+  }
+  if (in.uplink && in.uplink_failure) {
+    const auto& f = *in.uplink_failure;
+    broker["last_connect_error"] = f.last_connect_error;
+    broker["last_connect_error_us"] = f.last_connect_error_us;
+    broker["last_connect_error_age_s"] =
+        f.last_connect_error_us > 0
+            ? json(std::max(0.0, seconds(wall_now - Micros(f.last_connect_error_us))))
+            : json(nullptr);
+    broker["tls_failures"] = f.tls_failures;
+    if (!broker["connected"].get<bool>() && !f.last_connect_error.empty()) {
+      // The reason, not only a count: "TLS: certificate verify failed (...)".
+      broker["last_error"] = f.last_connect_error;
+    }
   }
   j["broker"] = std::move(broker);
 
@@ -95,8 +116,25 @@ nlohmann::json make_status_json(const StatusInputs& in) {
   j["outbox"] = {{"depth", depth},
                  {"oldest_unsent_age_s",
                   oldest ? json(std::max(0.0, seconds(in.now - Micros(*oldest)))) : json(nullptr)}};
-  j["disk"] = {{"used_bytes", in.store.live_bytes()},
-               {"budget_bytes", static_cast<uint64_t>(in.config.storage.max_mb) * 1024 * 1024}};
+  const uint64_t configured = static_cast<uint64_t>(in.config.storage.max_mb) * 1024 * 1024;
+  j["disk"] = {{"used_bytes", in.store.live_bytes()}, {"budget_bytes", configured}};
+  if (in.storage_health) {
+    const auto& h = *in.storage_health;
+    const uint64_t effective = h.effective_budget_bytes > 0 ? h.effective_budget_bytes : configured;
+    j["disk"]["budget_bytes"] = effective;
+    j["storage"] = {
+        {"failing", h.failing},
+        {"last_error", h.last_error},
+        {"failed_writes", h.failed_writes},
+        {"failing_since_us", h.failing_since_us},
+        {"failing_for_s", h.failing && h.failing_since_us > 0
+                              ? json(std::max(0.0, seconds(wall_now - Micros(h.failing_since_us))))
+                              : json(nullptr)},
+        {"configured_budget_bytes",
+         h.configured_budget_bytes > 0 ? h.configured_budget_bytes : configured},
+        {"effective_budget_bytes", effective},
+        {"dropped_records", h.dropped_records}};
+  }
   return j;
 }
 

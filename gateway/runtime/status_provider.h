@@ -5,13 +5,26 @@
 
 #include <nlohmann/json.hpp>
 
+#include <cstdint>
+#include <optional>
+#include <string>
+
 #include "gateway/can/transport.h"
 #include "gateway/config/config.h"
 #include "gateway/runtime/gateway_core.h"
 #include "gateway/uplink/uplink.h"
+#include "storage/health.h"
 #include "storage/store.h"
 
 namespace fleetgw::runtime {
+
+// Why the uplink cannot connect (UplinkStats' last_connect_error, last_connect_error_us and
+// tls_failures; see CONTRACTS E): copied by the caller so this file does not depend on them.
+struct UplinkFailure {
+  std::string last_connect_error;          // "" = none since the last successful connect
+  std::int64_t last_connect_error_us = 0;  // wall clock, us since epoch
+  std::uint64_t tls_failures = 0;          // failed TLS handshakes since start
+};
 
 struct StatusInputs {
   const config::Config& config;
@@ -21,6 +34,12 @@ struct StatusInputs {
   const uplink::Uplink* uplink;  // nullptr when [mqtt] is disabled
   Micros started;                // service start, on the bus timeline
   Micros now;                    // bus timeline (records carry bus time too)
+  // Optional, so a caller that does not know them still builds a document (the sections then
+  // show no failure). The pipeline passes Recorder::health() and the uplink's failure fields.
+  std::optional<storage::StorageHealth> storage_health = std::nullopt;
+  std::optional<UplinkFailure> uplink_failure = std::nullopt;
+  // Wall clock for the ages of wall-clock times (failing_since_us...); 0 = system_clock::now().
+  Micros wall_now{0};
 };
 
 nlohmann::json make_status_json(const StatusInputs& in);

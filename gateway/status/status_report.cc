@@ -102,6 +102,23 @@ std::vector<Attention> evaluate(const json& status, const AttentionRules& rules)
                                            err.empty() ? "" : ": ", err)});
     }
   }
+  // Optional section (older services do not send it).
+  if (const json* storage = member(status, "storage"); storage && storage->is_object()) {
+    if (boolean(*storage, "failing").value_or(false)) {
+      const auto since = num(*storage, "failing_for_s");
+      out.push_back({"storage", fmt::format("store writes failing{}: {} ({} failed writes)",
+                                            since ? " for " + age_text(*since) : std::string(),
+                                            str(*storage, "last_error", "unknown error"),
+                                            count(*storage, "failed_writes"))});
+    }
+    const double configured = num(*storage, "configured_budget_bytes").value_or(0);
+    const double effective = num(*storage, "effective_budget_bytes").value_or(0);
+    if (effective > 0 && configured > effective) {
+      out.push_back({"budget", fmt::format("disk budget clamped to {} (storage.max_mb asks for {}, "
+                                           "more than the disk holds)",
+                                           bytes_text(effective), bytes_text(configured))});
+    }
+  }
   if (const json* disk = section("disk", false)) {
     const double used = num(*disk, "used_bytes").value_or(0);
     const double budget = num(*disk, "budget_bytes").value_or(0);
@@ -190,9 +207,19 @@ std::string format_summary(const json& s, const std::vector<Attention>& findings
   } else {
     const bool connected = boolean(broker, "connected").value_or(false);
     const std::string err = str(broker, "last_error", "");
-    line("broker",
-         fmt::format("{}: {}{}", str(broker, "uri"), connected ? "connected" : "DISCONNECTED",
-                     !connected && !err.empty() ? " (" + err + ")" : ""));
+    std::string text =
+        fmt::format("{}: {}{}", str(broker, "uri"), connected ? "connected" : "DISCONNECTED",
+                    !connected && !err.empty() ? " (" + err + ")" : "");
+    if (const auto tls = count(broker, "tls_failures"); tls > 0) {
+      text += fmt::format("\n         TLS failures {}", tls);
+    }
+    const std::string last = str(broker, "last_connect_error", "");
+    if (connected && !last.empty()) {
+      const auto age = num(broker, "last_connect_error_age_s");
+      text += fmt::format("\n         last connect error{}: {}",
+                          age ? " " + age_text(*age) + " ago" : std::string(), last);
+    }
+    line("broker", text);
   }
 
   const json& outbox = sec("outbox");
@@ -206,6 +233,26 @@ std::string format_summary(const json& s, const std::vector<Attention>& findings
   line("disk", budget > 0 ? fmt::format("{} of {} ({:.1f} %)", bytes_text(used), bytes_text(budget),
                                         100.0 * used / budget)
                           : bytes_text(used));
+
+  if (const json* st = member(s, "storage"); st && st->is_object()) {
+    std::string text;
+    if (boolean(*st, "failing").value_or(false)) {
+      const auto since = num(*st, "failing_for_s");
+      text = fmt::format("WRITES FAILING{}: {}", since ? " for " + age_text(*since) : std::string(),
+                         str(*st, "last_error", "unknown error"));
+    } else {
+      text = "writing";
+    }
+    text += fmt::format("  failed writes {}  dropped records {}", count(*st, "failed_writes"),
+                        count(*st, "dropped_records"));
+    const double configured = num(*st, "configured_budget_bytes").value_or(0);
+    const double effective = num(*st, "effective_budget_bytes").value_or(0);
+    if (effective > 0 && configured > effective) {
+      text += fmt::format("\n         budget clamped to {} (storage.max_mb: {})",
+                          bytes_text(effective), bytes_text(configured));
+    }
+    line("storage", text);
+  }
 
   out += '\n';
   if (findings.empty()) {

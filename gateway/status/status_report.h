@@ -11,9 +11,15 @@
 //                 "firmware": "V1.2" | null}],          // every node the bike is expected to have
 //     "faults": [{"node": "bms", "code": 12, "name": "...", "severity": "critical"}],  // active
 //     "locks":  [{"kind": "seat", "state": "locked"}],
-//     "broker": {"enabled": true, "connected": false, "uri": "ssl://...", "last_error": ""},
+//     "broker": {"enabled": true, "connected": false, "uri": "ssl://...", "last_error": "",
+//                "last_connect_error": "TLS: ...", "last_connect_error_age_s": 3.2 | null,
+//                "tls_failures": 2},                     // the last three: optional
 //     "outbox": {"depth": 12, "oldest_unsent_age_s": 120.5 | null},
-//     "disk":   {"used_bytes": 1048576, "budget_bytes": 268435456}
+//     "disk":   {"used_bytes": 1048576, "budget_bytes": 268435456},   // effective budget
+//     "storage": {"failing": true, "last_error": "disk full (SQLITE_FULL)", "failed_writes": 7,
+//                 "failing_since_us": 1790000000000000, "failing_for_s": 12.5 | null,
+//                 "configured_budget_bytes": 268435456, "effective_budget_bytes": 104857600,
+//                 "dropped_records": 0}                   // optional section
 //   }
 //   Ages are computed by the service on its own clock, so the client needs no clock agreement.
 //   Unknown keys are ignored (newer services may add some).
@@ -23,7 +29,10 @@
 //   * the bus state is anything but "up" ("bus"),
 //   * an expected node is offline ("node"),
 //   * an active fault has severity "critical" ("fault"),
-//   * the broker is enabled and not connected ("broker"),
+//   * the broker is enabled and not connected ("broker"; the detail quotes last_error, which is
+//     the connect failure's reason when the service knows it, e.g. a TLS verification failure),
+//   * store writes are failing ("storage": reason, failed writes, for how long),
+//   * the disk budget was clamped below storage.max_mb because the disk is smaller ("budget"),
 //   * disk use exceeds disk_fraction of the budget ("disk"),
 //   * the oldest unsent outbox record is older than outbox_max_age ("outbox").
 // Evaluation never throws, whatever the JSON holds.
@@ -45,7 +54,8 @@ struct AttentionRules {
 };
 
 struct Attention {
-  std::string rule;    // "malformed", "bus", "node", "fault", "broker", "disk", "outbox"
+  std::string rule;    // "malformed", "bus", "node", "fault", "broker", "storage", "budget",
+                       // "disk", "outbox"
   std::string detail;  // one line for the technician
 };
 

@@ -5,6 +5,7 @@
 #include <stdexcept>
 
 #include "gateway/uplink/topics.h"
+#include "gateway/uplink/uplink_config_check.h"
 
 namespace fleetgw::uplink {
 
@@ -34,6 +35,7 @@ std::string redact_uri(std::string_view uri) {
 }
 
 void UplinkConfig::validate() const {
+  if (auto p = check_uplink_config(*this); !p.empty()) throw std::invalid_argument(describe(p[0]));
   const std::string safe_uri = redact_uri(broker_uri);
   const bool is_ssl = starts_with(broker_uri, "ssl://") || starts_with(broker_uri, "mqtts://");
   const bool is_tcp = starts_with(broker_uri, "tcp://") || starts_with(broker_uri, "mqtt://");

@@ -1,0 +1,20 @@
+#include "gateway/command/key_check.h"
+
+#include "gateway/command/ed25519.h"
+
+namespace fleetgw::command {
+
+std::vector<TrustedKeyProblem> check_trusted_keys(
+    const std::map<std::string, std::string>& trusted_keys) {
+  std::vector<TrustedKeyProblem> problems;
+  for (const auto& [id, text] : trusted_keys) {
+    if (id.empty()) {
+      problems.push_back({id, "empty key id"});
+    } else if (!Ed25519PublicKey::from_base64(text)) {
+      problems.push_back({id, "not a base64 raw Ed25519 public key (32 bytes)"});
+    }
+  }
+  return problems;
+}
+
+}  // namespace fleetgw::command

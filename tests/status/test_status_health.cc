@@ -1,0 +1,224 @@
+// Honest status (issue 11): storage failures, a clamped disk budget and uplink/TLS connect
+// failures reach the status document built by the service (runtime::make_status_json), make
+// `fleetgw status` say ATTENTION with exit 1 (text and --json), and reach the published
+// fleetgw.v1.Status; a healthy service is OK with exit 0.
+#include <gtest/gtest.h>
+
+#include <asio/io_context.hpp>
+#include <asio/post.hpp>
+#include <chrono>
+#include <sstream>
+#include <thread>
+
+#include "gateway/runtime/status_provider.h"
+#include "gateway/status/status_command.h"
+#include "gateway/status/status_message.h"
+#include "gateway/status/status_server.h"
+#include "gateway/uplink/memory_outbox.h"
+#include "status_test_util.h"
+
+namespace fleetgw::status {
+namespace {
+
+using namespace std::chrono_literals;
+using nlohmann::json;
+using runtime::Micros;
+using test::TempDir;
+
+struct RefusingSender final : node::FrameSender {
+  bool send(const motinova::AppFrame&) override { return false; }
+};
+
+// A bus that is up and carries nothing: the status then depends only on what the test injects.
+struct IdleBus final : can::Transport {
+  IdleBus() { health_.state = can::LinkState::kUp; }
+  void start(FrameHandler, HealthHandler) override {}
+  bool send(const motinova::CanFrame&) override { return false; }
+  void stop() override {}
+  const can::BusHealth& health() const override { return health_; }
+  std::string_view name() const override { return "idle0"; }
+  can::BusHealth health_;
+};
+
+// The real provider over real components: a GatewayCore, a SQLite store in a temp dir and an
+// uplink (not started). Nodes are expected online on a real bike, so the test marks the
+// document's nodes online: only storage and uplink health are under test here.
+class ServiceStatus : public ::testing::Test {
+ protected:
+  ServiceStatus() {
+    config_.storage.path = (dir_.path() / "fleetgw.db").string();
+    config_.storage.max_mb = 64;
+    config_.mqtt.enabled = true;
+    config_.mqtt.uri = "ssl://127.0.0.1:8883";
+    storage::StoreOptions so;
+    so.path = config_.storage.path;
+    store_.emplace(so);
+    uplink::UplinkConfig uc;
+    uc.broker_uri = "ssl://127.0.0.1:8883";
+    uc.vehicle_id = config_.vehicle.id;
+    uc.tls = uplink::TlsConfig{};
+    uplink_.emplace(uc, outbox_);
+  }
+
+  json document(std::optional<storage::StorageHealth> health,
+                std::optional<runtime::UplinkFailure> failure, bool with_uplink = true) {
+    runtime::StatusInputs in{
+        config_,           core_, bus_, *store_, with_uplink ? &*uplink_ : nullptr, Micros(0),
+        Micros(10'000'000)};
+    in.storage_health = std::move(health);
+    in.uplink_failure = std::move(failure);
+    in.wall_now = kWallNow;
+    json d = runtime::make_status_json(in);
+    for (auto& n : d["nodes"]) n["online"] = true;
+    return d;
+  }
+
+  static constexpr Micros kWallNow{1'790'000'000'000'000};
+  TempDir dir_;
+  config::Config config_;
+  RefusingSender sender_;
+  runtime::GatewayCore core_{config_, sender_};
+  IdleBus bus_;
+  std::optional<storage::Store> store_;
+  uplink::MemoryOutbox outbox_;
+  std::optional<uplink::Uplink> uplink_;
+};
+
+storage::StorageHealth disk_full() {
+  storage::StorageHealth h;
+  h.failing = true;
+  h.last_error = "disk full (SQLITE_FULL)";
+  h.failed_writes = 5383;
+  h.failing_since_us = 1'790'000'000'000'000 - 42'000'000;  // 42 s before kWallNow
+  h.configured_budget_bytes = 64ull << 20;
+  h.effective_budget_bytes = 64ull << 20;
+  h.dropped_records = 17;
+  return h;
+}
+
+std::vector<std::string> rules_of(const json& doc) {
+  std::vector<std::string> out;
+  for (const auto& f : evaluate(doc)) out.push_back(f.rule);
+  return out;
+}
+
+TEST_F(ServiceStatus, HealthyStorageAndNoUplinkIsOk) {
+  storage::StorageHealth ok;
+  ok.configured_budget_bytes = ok.effective_budget_bytes = 64ull << 20;
+  const json d = document(ok, std::nullopt, /*with_uplink=*/false);
+  EXPECT_TRUE(evaluate(d).empty()) << d.dump(2);
+  EXPECT_EQ(d["storage"]["failing"], false);
+  EXPECT_EQ(d["storage"]["failing_for_s"], nullptr);
+}
+
+TEST_F(ServiceStatus, FailingStorageNeedsAttentionWithReasonCountAndAge) {
+  const json d = document(disk_full(), std::nullopt, /*with_uplink=*/false);
+  EXPECT_EQ(d["storage"]["failed_writes"], 5383);
+  EXPECT_DOUBLE_EQ(d["storage"]["failing_for_s"].get<double>(), 42.0);
+  EXPECT_EQ(d["storage"]["dropped_records"], 17);
+  const auto f = evaluate(d);
+  ASSERT_EQ(f.size(), 1u) << d.dump(2);
+  EXPECT_EQ(f[0].rule, "storage");
+  EXPECT_NE(f[0].detail.find("disk full (SQLITE_FULL)"), std::string::npos) << f[0].detail;
+  EXPECT_NE(f[0].detail.find("5383 failed writes"), std::string::npos) << f[0].detail;
+  EXPECT_NE(f[0].detail.find("42.0 s"), std::string::npos) << f[0].detail;
+  const std::string text = format_summary(d, f);
+  EXPECT_NE(text.find("WRITES FAILING"), std::string::npos) << text;
+  EXPECT_NE(text.find("dropped records 17"), std::string::npos) << text;
+}
+
+TEST_F(ServiceStatus, ClampedBudgetNeedsAttentionAndIsTheBudgetShown) {
+  storage::StorageHealth h;
+  h.configured_budget_bytes = 64ull << 20;
+  h.effective_budget_bytes = 10ull << 20;
+  const json d = document(h, std::nullopt, /*with_uplink=*/false);
+  EXPECT_EQ(d["disk"]["budget_bytes"], 10ull << 20);
+  EXPECT_EQ(rules_of(d), std::vector<std::string>{"budget"});
+  EXPECT_NE(format_summary(d, evaluate(d)).find("budget clamped to 10.0 MiB"), std::string::npos);
+}
+
+TEST_F(ServiceStatus, TlsFailureIsTheBrokerFindingsReason) {
+  runtime::UplinkFailure tls{
+      "TLS: certificate verify failed (unable to get local issuer "
+      "certificate)",
+      kWallNow.count() - 3'000'000, 4};
+  const json d = document(std::nullopt, tls);
+  EXPECT_EQ(d["broker"]["tls_failures"], 4);
+  EXPECT_DOUBLE_EQ(d["broker"]["last_connect_error_age_s"].get<double>(), 3.0);
+  const auto f = evaluate(d);
+  ASSERT_EQ(f.size(), 1u) << d.dump(2);
+  EXPECT_EQ(f[0].rule, "broker");
+  EXPECT_NE(f[0].detail.find("certificate verify failed"), std::string::npos) << f[0].detail;
+  EXPECT_NE(format_summary(d, f).find("TLS failures 4"), std::string::npos);
+}
+
+TEST_F(ServiceStatus, PublishedStatusCarriesTheSameHealthAndVerdict) {
+  runtime::UplinkFailure tls{"TLS: host name mismatch", kWallNow.count() - 1'000'000, 1};
+  v1::Status s;
+  fill_status_health(s, document(disk_full(), tls));
+  EXPECT_TRUE(s.storage().failing());
+  EXPECT_EQ(s.storage().last_error(), "disk full (SQLITE_FULL)");
+  EXPECT_EQ(s.storage().failed_writes(), 5383u);
+  EXPECT_EQ(s.storage().failing_since_us(), kWallNow.count() - 42'000'000);
+  EXPECT_EQ(s.storage().dropped_records(), 17u);
+  EXPECT_EQ(s.last_connect_error(), "TLS: host name mismatch");
+  EXPECT_EQ(s.last_connect_error_at_us(), kWallNow.count() - 1'000'000);
+  EXPECT_EQ(s.tls_failures(), 1u);
+  EXPECT_TRUE(s.attention_needed());
+  ASSERT_EQ(s.attention_size(), 2);  // broker + storage
+  // A compatible addition: an old reader skips the fields, a new one reads them back.
+  v1::Status back;
+  ASSERT_TRUE(back.ParseFromString(s.SerializeAsString()));
+  EXPECT_EQ(back.storage().failed_writes(), 5383u);
+
+  v1::Status healthy;
+  fill_status_health(healthy, document(std::nullopt, std::nullopt, /*with_uplink=*/false));
+  EXPECT_FALSE(healthy.attention_needed());
+  EXPECT_EQ(healthy.attention_size(), 0);
+}
+
+// `fleetgw status` against a status socket serving the provider's document.
+struct Served {
+  int code;
+  std::string out, err;
+};
+
+Served serve_and_query(const std::filesystem::path& sock, const json& doc, bool json_out) {
+  asio::io_context io;
+  StatusServer server(io, sock, [&] { return doc; });
+  std::thread loop([&] { io.run(); });
+  StatusCommandOptions o;
+  o.socket_path = sock.string();
+  o.json = json_out;
+  std::ostringstream out, err;
+  const int code = run_status_command(o, out, err);
+  asio::post(io, [&] { server.stop(); });
+  loop.join();
+  return {code, out.str(), err.str()};
+}
+
+TEST_F(ServiceStatus, StatusCommandExitsOneOnFailuresAndZeroWhenHealthy) {
+  const auto sock = dir_.path() / "status.sock";
+  runtime::UplinkFailure tls{"TLS: certificate verify failed (certificate has expired)",
+                             kWallNow.count() - 1'000'000, 2};
+  const json bad = document(disk_full(), tls);
+  const Served text = serve_and_query(sock, bad, false);
+  EXPECT_EQ(text.code, kStatusAttention) << text.err;
+  EXPECT_NE(text.out.find("ATTENTION: store writes failing for 42.0 s: disk full"),
+            std::string::npos)
+      << text.out;
+  EXPECT_NE(text.out.find("certificate has expired"), std::string::npos) << text.out;
+  const Served js = serve_and_query(sock, bad, true);
+  EXPECT_EQ(js.code, kStatusAttention);
+  EXPECT_EQ(json::parse(js.out)["storage"]["last_error"], "disk full (SQLITE_FULL)");
+  EXPECT_NE(js.err.find("ATTENTION: store writes failing"), std::string::npos) << js.err;
+
+  storage::StorageHealth ok;
+  ok.configured_budget_bytes = ok.effective_budget_bytes = 64ull << 20;
+  const Served good = serve_and_query(sock, document(ok, std::nullopt, false), false);
+  EXPECT_EQ(good.code, kStatusOk) << good.out;
+  EXPECT_NE(good.out.find("\nOK\n"), std::string::npos) << good.out;
+}
+
+}  // namespace
+}  // namespace fleetgw::status
