@@ -113,17 +113,32 @@ grep -q "ARM aarch64" <<<"$kind" || { echo "not an arm64 binary" >&2; exit 1; }
 size_bytes=$(stat -c %s "$BUILD/fleetgw.stripped")
 "$QEMU" "$bin" --version
 
+# The emulated test binaries run JOBS at a time (each is single-threaded under qemu); each
+# writes its output and its result to files, printed in a fixed order afterwards.
 status=0
 results=()
+run_one() {  # test-name exe
+  local start=$SECONDS rc=0
+  (cd "$(dirname "$2")" && "$QEMU" "$2" --gtest_brief=1) >"$BUILD/$1.emulated.log" 2>&1 || rc=$?
+  echo "$rc $((SECONDS - start))" >"$BUILD/$1.result"
+}
+step "run ${present[*]} under $QEMU, $JOBS at a time"
 for t in "${present[@]}"; do
   exe=$(find "$BUILD/tests" -type f -name "$t" -perm -u+x | head -1)
   [ -n "$exe" ] || continue
-  step "run $t under $QEMU"
-  start=$SECONDS
-  if (cd "$(dirname "$exe")" && "$QEMU" "$exe" --gtest_brief=1); then
-    results+=("$t: passed ($((SECONDS - start)) s emulated)")
+  rm -f "$BUILD/$t.result"
+  while [ "$(jobs -rp | wc -l)" -ge "$JOBS" ]; do wait -n || true; done
+  run_one "$t" "$exe" &
+done
+wait
+for t in "${present[@]}"; do
+  [ -f "$BUILD/$t.result" ] || continue
+  read -r rc took <"$BUILD/$t.result"
+  if [ "$rc" = 0 ]; then
+    results+=("$t: passed ($took s emulated)")
   else
-    results+=("$t: FAILED")
+    cat "$BUILD/$t.emulated.log"
+    results+=("$t: FAILED (exit $rc, $BUILD/$t.emulated.log)")
     status=1
   fi
 done
