@@ -59,6 +59,13 @@ run_ctest() {  # build-dir ctest-args...
   return "$rc"
 }
 
+# With ccache installed (and its directory kept between CI runs) unchanged files are not
+# compiled again in any of the builds; without it nothing changes.
+LAUNCHER=()
+if command -v ccache >/dev/null; then
+  LAUNCHER=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache -DCMAKE_C_COMPILER_LAUNCHER=ccache)
+fi
+
 phase_start deps
 extra_packages=()
 if [ "${SKIP_ARM64:-0}" != 1 ]; then
@@ -68,7 +75,7 @@ fi
 phase_end
 
 phase_start build
-cmake -S . -B build -DCMAKE_BUILD_TYPE=RelWithDebInfo -DFLEETGW_WERROR=ON >/dev/null
+cmake -S . -B build -DCMAKE_BUILD_TYPE=RelWithDebInfo -DFLEETGW_WERROR=ON "${LAUNCHER[@]}" >/dev/null
 cmake --build build -j "$JOBS"
 phase_end
 
@@ -98,7 +105,8 @@ if [ "${SKIP_FUZZ:-0}" != 1 ]; then
   # outside it (e.g. fuzz_command) needs the full tree, configured without tests or benchmarks.
   fuzz_configure() {  # only-protocol ON|OFF
     CXX=clang++ cmake -S . -B build-fuzz -DCMAKE_BUILD_TYPE=RelWithDebInfo -DFLEETGW_FUZZ=ON \
-      -DFLEETGW_BUILD_TESTS=OFF -DFLEETGW_BUILD_BENCH=OFF -DFLEETGW_ONLY_PROTOCOL="$1" >/dev/null
+      -DFLEETGW_BUILD_TESTS=OFF -DFLEETGW_BUILD_BENCH=OFF -DFLEETGW_ONLY_PROTOCOL="$1" \
+      "${LAUNCHER[@]}" >/dev/null
     cmake --build build-fuzz --target help | sed -n 's/^\.\.\. //p'
   }
   available=$(fuzz_configure ON)
@@ -141,7 +149,7 @@ fi
 if [ "${SKIP_ASAN:-0}" != 1 ]; then
   phase_start asan
   cmake -S . -B build-asan -DCMAKE_BUILD_TYPE=Debug -DFLEETGW_SANITIZE=ON -DFLEETGW_WERROR=ON \
-    -DFLEETGW_BUILD_BENCH=OFF >/dev/null
+    -DFLEETGW_BUILD_BENCH=OFF "${LAUNCHER[@]}" >/dev/null
   # Everything the sanitizer run executes; not the VM test binary (it runs in the VM only).
   asan_targets=$(cmake --build build-asan --target help | sed -n 's/^\.\.\. //p' |
     grep -Ev '^(all|clean|depend|edit_cache|rebuild_cache|install.*|list_install_components|package.*|test|socketcan_vm_tests|.*_autogen)$' |
