@@ -1,6 +1,8 @@
 #!/usr/bin/env bash
 # Installs the Debian 12 packages fleetgw needs to build, test and run its demo.
 # Idempotent: packages already installed are skipped, and apt is not touched when none is missing.
+# Usage: install-deps.sh [EXTRA_PACKAGE...]   (e.g. the arm64 cross packages, which
+#   tests/deploy/arm64-cross.sh --packages lists: installed in the same apt run as the rest).
 set -euo pipefail
 
 PACKAGES=(
@@ -17,6 +19,7 @@ PACKAGES=(
   clang libclang-rt-14-dev
   qemu-system-x86 busybox-static cpio xz-utils kmod
   dpkg-dev file systemd adduser
+  "$@"
 )
 
 missing=()
@@ -34,5 +37,8 @@ fi
 echo "install-deps: installing ${missing[*]}"
 SUDO=""
 if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
+if [[ " ${missing[*]}" == *:arm64* ]] && ! dpkg --print-foreign-architectures | grep -qx arm64; then
+  $SUDO dpkg --add-architecture arm64
+fi
 $SUDO apt-get update -qq
 DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"

@@ -4,8 +4,6 @@
 // gateway half can be destroyed and recreated mid-run (restart tests) while the bike rides on.
 #pragma once
 
-#include <unistd.h>
-
 #include <filesystem>
 #include <map>
 #include <memory>
@@ -23,6 +21,7 @@
 #include "motinova/reassembler.h"
 #include "motinova/segmenter.h"
 #include "storage/store.h"
+#include "tests/support/temp_dir.h"
 
 namespace fleetgw::domain::testing {
 
@@ -36,23 +35,7 @@ inline sim::Scenario bundled(const std::string& name) {
   return sim::load_scenario(sim::bundled_scenario_dir() / (name + ".toml"));
 }
 
-// A unique temp directory, removed at destruction.
-class TempDir {
- public:
-  TempDir() {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    path_ = std::filesystem::temp_directory_path() /
-            ("fleetgw-domain-" + std::to_string(::getpid()) + "-" +
-             (info ? std::string(info->name()) : std::string("x")));
-    std::filesystem::remove_all(path_);
-    std::filesystem::create_directories(path_);
-  }
-  ~TempDir() { std::filesystem::remove_all(path_); }
-  std::filesystem::path file(const std::string& name) const { return path_ / name; }
-
- private:
-  std::filesystem::path path_;
-};
+using fleetgw::testing::TempDir;
 
 // Everything the trackers produced, in order (also when it went to a Store).
 struct Collected {

@@ -1,12 +1,12 @@
 // The whole road, as an operator runs it: `fleetgw run` (a child process) on the simulated
 // bike → SQLite → a real mosquitto → a subscriber that knows only the .proto files. And the
 // crash cases: SIGKILL while ingesting (issue 4) and while draining a backlog (issue 5).
-#include <fcntl.h>
+// Processes, temp dirs and waiting come from tests/support: no fixed sleeps, every wait is for a
+// condition with a deadline.
 #include <gtest/gtest.h>
 #include <mqtt/async_client.h>
 #include <signal.h>
 #include <sqlite3.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
 #include <chrono>
@@ -18,32 +18,32 @@
 #include <random>
 #include <set>
 #include <sstream>
-#include <thread>
 #include <vector>
 
 #include "fleetgw/v1/command.pb.h"
 #include "fleetgw/v1/envelope.pb.h"
 #include "tests/support/mosquitto_fixture.h"
+#include "tests/support/process.h"
+#include "tests/support/temp_dir.h"
+#include "tests/support/wait.h"
 
 namespace {
 
+using fleetgw::testing::GatewayProcess;
 using fleetgw::testing::MosquittoBroker;
+using fleetgw::testing::read_text_file;
+using fleetgw::testing::run_for_exit_code;
 using fleetgw::testing::TempDir;
+using fleetgw::testing::wait_until;
 using namespace std::chrono_literals;
 
 const std::string kVehicle = "e2e-bike-7";
 
-std::string read_file(const std::string& path) {
-  std::ifstream in(path);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
-
 // A scenario file: the bundled ride, moved to another start time so repeated runs on one
 // database keep time moving forward.
 std::string ride_scenario(const TempDir& dir, int hour) {
-  std::string text = read_file(std::string(FLEETGW_SOURCE_DIR) + "/config/scenarios/ride.toml");
+  std::string text =
+      read_text_file(std::string(FLEETGW_SOURCE_DIR) + "/config/scenarios/ride.toml");
   const std::string key = "start_utc = 2024-06-01T08:00:00Z";
   const auto at = text.find(key);
   EXPECT_NE(at, std::string::npos) << "ride.toml no longer has the expected start_utc line";
@@ -72,29 +72,15 @@ std::string write_config(const TempDir& dir, const std::string& scenario, double
   return path;
 }
 
-// Runs `fleetgw run` for `duration_s` of wall time, or until `bus_s` seconds of (simulated) bus
-// time have passed when given: bus time makes a run cover the same ride on a slow machine.
-pid_t spawn_gateway(const std::string& config, double duration_s, double bus_s = 0) {
-  const pid_t pid = fork();
-  if (pid == 0) {
-    const std::string d = std::to_string(duration_s);
-    const std::string b = std::to_string(bus_s);
-    if (bus_s > 0) {
-      execl(FLEETGW_BINARY, FLEETGW_BINARY, "run", "--config", config.c_str(), "--duration",
-            d.c_str(), "--bus-duration", b.c_str(), static_cast<char*>(nullptr));
-    } else {
-      execl(FLEETGW_BINARY, FLEETGW_BINARY, "run", "--config", config.c_str(), "--duration",
-            d.c_str(), static_cast<char*>(nullptr));
-    }
-    _exit(127);
+// `fleetgw run` for `duration_s` of wall time, or until `bus_s` seconds of (simulated) bus time
+// have passed when given: bus time makes a run cover the same ride on a slow machine.
+GatewayProcess start_gateway(const std::string& config, double duration_s, double bus_s = 0) {
+  std::vector<std::string> args{"--duration", std::to_string(duration_s)};
+  if (bus_s > 0) {
+    args.push_back("--bus-duration");
+    args.push_back(std::to_string(bus_s));
   }
-  return pid;
-}
-
-int wait_exit(pid_t pid) {
-  int status = 0;
-  waitpid(pid, &status, 0);
-  return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+  return GatewayProcess(FLEETGW_BINARY, config, args);
 }
 
 // Everything the broker delivered, decoded as the backend would.
@@ -178,13 +164,21 @@ struct Db {
   sqlite3* db = nullptr;
 };
 
-bool wait_for(const std::function<bool()>& done, std::chrono::milliseconds limit) {
-  const auto end = std::chrono::steady_clock::now() + limit;
-  while (std::chrono::steady_clock::now() < end) {
-    if (done()) return true;
-    std::this_thread::sleep_for(50ms);
+// Rows in the outbox, or -1 while the database or its schema does not exist yet (no test
+// assertions: this polls a store another process is creating).
+int64_t outbox_size(const std::filesystem::path& path) {
+  sqlite3* db = nullptr;
+  int64_t rows = -1;
+  if (sqlite3_open_v2(path.c_str(), &db, SQLITE_OPEN_READONLY, nullptr) == SQLITE_OK) {
+    sqlite3_stmt* st = nullptr;
+    if (sqlite3_prepare_v2(db, "SELECT count(*) FROM outbox", -1, &st, nullptr) == SQLITE_OK &&
+        sqlite3_step(st) == SQLITE_ROW) {
+      rows = sqlite3_column_int64(st, 0);
+    }
+    sqlite3_finalize(st);
   }
-  return done();
+  sqlite3_close(db);
+  return rows;
 }
 
 // Simulated ride → gateway → broker → subscriber: every record arrives, sequence numbers are
@@ -195,7 +189,7 @@ TEST(EndToEnd, RideReachesTheBrokerCompleteAndInOrder) {
   broker.start();
   Subscriber sub(broker.uri());
   const auto config = write_config(dir, ride_scenario(dir, 8), 400.0, broker.uri());
-  ASSERT_EQ(wait_exit(spawn_gateway(config, 120.0, 1900.0)), 0);
+  ASSERT_EQ(start_gateway(config, 120.0, 1900.0).wait(), 0);
 
   Db db((dir.path() / "fleetgw.db").string());
   const int64_t next =
@@ -207,7 +201,7 @@ TEST(EndToEnd, RideReachesTheBrokerCompleteAndInOrder) {
   ASSERT_GT(stored, 100) << "the ride produced too little data to be a meaningful test";
   // A clean stop drains for a few seconds; on a loaded machine the tail of the telemetry may
   // still be queued, safely, for the next start. Nothing may be missing either way.
-  ASSERT_TRUE(wait_for([&] { return !sub.seqs().empty(); }, 5s));
+  ASSERT_TRUE(wait_until([&] { return !sub.seqs().empty(); }, 5s));
   const auto seqs = sub.seqs();
   const auto queued = db.column("SELECT seq FROM outbox");
   std::set<uint64_t> all(queued.begin(), queued.end());
@@ -234,7 +228,7 @@ TEST(CrashSafety, KilledWhileDrainingLosesNothing) {
   const std::string uri = broker.uri();
   {
     const auto config = write_config(dir, ride_scenario(dir, 1), 400.0, uri);
-    ASSERT_EQ(wait_exit(spawn_gateway(config, 120.0, 1900.0)), 0);
+    ASSERT_EQ(start_gateway(config, 120.0, 1900.0).wait(), 0);
   }
   int64_t backlog = 0;
   {
@@ -249,14 +243,25 @@ TEST(CrashSafety, KilledWhileDrainingLosesNothing) {
   std::mt19937 rng(7);
   for (int round = 0; round < 3; ++round) {
     const auto config = write_config(dir, ride_scenario(dir, 2 + round), 1.0, uri);
-    const pid_t pid = spawn_gateway(config, 30.0);
-    std::this_thread::sleep_for(std::chrono::milliseconds(200 + rng() % 400));
-    kill(pid, SIGKILL);
-    EXPECT_EQ(wait_exit(pid), 128 + SIGKILL);
+    GatewayProcess gateway = start_gateway(config, 30.0);
+    // Kill part-way through the drain: once a random number of further records has arrived, or
+    // when the backlog is gone already (a local broker takes hundreds of records in
+    // milliseconds: then this round kills a gateway that is sending its own ride).
+    const std::size_t target = sub.seqs().size() + 1 + rng() % 60;
+    ASSERT_TRUE(wait_until(
+        [&] {
+          return sub.seqs().size() >= target || outbox_size(dir.path() / "fleetgw.db") == 0 ||
+                 !gateway.running();
+        },
+        30s, 1ms))
+        << "round " << round << ": the drain did not progress\n"
+        << gateway.log();
+    ASSERT_TRUE(gateway.running()) << "round " << round << ": finished before the kill";
+    EXPECT_EQ(gateway.kill(), 128 + SIGKILL);
   }
   // 3. A clean run finishes the drain.
   const auto config = write_config(dir, ride_scenario(dir, 6), 1.0, uri);
-  ASSERT_EQ(wait_exit(spawn_gateway(config, 4.0)), 0);
+  ASSERT_EQ(start_gateway(config, 4.0).wait(), 0);
 
   Db db((dir.path() / "fleetgw.db").string());
   EXPECT_EQ(db.text("PRAGMA integrity_check"), "ok");
@@ -282,10 +287,17 @@ TEST(CrashSafety, KilledWhileIngestingKeepsTheStoreIntact) {
   std::vector<int64_t> previous;
   for (int round = 0; round < 5; ++round) {
     const auto config = write_config(dir, ride_scenario(dir, 10 + round), 2000.0, "");
-    const pid_t pid = spawn_gateway(config, 30.0);
-    std::this_thread::sleep_for(std::chrono::milliseconds(1000 + rng() % 1500));
-    kill(pid, SIGKILL);
-    ASSERT_EQ(wait_exit(pid), 128 + SIGKILL);
+    GatewayProcess gateway = start_gateway(config, 30.0);
+    // Kill at a random moment while it ingests: once a random number of new records is
+    // committed (the store is in WAL mode: a reader sees every committed transaction).
+    const int64_t target = static_cast<int64_t>(previous.size()) + 1 + rng() % 40;
+    ASSERT_TRUE(wait_until(
+        [&] { return !gateway.running() || outbox_size(dir.path() / "fleetgw.db") >= target; }, 30s,
+        50ms))
+        << "round " << round << ": ingest did not progress\n"
+        << gateway.log();
+    ASSERT_TRUE(gateway.running()) << "round " << round << ": finished before the kill";
+    ASSERT_EQ(gateway.kill(), 128 + SIGKILL);
 
     Db db((dir.path() / "fleetgw.db").string());
     ASSERT_EQ(db.text("PRAGMA integrity_check"), "ok") << "round " << round;
@@ -317,20 +329,34 @@ TEST(Status, ShowsTheScenarioAndFlagsAnUnreachableBroker) {
     << "[mqtt]\nenabled = true\nuri = \"tcp://127.0.0.1:9\"\n";
   const std::string config = (dir.path() / "fleetgw.toml").string();
   std::ofstream(config) << c.str();
-  const pid_t gateway = spawn_gateway(config, 20.0);
-  ASSERT_TRUE(wait_for([&] { return std::filesystem::exists(socket); }, 10s));
-  std::this_thread::sleep_for(6s);  // the scenario's lock jam and the offline timeouts happen
+  GatewayProcess gateway = start_gateway(config, 60.0);
+  ASSERT_TRUE(wait_until([&] { return std::filesystem::exists(socket); }, 10s)) << gateway.log();
 
+  // Ask until the scenario's effects are visible (the lock jam, the silent lock's offline
+  // timeout, the seat lock's first report), as an operator would.
   const std::string out = (dir.path() / "status.json").string();
-  const std::string cmd =
-      std::string(FLEETGW_BINARY) + " status --json --socket " + socket + " > " + out;
-  const int rc = std::system(cmd.c_str());
-  kill(gateway, SIGTERM);
-  EXPECT_EQ(wait_exit(gateway), 0);
-  ASSERT_TRUE(WIFEXITED(rc));
-  EXPECT_EQ(WEXITSTATUS(rc), 1) << "needs attention: broker unreachable, silent lock";
+  int rc = -1;
+  const auto settled = [&] {
+    std::filesystem::remove(out);  // the output file is appended to: one document per run
+    rc = run_for_exit_code({FLEETGW_BINARY, "status", "--json", "--socket", socket}, out,
+                           dir.path() / "status.stderr");
+    const auto doc = nlohmann::json::parse(read_text_file(out), nullptr, false);
+    if (doc.is_discarded() || !doc.contains("nodes") || !doc.contains("locks")) return false;
+    bool lock3_offline = false;
+    for (const auto& n : doc["nodes"]) {
+      if (n.value("name", "") == "lock3") lock3_offline = !n.value("online", true);
+    }
+    bool seat_known = false;
+    for (const auto& l : doc["locks"]) {
+      if (l.value("kind", "") == "seat") seat_known = l.value("state", "unknown") != "unknown";
+    }
+    return lock3_offline && seat_known;
+  };
+  EXPECT_TRUE(wait_until(settled, 45s, 200ms)) << read_text_file(out);
+  EXPECT_EQ(gateway.stop(), 0);
+  EXPECT_EQ(rc, 1) << "needs attention: broker unreachable, silent lock";
 
-  const auto doc = nlohmann::json::parse(read_file(out));
+  const auto doc = nlohmann::json::parse(read_text_file(out));
   EXPECT_EQ(doc["vehicle_id"], kVehicle);
   EXPECT_EQ(doc["bus"]["state"], "up");
   EXPECT_EQ(doc["broker"]["enabled"], true);
@@ -348,10 +374,9 @@ TEST(Status, ShowsTheScenarioAndFlagsAnUnreachableBroker) {
   EXPECT_NE(locks["seat"], "unknown");
 
   // With the gateway gone the command says so with its own exit code.
-  const int gone = std::system(
-      (std::string(FLEETGW_BINARY) + " status --socket " + socket + " > /dev/null 2>&1").c_str());
-  ASSERT_TRUE(WIFEXITED(gone));
-  EXPECT_EQ(WEXITSTATUS(gone), 3);
+  EXPECT_EQ(
+      run_for_exit_code({FLEETGW_BINARY, "status", "--socket", socket}, dir.path() / "gone.out"),
+      3);
 }
 
 }  // namespace
@@ -359,19 +384,9 @@ TEST(Status, ShowsTheScenarioAndFlagsAnUnreachableBroker) {
 namespace {
 
 // Runs `fleetgw ARGS...` with stdout and stderr into `out`; returns its exit status.
-int run_fleetgw(const std::vector<std::string>& args, const std::string& out) {
-  const pid_t pid = fork();
-  if (pid == 0) {
-    const int fd = ::open(out.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0600);
-    ::dup2(fd, 1);
-    ::dup2(fd, 2);
-    std::vector<char*> argv{const_cast<char*>(FLEETGW_BINARY)};
-    for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
-    argv.push_back(nullptr);
-    execv(FLEETGW_BINARY, argv.data());
-    _exit(127);
-  }
-  return wait_exit(pid);
+int run_fleetgw(std::vector<std::string> args, const std::string& out) {
+  args.insert(args.begin(), FLEETGW_BINARY);
+  return run_for_exit_code(args, out);
 }
 
 }  // namespace
@@ -411,16 +426,16 @@ TEST(Watch, PrintsEnvelopesCommandsAndErrorsAsJsonLines) {
                          "--duration", "30"},
                         out),
             0)
-      << read_file(out);
+      << read_text_file(out);
   std::map<std::string, nlohmann::json> by_topic;
-  std::istringstream lines(read_file(out));
+  std::istringstream lines(read_text_file(out));
   for (std::string line; std::getline(lines, line);) {
     const auto j = nlohmann::json::parse(line, nullptr, false);
     ASSERT_FALSE(j.is_discarded()) << "not JSON: " << line;
     by_topic[j.at("topic").get<std::string>()] = j;
   }
   const std::string base = "fleet/v1/" + kVehicle;
-  ASSERT_EQ(by_topic.size(), 3u) << read_file(out);
+  ASSERT_EQ(by_topic.size(), 3u) << read_text_file(out);
   const auto& ride = by_topic[base + "/ride"].at("envelope");
   EXPECT_EQ(ride.at("vehicle_id"), kVehicle);
   EXPECT_EQ(ride.at("ride").at("ride_id"), "ride-42");

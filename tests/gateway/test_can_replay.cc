@@ -1,6 +1,4 @@
 // Replay transport: plays a candump -L file as the bus, fast and at recorded pace.
-#include <unistd.h>
-
 #include <chrono>
 #include <filesystem>
 #include <fstream>
@@ -14,6 +12,7 @@
 
 #include "gateway/can/candump.h"
 #include "gateway/can/replay_transport.h"
+#include "tests/support/temp_dir.h"
 
 namespace fleetgw::can {
 namespace {
@@ -30,20 +29,13 @@ struct Received {
 // A temporary candump file, removed again at the end of the test.
 class TempFile {
  public:
-  explicit TempFile(const std::string& text) {
-    path_ = std::filesystem::path(::testing::TempDir()) /
-            ("fleetgw_replay_" + std::to_string(::getpid()) + "_" + std::to_string(counter()++) +
-             ".log");
+  explicit TempFile(const std::string& text) : path_(dir_.file("replay.log")) {
     std::ofstream(path_) << text;
   }
-  ~TempFile() { std::filesystem::remove(path_); }
   const std::filesystem::path& path() const { return path_; }
 
  private:
-  static int& counter() {
-    static int n = 0;
-    return n;
-  }
+  fleetgw::testing::TempDir dir_{"fleetgw-replay"};
   std::filesystem::path path_;
 };
 

@@ -15,6 +15,7 @@
 #include "gateway/sim/sim_command.h"
 #include "gateway/sim/sim_transport.h"
 #include "sim_test_util.h"
+#include "tests/support/temp_dir.h"
 
 namespace fleetgw::sim {
 namespace {
@@ -108,19 +109,20 @@ TEST(RunSim, RunsOnTheGivenTransportForTheDuration) {
 }
 
 TEST(RunSim, BadScenarioIsExitCode2) {
-  const auto path = std::filesystem::temp_directory_path() / "fleetgw_sim_bad.toml";
+  const fleetgw::testing::TempDir dir("fleetgw-sim");
+  const auto path = dir.file("fleetgw_sim_bad.toml");
   {
     std::ofstream out(path);
     out << "[bike]\nsoc_pct = 101\n";
   }
   SimCliOptions o;
   o.scenario = path;
-  o.record = std::filesystem::temp_directory_path() / "fleetgw_sim_unused.log";
+  o.record = dir.file("fleetgw_sim_unused.log");
   ::testing::internal::CaptureStderr();
   EXPECT_EQ(run_sim(o), 2);
   const std::string err = ::testing::internal::GetCapturedStderr();
   EXPECT_NE(err.find("fleetgw_sim_bad.toml:2: bike.soc_pct"), std::string::npos) << err;
-  std::filesystem::remove(path);
+  EXPECT_FALSE(std::filesystem::exists(o.record)) << "nothing is recorded from a bad scenario";
 }
 
 TEST(RunSim, BadBusSpecIsExitCode2) {
@@ -133,7 +135,8 @@ TEST(RunSim, BadBusSpecIsExitCode2) {
 }
 
 TEST(RunSim, RecordModeWritesAReadableCandumpLog) {
-  const auto path = std::filesystem::temp_directory_path() / "fleetgw_sim_record.log";
+  const fleetgw::testing::TempDir dir("fleetgw-sim");
+  const auto path = dir.file("fleetgw_sim_record.log");
   SimCliOptions o;
   o.scenario = bundled_scenario_dir() / "demo.toml";
   o.duration_s = 30;
@@ -155,7 +158,6 @@ TEST(RunSim, RecordModeWritesAReadableCandumpLog) {
   EXPECT_TRUE(probe.errors.empty());
   // The demo unlocks lock 2 at 3 s: the log carries the unlocking/unlocked broadcasts.
   EXPECT_GE(probe.on(0x780, 0x10).size(), 30u);
-  std::filesystem::remove(path);
 }
 
 }  // namespace

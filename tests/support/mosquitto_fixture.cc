@@ -1,12 +1,9 @@
 #include "tests/support/mosquitto_fixture.h"
 
 #include <arpa/inet.h>
-#include <fcntl.h>
 #include <netinet/in.h>
 #include <signal.h>
-#include <spawn.h>
 #include <sys/socket.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
 #include <cctype>
@@ -18,22 +15,14 @@
 #include <sstream>
 #include <stdexcept>
 #include <system_error>
-#include <thread>
 #include <utility>
 
-extern char** environ;
+#include "tests/support/wait.h"
 
 namespace fleetgw::testing {
 namespace fs = std::filesystem;
 
 namespace {
-
-std::string read_file(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  std::ostringstream out;
-  out << in.rdbuf();
-  return out.str();
-}
 
 void write_file(const fs::path& p, std::string_view text) {
   std::ofstream out(p, std::ios::binary | std::ios::trunc);
@@ -48,35 +37,6 @@ struct Fd {
     if (fd >= 0) ::close(fd);
   }
 };
-
-// Spawns argv with stdout+stderr appended to `output`; returns the pid.
-pid_t spawn(const std::vector<std::string>& argv, const fs::path& output) {
-  std::vector<char*> args;
-  args.reserve(argv.size() + 1);
-  for (const auto& a : argv) args.push_back(const_cast<char*>(a.c_str()));
-  args.push_back(nullptr);
-  posix_spawn_file_actions_t actions;
-  posix_spawn_file_actions_init(&actions);
-  posix_spawn_file_actions_addopen(&actions, STDOUT_FILENO, output.c_str(),
-                                   O_WRONLY | O_CREAT | O_APPEND, 0600);
-  posix_spawn_file_actions_adddup2(&actions, STDOUT_FILENO, STDERR_FILENO);
-  posix_spawn_file_actions_addopen(&actions, STDIN_FILENO, "/dev/null", O_RDONLY, 0);
-  pid_t pid = -1;
-  const int rc = posix_spawnp(&pid, args[0], &actions, nullptr, args.data(), environ);
-  posix_spawn_file_actions_destroy(&actions);
-  if (rc != 0) {
-    throw std::system_error(rc, std::generic_category(), "cannot start " + argv[0]);
-  }
-  return pid;
-}
-
-int wait_exit(pid_t pid) {
-  int status = 0;
-  while (::waitpid(pid, &status, 0) < 0) {
-    if (errno != EINTR) return -1;
-  }
-  return status;
-}
 
 std::string mosquitto_binary() {
   for (const char* candidate : {"/usr/sbin/mosquitto", "/usr/local/sbin/mosquitto"}) {
@@ -96,58 +56,6 @@ bool port_accepts(std::uint16_t port) {
 }
 
 }  // namespace
-
-// ---------------------------------------------------------------------------------------------
-TempDir::TempDir(std::string_view prefix) {
-  std::string templ = (fs::temp_directory_path() / (std::string(prefix) + "-XXXXXX")).string();
-  if (::mkdtemp(templ.data()) == nullptr) {
-    throw std::system_error(errno, std::generic_category(), "mkdtemp " + templ);
-  }
-  path_ = templ;
-}
-
-TempDir::~TempDir() {
-  if (path_.empty()) return;
-  std::error_code ec;
-  fs::remove_all(path_, ec);
-}
-
-TempDir::TempDir(TempDir&& other) noexcept : path_(std::exchange(other.path_, {})) {}
-
-TempDir& TempDir::operator=(TempDir&& other) noexcept {
-  if (this != &other) {
-    std::error_code ec;
-    if (!path_.empty()) fs::remove_all(path_, ec);
-    path_ = std::exchange(other.path_, {});
-  }
-  return *this;
-}
-
-// ---------------------------------------------------------------------------------------------
-void run_program(const std::vector<std::string>& argv, const fs::path& output_file) {
-  const pid_t pid = spawn(argv, output_file);
-  const int status = wait_exit(pid);
-  if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) {
-    std::string cmd;
-    for (const auto& a : argv) cmd += a + " ";
-    throw std::runtime_error("command failed: " + cmd + "\n" + read_file(output_file));
-  }
-}
-
-std::uint16_t free_loopback_port() {
-  Fd s{::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0)};
-  if (s.fd < 0) throw std::system_error(errno, std::generic_category(), "socket");
-  sockaddr_in addr{};
-  addr.sin_family = AF_INET;
-  addr.sin_port = 0;
-  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  if (::bind(s.fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr) != 0) {
-    throw std::system_error(errno, std::generic_category(), "bind 127.0.0.1:0");
-  }
-  socklen_t len = sizeof addr;
-  ::getsockname(s.fd, reinterpret_cast<sockaddr*>(&addr), &len);
-  return ntohs(addr.sin_port);
-}
 
 // ---------------------------------------------------------------------------------------------
 TestPki::TestPki() : dir_("fleetgw-pki") {
@@ -270,42 +178,45 @@ void MosquittoBroker::write_config() const {
 void MosquittoBroker::start() {
   if (running()) return;
   const fs::path dir = dir_.path();
-  pid_ = spawn({mosquitto_binary(), "-c", (dir / "mosquitto.conf").string()}, dir / "stdout.log");
-  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(10);
-  while (std::chrono::steady_clock::now() < deadline) {
-    int status = 0;
-    if (::waitpid(pid_, &status, WNOHANG) == pid_) {
-      pid_ = -1;
-      throw std::runtime_error("mosquitto exited during start-up:\n" + log());
-    }
-    if (port_accepts(port_)) return;
-    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  process_.emplace(
+      std::vector<std::string>{mosquitto_binary(), "-c", (dir / "mosquitto.conf").string()},
+      dir / "stdout.log");
+  bool exited = false;
+  const bool up = wait_until(
+      [&] {
+        exited = !process_->running();
+        return exited || port_accepts(port_);
+      },
+      std::chrono::seconds(10));
+  if (exited) {
+    process_.reset();
+    throw std::runtime_error("mosquitto exited during start-up:\n" + log());
   }
-  kill();
-  throw std::runtime_error("mosquitto did not accept connections within 10 s:\n" + log());
-}
-
-void MosquittoBroker::signal_and_wait(int sig) {
-  if (!running()) return;
-  if (sig != SIGKILL) ::kill(pid_, SIGCONT);  // a paused broker cannot act on SIGTERM
-  ::kill(pid_, sig);
-  wait_exit(pid_);
-  pid_ = -1;
+  if (!up) {
+    kill();
+    throw std::runtime_error("mosquitto did not accept connections within 10 s:\n" + log());
+  }
 }
 
 void MosquittoBroker::stop() {
-  signal_and_wait(SIGTERM);
+  if (!running()) return;
+  process_->signal(SIGCONT);  // a paused broker cannot act on SIGTERM
+  process_->stop(std::chrono::seconds(30));
+  process_.reset();
 }
+
 void MosquittoBroker::kill() {
-  signal_and_wait(SIGKILL);
+  if (!running()) return;
+  process_->kill();
+  process_.reset();
 }
 
 void MosquittoBroker::pause() {
-  if (running()) ::kill(pid_, SIGSTOP);
+  if (running()) process_->signal(SIGSTOP);
 }
 
 void MosquittoBroker::resume() {
-  if (running()) ::kill(pid_, SIGCONT);
+  if (running()) process_->signal(SIGCONT);
 }
 
 std::string MosquittoBroker::uri() const {
@@ -317,7 +228,7 @@ std::string MosquittoBroker::uri_localhost() const {
 }
 
 std::string MosquittoBroker::log() const {
-  return read_file(dir_.path() / "mosquitto.log") + read_file(dir_.path() / "stdout.log");
+  return read_text_file(dir_.path() / "mosquitto.log") + read_text_file(dir_.path() / "stdout.log");
 }
 
 }  // namespace fleetgw::testing

@@ -1,4 +1,5 @@
-// Test support: a real mosquitto broker for integration tests and benchmarks.
+// Test support: a real mosquitto broker for integration tests and benchmarks (TempDir,
+// run_program and free_loopback_port come with it from temp_dir.h and process.h).
 //
 // Contract:
 //  * MosquittoBroker starts `mosquitto -c <generated config>` listening on 127.0.0.1 at a free
@@ -18,27 +19,15 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
 
+#include "tests/support/process.h"
+#include "tests/support/temp_dir.h"
+
 namespace fleetgw::testing {
-
-// A private temporary directory, removed recursively on destruction.
-class TempDir {
- public:
-  explicit TempDir(std::string_view prefix = "fleetgw-test");
-  ~TempDir();
-  TempDir(const TempDir&) = delete;
-  TempDir& operator=(const TempDir&) = delete;
-  TempDir(TempDir&& other) noexcept;
-  TempDir& operator=(TempDir&& other) noexcept;
-
-  const std::filesystem::path& path() const { return path_; }
-
- private:
-  std::filesystem::path path_;
-};
 
 // A certificate and its private key (PEM files).
 struct CertKey {
@@ -107,7 +96,7 @@ class MosquittoBroker {
   // Freezes / thaws the broker process.
   void pause();
   void resume();
-  bool running() const { return pid_ > 0; }
+  bool running() const { return process_.has_value(); }
 
   std::uint16_t port() const { return port_; }
   // "tcp://127.0.0.1:<port>" or "ssl://127.0.0.1:<port>".
@@ -120,18 +109,11 @@ class MosquittoBroker {
 
  private:
   void write_config() const;
-  void signal_and_wait(int sig);
 
   MosquittoOptions options_;
   TempDir dir_;
   std::uint16_t port_ = 0;
-  pid_t pid_ = -1;
+  std::optional<ChildProcess> process_;
 };
-
-// Runs a program (no shell) and waits; throws std::runtime_error with its output on failure.
-void run_program(const std::vector<std::string>& argv, const std::filesystem::path& output_file);
-
-// A free TCP port on 127.0.0.1 (bound and released; the usual tiny race applies).
-std::uint16_t free_loopback_port();
 
 }  // namespace fleetgw::testing

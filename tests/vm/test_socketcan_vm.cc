@@ -27,6 +27,7 @@
 
 #include "gateway/can/candump.h"
 #include "gateway/can/socketcan_transport.h"
+#include "tests/support/wait.h"
 
 namespace fleetgw::can {
 namespace {
@@ -50,6 +51,20 @@ std::optional<std::string> why_no_vcan() {
         "vcan0)");
   }
   return std::nullopt;
+}
+
+// CAN_RAW receivers the kernel lists on vcan0 (one per bound socket and filter): a new one
+// means a program such as candump has bound and will see the next frame.
+std::size_t raw_receivers() {
+  std::ifstream in("/proc/net/can/rcvlist_all");
+  std::size_t n = 0;
+  for (std::string line; std::getline(in, line);) {
+    std::istringstream words(line);
+    std::string first;
+    words >> first;
+    if (first == kIf && line.find("raw") != std::string::npos) ++n;
+  }
+  return n;
 }
 
 void sh(const std::string& cmd) {
@@ -214,10 +229,18 @@ TEST_F(SocketCanVm, KernelTimestampsArePresentAndMonotonic) {
   Peer peer;
   // Warm-up: the kernel switches receive stamping on asynchronously when the first socket asks
   // for it, so a frame right after that may be stamped at read time instead (TimestampGuard
-  // covers that in production). Measure only once stamping is surely on.
-  peer.send(0x712, {0xFF});
-  ASSERT_TRUE(run_until(io, [&] { return rx.size() == 1; }));
-  std::this_thread::sleep_for(50ms);
+  // covers that in production). Measure only once stamping is on: a probe left unread for
+  // 20 ms (the stimulus, not a wait) carries a stamp from its arrival, not from its reading.
+  const auto stamped_on_arrival = [&] {
+    rx.clear();
+    const auto sent =
+        std::chrono::duration_cast<Micros>(std::chrono::system_clock::now().time_since_epoch());
+    peer.send(0x712, {0xFF});
+    std::this_thread::sleep_for(20ms);
+    return run_until(io, [&] { return rx.size() == 1; }) && rx[0].ts - sent < Micros{10'000};
+  };
+  ASSERT_TRUE(fleetgw::testing::wait_until(stamped_on_arrival, 5s, 1ms))
+      << "receive timestamps still taken at read time after 5 s";
   rx.clear();
   const auto before =
       std::chrono::duration_cast<Micros>(std::chrono::system_clock::now().time_since_epoch());
@@ -346,8 +369,10 @@ TEST_F(SocketCanVm, InteroperatesWithCanUtils) {
   // Our transport → candump -L, parsed back with our own candump reader.
   const std::string log = "/tmp/fleetgw_candump.log";
   std::remove(log.c_str());
+  const std::size_t receivers = raw_receivers();
   sh(std::string("candump -L -n 3 ") + kIf + " > " + log + " 2>&1 &");
-  std::this_thread::sleep_for(300ms);  // let candump bind before we send
+  ASSERT_TRUE(fleetgw::testing::wait_until([&] { return raw_receivers() > receivers; }, 5s))
+      << "candump did not bind (no new receiver in /proc/net/can/rcvlist_all)";
   const std::vector<CanFrame> sent = {frame(0x716, {1, 2, 3}), frame(0x700, {}),
                                       frame(0x7FF, {0, 1, 2, 3, 4, 5, 6, 7})};
   for (const auto& f : sent) ASSERT_TRUE(t.send(f));
@@ -355,17 +380,17 @@ TEST_F(SocketCanVm, InteroperatesWithCanUtils) {
 
   std::vector<candump::LogRecord> records;
   std::vector<std::string> errors;
-  const auto deadline = std::chrono::steady_clock::now() + 5s;
-  while (std::chrono::steady_clock::now() < deadline) {
-    std::ifstream in(log);
-    candump::LineReader reader(in);
-    records.clear();
-    while (auto r = reader.next()) records.push_back(*r);
-    errors.clear();
-    for (const auto& e : reader.errors()) errors.push_back(e.message);
-    if (records.size() == 3) break;
-    std::this_thread::sleep_for(50ms);
-  }
+  fleetgw::testing::wait_until(
+      [&] {
+        std::ifstream in(log);
+        candump::LineReader reader(in);
+        records.clear();
+        while (auto r = reader.next()) records.push_back(*r);
+        errors.clear();
+        for (const auto& e : reader.errors()) errors.push_back(e.message);
+        return records.size() == 3;
+      },
+      5s, 50ms);
   ASSERT_EQ(records.size(), 3U) << "candump output incomplete";
   EXPECT_TRUE(errors.empty()) << errors.front();
   const auto now =
