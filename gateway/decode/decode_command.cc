@@ -4,6 +4,7 @@
 
 #include <fstream>
 #include <iostream>
+#include <string>
 
 #include "gateway/can/candump.h"
 #include "gateway/decode/json_format.h"
@@ -12,27 +13,76 @@
 namespace fleetgw::decode {
 namespace {
 
+// Output is assembled in one reused buffer and handed to the stream in large blocks: no JSON
+// tree and no stream formatting per message.
 class JsonLinesSink : public motinova::FrameSink {
  public:
   JsonLinesSink(const DecodeCommandOptions& options, std::ostream& out, DecodeSummary& summary)
-      : options_(options), out_(out), summary_(summary) {}
+      : options_(options), out_(out), summary_(summary) {
+    buffer_.reserve(kFlushBytes + 4096);
+  }
+  ~JsonLinesSink() override { flush(); }
+  JsonLinesSink(const JsonLinesSink&) = delete;
+  JsonLinesSink& operator=(const JsonLinesSink&) = delete;
 
   void on_frame(const motinova::AppFrame& frame, motinova::Micros ts) override {
     motinova::decode(frame, motinova::Catalogue::standard(), options_.protocol, decoded_);
     ++summary_.messages;
     if (!decoded_.desc) ++summary_.unknown_messages;
-    out_ << message_to_json(decoded_, ts, options_.protocol).dump() << '\n';
+    append_message_json(buffer_, decoded_, ts, options_.protocol);
+    end_line();
   }
   void on_error(const motinova::ReassemblyErrorEvent& e) override {
-    if (options_.print_errors) out_ << error_to_json(e).dump() << '\n';
+    if (!options_.print_errors) return;
+    append_error_json(buffer_, e);
+    end_line();
+  }
+  void malformed_line(std::size_t line, std::string_view message) {
+    buffer_ += "{\"error\":\"malformed_line\",\"line\":";
+    buffer_ += std::to_string(line);
+    buffer_ += ",\"message\":";
+    append_json_string(buffer_, message);
+    buffer_ += '}';
+    end_line();
+  }
+  void flush() {
+    out_.write(buffer_.data(), static_cast<std::streamsize>(buffer_.size()));
+    buffer_.clear();
   }
 
  private:
+  static constexpr std::size_t kFlushBytes = 64 * 1024;
+  void end_line() {
+    buffer_ += '\n';
+    if (buffer_.size() >= kFlushBytes) flush();
+  }
+
   const DecodeCommandOptions& options_;
   std::ostream& out_;
   DecodeSummary& summary_;
   motinova::DecodedMessage decoded_;
+  std::string buffer_;
 };
+
+std::string nothing_decoded_hint(const DecodeSummary& s, const DecodeCommandOptions& options) {
+  const auto& r = s.reassembly;
+  if (r.can_frames == 0) {
+    return s.lines_malformed > 0
+               ? "decode: no candump -L line in the input (expected lines such as "
+                 "\"(1700000000.000000) can0 710#55AA0C...\"; record with candump -L)"
+               : "decode: the input holds no CAN frame";
+  }
+  std::string hint = "decode: no valid MOTINOVA message in the input";
+  if (r.error(motinova::ReassemblyError::kBadCrc) > 0 &&
+      options.protocol.crc_order != motinova::CrcOrder::kAuto) {
+    hint += "; every complete frame failed its CRC: try --crc-order auto (spec U1)";
+  } else if (r.error(motinova::ReassemblyError::kForeignId) == r.can_frames) {
+    hint += "; no frame on the MOTINOVA IDs 0x700-0x7FF";
+  } else {
+    hint += "; check that the log is from a MOTINOVA bus (try --errors to see why frames fail)";
+  }
+  return hint;
+}
 
 }  // namespace
 
@@ -78,15 +128,16 @@ int run_decode(const DecodeCommandOptions& options, std::ostream& out, std::ostr
   JsonLinesSink sink(options, out, summary);
   can::candump::LineReader reader(*in);
   const std::string source = options.input == "-" ? "stdin" : options.input;
+  // A binary or foreign file would print one message per line: report the first few only.
+  constexpr uint64_t kMaxReportedLines = 20;
+  uint64_t reported = 0;
   reader.on_error([&](const can::candump::ParseError& e) {
-    err << source << ": " << e.message << '\n';
-    if (options.print_errors) {
-      out << nlohmann::ordered_json{{"error", "malformed_line"},
-                                    {"line", e.line},
-                                    {"message", e.message}}
-                 .dump()
-          << '\n';
+    if (++reported <= kMaxReportedLines) {
+      err << source << ": " << e.message << '\n';
+    } else if (reported == kMaxReportedLines + 1) {
+      err << source << ": more malformed lines are counted, not shown\n";
     }
+    if (options.print_errors) sink.malformed_line(e.line, e.message);
   });
   motinova::Micros last{0};
   while (auto record = reader.next()) {
@@ -99,10 +150,16 @@ int run_decode(const DecodeCommandOptions& options, std::ostream& out, std::ostr
   }
   // Whatever is still partial at the end of the log is reported, not silently dropped.
   reassembler.expire(last + options.gap_timeout + motinova::Micros(1), sink);
+  sink.flush();
+  out.flush();
   summary.lines_malformed = reader.error_count();
   summary.reassembly = reassembler.stats();
   err << format_summary(summary) << '\n';
   if (summary_out) *summary_out = summary;
+  if (summary.messages == 0) {
+    err << nothing_decoded_hint(summary, options) << '\n';
+    return 1;
+  }
   return 0;
 }
 
