@@ -64,6 +64,19 @@ void append_hex_bytes(std::string& out, std::span<const uint8_t> bytes) {
   out += '"';
 }
 
+// "0x710" with at least `digits` upper-case hex digits, quoted (as hex_id()).
+void append_hex_id(std::string& out, uint32_t value, int digits) {
+  char buf[12];
+  int n = 0;
+  do {
+    buf[n++] = kHex[value & 0xF];
+    value >>= 4;
+  } while (value != 0 || n < digits);
+  out += "\"0x";
+  while (n > 0) out += buf[--n];
+  out += '"';
+}
+
 void append_hex_byte_label(std::string& out, int64_t raw) {
   fmt::format_to(std::back_inserter(out), "\"0x{:02X}\"", raw);
 }
@@ -186,7 +199,16 @@ void append_ts(std::string& out, motinova::Micros ts) {
 
 void append_json_string(std::string& out, std::string_view text) {
   out += '"';
-  for (const char ch : text) {
+  // Plain runs (the whole string, nearly always) are appended in one go.
+  auto plain = [](unsigned char c) { return c >= 0x20 && c < 0x80 && c != '"' && c != '\\'; };
+  std::size_t i = 0;
+  while (i < text.size()) {
+    std::size_t run = i;
+    while (run < text.size() && plain(static_cast<unsigned char>(text[run]))) ++run;
+    out.append(text.data() + i, run - i);
+    if (run == text.size()) break;
+    i = run + 1;
+    const char ch = text[run];
     const auto c = static_cast<unsigned char>(ch);
     switch (c) {
       case '"':
@@ -334,14 +356,17 @@ void append_message_json(std::string& out, const motinova::DecodedMessage& m, mo
   const auto& frame = *m.frame;
   out += "{\"ts\":";
   append_ts(out, ts);
-  fmt::format_to(std::back_inserter(out), ",\"can_id\":\"0x{:03X}\",\"src\":", frame.can_id);
+  out += ",\"can_id\":";
+  append_hex_id(out, frame.can_id, 3);
+  out += ",\"src\":";
   append_json_string(out, motinova::node_name(motinova::source_of(frame.can_id)));
   out += ",\"dst\":";
   append_json_string(out, motinova::node_name(motinova::target_of(frame.can_id)));
   out += ",\"mode\":";
   append_json_string(out, motinova::mode_name(frame.mode));
-  fmt::format_to(std::back_inserter(out),
-                 ",\"function\":\"0x{:02X}\",\"message\":", frame.function);
+  out += ",\"function\":";
+  append_hex_id(out, frame.function, 2);
+  out += ",\"message\":";
   append_json_string(out, m.name());
   if (!m.mode_matches) out += ",\"mode_mismatch\":true";
   out += ",\"fields\":";
