@@ -166,11 +166,10 @@ void append_field(std::string& out, bool& first, const motinova::DecodedMessage&
     case FieldKind::kArray: {
       append_key(out, first, f.name, "");
       out += '[';
-      for (std::size_t i = 0; i < f.count; ++i) {
-        const auto e = m.element(f.name, i);
-        if (!e) break;
+      for (std::size_t i = 0; i < f.count && (i + 1) * f.size <= v.bytes.size(); ++i) {
+        const uint64_t e = motinova::read_uint(v.bytes.subspan(i * f.size, f.size), m.data_order);
         if (i > 0) out += ',';
-        const double scaled = static_cast<double>(*e) * f.scale + f.bias;
+        const double scaled = static_cast<double>(e) * f.scale + f.bias;
         if (f.scale == 1.0) {
           append_int(out, static_cast<int64_t>(scaled));
         } else {
@@ -338,9 +337,7 @@ void append_fields_json(std::string& out, const motinova::DecodedMessage& m,
   }
   // Keyword messages carry their text as the field "keyword" (valid or null), which takes the
   // place of the catalogue keyword.
-  bool keyword_field = false;
-  for (const auto& v : m.values()) keyword_field |= v.field->name == "keyword";
-  if (m.desc->kind == motinova::MessageKind::kKeyword && !keyword_field) {
+  if (m.desc->kind == motinova::MessageKind::kKeyword && !m.find("keyword")) {
     append_key(out, first, "keyword");
     append_json_string(out, m.desc->keyword);
   }
