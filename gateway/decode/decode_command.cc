@@ -22,9 +22,7 @@ namespace {
 class JsonLinesSink : public motinova::FrameSink {
  public:
   JsonLinesSink(const DecodeCommandOptions& options, std::ostream& out, DecodeSummary& summary)
-      : options_(options), out_(out), summary_(summary) {
-    buffer_.reserve(kFlushBytes + 4096);
-  }
+      : options_(options), out_(out), summary_(summary) {}
   ~JsonLinesSink() override { flush(); }
   JsonLinesSink(const JsonLinesSink&) = delete;
   JsonLinesSink& operator=(const JsonLinesSink&) = delete;
@@ -50,7 +48,7 @@ class JsonLinesSink : public motinova::FrameSink {
     end_line();
   }
   void flush() {
-    out_.write(buffer_.data(), static_cast<std::streamsize>(buffer_.size()));
+    out_.write(buffer_.view().data(), static_cast<std::streamsize>(buffer_.size()));
     buffer_.clear();
     if (flush_stream_) {
       out_.flush();
@@ -74,7 +72,7 @@ class JsonLinesSink : public motinova::FrameSink {
   std::ostream& out_;
   DecodeSummary& summary_;
   motinova::DecodedMessage decoded_;
-  std::string buffer_;
+  JsonBuffer buffer_;
   bool flush_stream_ = false;
 };
 

@@ -2,11 +2,11 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <bit>
 #include <charconv>
 #include <cmath>
 #include <cstring>
-#include <iterator>
 
 #include "motinova/fault_names.h"
 
@@ -23,13 +23,13 @@ double tidy(double v) {
   return r == 0.0 ? 0.0 : r;
 }
 
-void append_int(std::string& out, int64_t v) {
+void append_int(JsonBuffer& out, int64_t v) {
   char buf[24];
   const auto r = std::to_chars(buf, buf + sizeof buf, v);
-  out.append(buf, r.ptr);
+  out.append(buf, static_cast<std::size_t>(r.ptr - buf));
 }
 
-void append_key(std::string& out, bool& first, std::string_view key) {
+void append_key(JsonBuffer& out, bool& first, std::string_view key) {
   if (!first) out += ',';
   first = false;
   append_json_string(out, key);
@@ -37,7 +37,7 @@ void append_key(std::string& out, bool& first, std::string_view key) {
 }
 
 // A key made of a catalogue name and a suffix ("assist" + "_name").
-void append_key(std::string& out, bool& first, std::string_view key, std::string_view suffix) {
+void append_key(JsonBuffer& out, bool& first, std::string_view key, std::string_view suffix) {
   if (!first) out += ',';
   first = false;
   out += '"';
@@ -46,7 +46,7 @@ void append_key(std::string& out, bool& first, std::string_view key, std::string
   out += "\":";
 }
 
-void append_number(std::string& out, const motinova::FieldValue& v) {
+void append_number(JsonBuffer& out, const motinova::FieldValue& v) {
   const auto& f = *v.field;
   if (f.scale == 1.0 && f.bias == std::floor(f.bias) && v.value == std::floor(v.value)) {
     append_int(out, static_cast<int64_t>(v.value));
@@ -55,7 +55,7 @@ void append_number(std::string& out, const motinova::FieldValue& v) {
   }
 }
 
-void append_hex_bytes(std::string& out, std::span<const uint8_t> bytes) {
+void append_hex_bytes(JsonBuffer& out, std::span<const uint8_t> bytes) {
   out += '"';
   for (uint8_t b : bytes) {
     out += kHex[b >> 4];
@@ -65,7 +65,7 @@ void append_hex_bytes(std::string& out, std::span<const uint8_t> bytes) {
 }
 
 // "0x710" with at least `digits` upper-case hex digits, quoted (as hex_id()).
-void append_hex_id(std::string& out, uint32_t value, int digits) {
+void append_hex_id(JsonBuffer& out, uint32_t value, int digits) {
   char buf[12];
   int n = 0;
   do {
@@ -77,11 +77,13 @@ void append_hex_id(std::string& out, uint32_t value, int digits) {
   out += '"';
 }
 
-void append_hex_byte_label(std::string& out, int64_t raw) {
-  fmt::format_to(std::back_inserter(out), "\"0x{:02X}\"", raw);
+void append_hex_byte_label(JsonBuffer& out, int64_t raw) {
+  char buf[32];
+  const auto r = fmt::format_to_n(buf, sizeof buf, "\"0x{:02X}\"", raw);
+  out.append(buf, std::min(r.size, sizeof buf));
 }
 
-void append_faults(std::string& out, const motinova::DecodedMessage& m,
+void append_faults(JsonBuffer& out, const motinova::DecodedMessage& m,
                    const motinova::FieldValue& v, const motinova::DecodeOptions& options) {
   out += '[';
   bool first_item = true;
@@ -101,7 +103,9 @@ void append_faults(std::string& out, const motinova::DecodedMessage& m,
         if (def) {
           append_json_string(out, def->name);
         } else {
-          fmt::format_to(std::back_inserter(out), "\"undefined_bit_{}\"", bit);
+          out += "\"undefined_bit_";
+          append_int(out, bit);
+          out += '"';
         }
         out += ",\"severity\":";
         append_json_string(out, def ? motinova::severity_name(def->severity) : "warning");
@@ -112,7 +116,7 @@ void append_faults(std::string& out, const motinova::DecodedMessage& m,
   out += ']';
 }
 
-void append_field(std::string& out, bool& first, const motinova::DecodedMessage& m,
+void append_field(JsonBuffer& out, bool& first, const motinova::DecodedMessage& m,
                   const motinova::FieldValue& v, const motinova::DecodeOptions& options) {
   const auto& f = *v.field;
   if (!v.valid) {
@@ -190,13 +194,13 @@ void append_field(std::string& out, bool& first, const motinova::DecodedMessage&
   }
 }
 
-void append_ts(std::string& out, motinova::Micros ts) {
+void append_ts(JsonBuffer& out, motinova::Micros ts) {
   append_json_double(out, static_cast<double>(ts.count()) / 1e6);
 }
 
 }  // namespace
 
-void append_json_string(std::string& out, std::string_view text) {
+void append_json_string(JsonBuffer& out, std::string_view text) {
   out += '"';
   // Plain runs (the whole string, nearly always) are appended in one go.
   auto plain = [](unsigned char c) { return c >= 0x20 && c < 0x80 && c != '"' && c != '\\'; };
@@ -246,7 +250,7 @@ void append_json_string(std::string& out, std::string_view text) {
   out += '"';
 }
 
-void append_json_double(std::string& out, double value) {
+void append_json_double(JsonBuffer& out, double value) {
   if (!std::isfinite(value)) {
     out += "null";  // as nlohmann::json
     return;
@@ -301,6 +305,16 @@ void append_json_double(std::string& out, double value) {
   }
 }
 
+void JsonBuffer::grow(std::size_t n) {
+  const std::size_t used = size();
+  const std::size_t capacity = std::max<std::size_t>({used + n, 2 * used, 4096});
+  auto bigger = std::make_unique_for_overwrite<char[]>(capacity);
+  if (used > 0) std::memcpy(bigger.get(), data_.get(), used);
+  data_ = std::move(bigger);
+  end_ = data_.get() + used;
+  cap_ = data_.get() + capacity;
+}
+
 std::string hex_id(uint32_t value, int digits) {
   return fmt::format("0x{:0{}X}", value, digits);
 }
@@ -310,7 +324,7 @@ std::string lock_kind(motinova::Node node, const motinova::DecodeOptions& option
   return options.lock_kinds[static_cast<std::size_t>(motinova::lock_index(node))];
 }
 
-void append_fields_json(std::string& out, const motinova::DecodedMessage& m,
+void append_fields_json(JsonBuffer& out, const motinova::DecodedMessage& m,
                         const motinova::DecodeOptions& options) {
   out += '{';
   bool first = true;
@@ -348,7 +362,7 @@ void append_fields_json(std::string& out, const motinova::DecodedMessage& m,
   out += '}';
 }
 
-void append_message_json(std::string& out, const motinova::DecodedMessage& m, motinova::Micros ts,
+void append_message_json(JsonBuffer& out, const motinova::DecodedMessage& m, motinova::Micros ts,
                          const motinova::DecodeOptions& options) {
   const auto& frame = *m.frame;
   out += "{\"ts\":";
@@ -371,10 +385,12 @@ void append_message_json(std::string& out, const motinova::DecodedMessage& m, mo
   out += '}';
 }
 
-void append_error_json(std::string& out, const motinova::ReassemblyErrorEvent& e) {
+void append_error_json(JsonBuffer& out, const motinova::ReassemblyErrorEvent& e) {
   out += "{\"ts\":";
   append_ts(out, e.timestamp);
-  fmt::format_to(std::back_inserter(out), ",\"can_id\":\"0x{:03X}\",\"error\":", e.can_id);
+  out += ",\"can_id\":";
+  append_hex_id(out, e.can_id, 3);
+  out += ",\"error\":";
   append_json_string(out, motinova::reassembly_error_name(e.kind));
   out += ",\"bytes_dropped\":";
   append_int(out, e.bytes_dropped);

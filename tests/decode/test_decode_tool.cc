@@ -244,13 +244,13 @@ TEST(DecodeTool, UntrustedTextIsEscaped) {
 TEST(DecodeTool, NumbersPrintAsBefore) {
   for (double v : {25.3, 0.12, 48.0, 1763700000.123956, 1763700000.0, -5.2, 1e-5, 0.0001, 1e16,
                    123456789012345.6, -0.5, 3.0e-7, 21.93}) {
-    std::string mine;
+    JsonBuffer mine;
     append_json_double(mine, v);
-    EXPECT_EQ(mine, json(v).dump()) << v;
+    EXPECT_EQ(mine.view(), json(v).dump()) << v;
   }
-  std::string s;
+  JsonBuffer s;
   append_json_string(s, "q\"b\\t\tn\nc\x1f");
-  EXPECT_EQ(s, json("q\"b\\t\tn\nc\x1f").dump());
+  EXPECT_EQ(s.view(), json("q\"b\\t\tn\nc\x1f").dump());
 }
 
 TEST(DecodeTool, MissingFileIsAnError) {
