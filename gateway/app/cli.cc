@@ -3,6 +3,8 @@
 #include <fmt/format.h>
 #include <CLI/CLI.hpp>
 
+#include <unistd.h>
+
 #include <iostream>
 
 #include "gateway/app/check_config.h"
@@ -24,7 +26,9 @@ namespace {
 struct ProtocolFlags {
   std::string config_file;
   std::string crc_order, byte_order, mc_fault_layout, bms_fault_layout, other_fault_layout,
-      mc_vi_order, bms_current_sign, lock_kinds;
+      mc_vi_order, bms_current_sign, lock_kinds, mc_answer_id, wheel_size_unit, wheel_adjust_unit,
+      pack_stats_currents, pack_stats_time_unit, pack_stats_counter_order;
+  std::vector<std::string> assist_names, fault_names;
   bool mc_current_signed = false;
 
   void add_to(CLI::App& cmd) {
@@ -48,6 +52,88 @@ struct ProtocolFlags {
     cmd.add_option(
         "--lock-kinds", lock_kinds,
         "U21: comma-separated lock kinds of LOCK 1..5, e.g. seat,frame,steering,battery,other");
+    add_uncertain_to(cmd);
+  }
+
+  void add_uncertain_to(CLI::App& cmd) {
+    cmd.add_option("--mc-answer-id", mc_answer_id, "U14: ID the MC answers reads on")
+        ->check(CLI::IsMember({"0x713", "0x716", "0x710", "auto"}));
+    cmd.add_option("--wheel-size-unit", wheel_size_unit, "U11: what MC settings byte 0 counts")
+        ->check(CLI::IsMember({"circumference_cm", "diameter_cm", "diameter_inch"}));
+    cmd.add_option("--wheel-adjust-unit", wheel_adjust_unit, "U11: unit of the wheel adjust")
+        ->check(CLI::IsMember({"cm", "mm"}));
+    cmd.add_option("--pack-stats-currents", pack_stats_currents,
+                   "U17: which maximum current comes first in 0x725/0x5028")
+        ->check(CLI::IsMember({"discharge_first", "charge_first"}));
+    cmd.add_option("--pack-stats-time-unit", pack_stats_time_unit,
+                   "U17: unit of the charging-time statistics")
+        ->check(CLI::IsMember({"h", "min"}));
+    cmd.add_option("--pack-stats-counter-order", pack_stats_counter_order,
+                   "U17: comma-separated names of the nine 0x5028 counters in wire order");
+    cmd.add_option("--assist-name", assist_names, "U7: VALUE=NAME, e.g. 0x33=smart (repeatable)");
+    cmd.add_option("--fault-name", fault_names,
+                   "U6/U18/U20/U22: SOURCE:BIT=NAME, SOURCE mc|bms|iot|lock, e.g. "
+                   "mc:high_0x0020=te_comm_fault (repeatable)");
+  }
+
+  static std::vector<std::string> split(const std::string& text, char sep) {
+    std::vector<std::string> out;
+    std::size_t start = 0;
+    while (true) {
+      const auto at = text.find(sep, start);
+      out.push_back(text.substr(start, at == std::string::npos ? std::string::npos : at - start));
+      if (at == std::string::npos) return out;
+      start = at + 1;
+    }
+  }
+
+  void resolve_uncertain(motinova::DecodeOptions& p) const {
+    if (!mc_answer_id.empty()) p.mc_answer_id = config::parse_mc_answer_id(mc_answer_id);
+    if (!wheel_size_unit.empty()) {
+      p.wheel_size_unit = config::parse_wheel_size_unit(wheel_size_unit);
+    }
+    if (!wheel_adjust_unit.empty()) {
+      p.wheel_adjust_unit = config::parse_wheel_adjust_unit(wheel_adjust_unit);
+    }
+    if (!pack_stats_currents.empty()) {
+      p.pack_stats_discharge_current_first = pack_stats_currents == "discharge_first";
+    }
+    if (!pack_stats_time_unit.empty()) {
+      p.pack_stats_time_unit = pack_stats_time_unit == "min" ? motinova::PackTimeUnit::kMinutes
+                                                             : motinova::PackTimeUnit::kHours;
+    }
+    if (!pack_stats_counter_order.empty()) {
+      const auto why =
+          config::set_pack_stats_counter_order(p, split(pack_stats_counter_order, ','));
+      if (!why.empty()) throw CLI::ValidationError("--pack-stats-counter-order", why);
+    }
+    for (const auto& a : assist_names) {
+      const auto eq = a.find('=');
+      const auto why = eq == std::string::npos
+                           ? std::string("expected VALUE=NAME")
+                           : config::set_assist_name(p, a.substr(0, eq), a.substr(eq + 1));
+      if (!why.empty()) throw CLI::ValidationError("--assist-name", why);
+    }
+    for (const auto& f : fault_names) {
+      const auto colon = f.find(':');
+      const auto eq = f.find('=');
+      std::string why = "expected SOURCE:BIT=NAME with SOURCE mc, bms, iot or lock";
+      if (colon != std::string::npos && eq != std::string::npos && colon < eq) {
+        const std::string source = f.substr(0, colon);
+        const std::pair<const char*, motinova::FaultSource> sources[] = {
+            {"mc", motinova::FaultSource::kMc},
+            {"bms", motinova::FaultSource::kBms},
+            {"iot", motinova::FaultSource::kIot},
+            {"lock", motinova::FaultSource::kLock}};
+        for (const auto& [name, s] : sources) {
+          if (source == name) {
+            why =
+                config::set_fault_name(p, s, f.substr(colon + 1, eq - colon - 1), f.substr(eq + 1));
+          }
+        }
+      }
+      if (!why.empty()) throw CLI::ValidationError("--fault-name", why);
+    }
   }
 
   motinova::DecodeOptions resolve() const {
@@ -78,6 +164,7 @@ struct ProtocolFlags {
       }
       p.lock_kinds = kinds;
     }
+    resolve_uncertain(p);
     return p;
   }
 };
@@ -224,6 +311,13 @@ int run_cli(int argc, char** argv) {
 
   try {
     if (decode_cmd->parsed()) {
+      // Waiting silently for a log typed at the keyboard looks like a hang: show the usage.
+      if (decode_cmd->count("file") == 0 && ::isatty(STDIN_FILENO)) {
+        std::cerr << decode_cmd->help()
+                  << "\nno log given: pass a candump -L file, or pipe one "
+                     "in (candump -L can0 | fleetgw decode)\n";
+        return 2;
+      }
       decode_options.protocol = decode_flags.resolve();
       decode_options.gap_timeout = motinova::Micros(int64_t{gap_ms} * 1000);
       return decode::run_decode(decode_options, std::cout, std::cerr);

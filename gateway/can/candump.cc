@@ -157,22 +157,26 @@ std::optional<ParseResult> Parser::parse_frame(std::string_view tok, std::size_t
       return fail(tok_pos + i, "invalid hex digit " + printable(id_text[i]) + " in CAN ID");
     id = (id << 4) | static_cast<uint32_t>(v);
   }
-  char hexid[16];
-  std::snprintf(hexid, sizeof hexid, "0x%X", id);
+  // Formatted only for an error message: snprintf on every line cost ~7 % of `fleetgw decode`.
+  auto hexid = [id] {
+    char text[16];
+    std::snprintf(text, sizeof text, "0x%X", id);
+    return std::string(text);
+  };
   if (id_text.size() == 3) {
     if (id > kSffMask) {
-      return fail(tok_pos, std::string("standard CAN ID ") + hexid + " exceeds 0x7FF");
+      return fail(tok_pos, "standard CAN ID " + hexid() + " exceeds 0x7FF");
     }
     rec.frame.id = id;
   } else if ((id & kErrFlag) != 0) {
     if ((id & (kEffFlag | kRtrFlag)) != 0) {
-      return fail(tok_pos, std::string("error frame ID ") + hexid + " also carries EFF/RTR flags");
+      return fail(tok_pos, "error frame ID " + hexid() + " also carries EFF/RTR flags");
     }
     rec.kind = FrameKind::kError;
     rec.frame.id = id & kEffMask;
   } else {
     if (id > kEffMask) {
-      return fail(tok_pos, std::string("extended CAN ID ") + hexid + " exceeds 29 bits");
+      return fail(tok_pos, "extended CAN ID " + hexid() + " exceeds 29 bits");
     }
     rec.extended = true;
     rec.frame.id = id;

@@ -4,9 +4,13 @@
 
 #include <toml++/toml.h>
 #include <cmath>
+#include <algorithm>
+#include <charconv>
 #include <fstream>
 #include <set>
 #include <sstream>
+
+#include "motinova/fault_names.h"
 
 namespace fleetgw::config {
 namespace {
@@ -195,25 +199,73 @@ class Section {
   std::set<std::string> seen_;
 };
 
+// Fault-bit names of one source, e.g. [protocol.mc_fault_names] low_0x0080 = "..." (U6, U18,
+// U20, U22).
+void read_fault_names(Section& protocol, std::string_view key, motinova::FaultSource source,
+                      motinova::DecodeOptions& p) {
+  auto table = protocol.sub(key);
+  std::map<std::string, std::string> names;
+  table.string_map(names);
+  for (const auto& [bit, name] : names) {
+    if (const std::string why = set_fault_name(p, source, bit, name); !why.empty()) {
+      table.invalid(bit, why);
+    }
+  }
+}
+
 void read_protocol(Section& s, motinova::DecodeOptions& p, std::vector<std::string>& problems) {
   std::string crc = "be", data = "be", mc = "documented", bms = "documented", other = "documented",
-              vi = "voltage_first";
+              vi = "voltage_first", answer = "0x713", wheel = "circumference_cm", adjust = "cm",
+              currents = "discharge_first", time_unit = "h";
   s.choice("crc_order", crc, {"be", "le", "auto"});
   s.choice("data_order", data, {"be", "le"});
   s.choice("mc_fault_layout", mc, {"documented", "swapped", "two_words_low_first"});
   s.choice("bms_fault_layout", bms, {"documented", "swapped", "two_words_low_first"});
   s.choice("other_fault_layout", other, {"documented", "swapped", "two_words_low_first"});
   s.choice("mc_voltage_current_order", vi, {"voltage_first", "current_first", "auto"});
+  s.choice("mc_answer_id", answer, {"0x713", "0x716", "0x710", "auto"});
+  s.choice("wheel_size_unit", wheel, {"circumference_cm", "diameter_cm", "diameter_inch"});
+  s.choice("wheel_adjust_unit", adjust, {"cm", "mm"});
+  s.choice("pack_stats_currents", currents, {"discharge_first", "charge_first"});
+  s.choice("pack_stats_time_unit", time_unit, {"h", "min"});
   p.crc_order = parse_crc_order(crc);
   p.data_order = parse_byte_order(data);
   p.mc_fault_layout = parse_fault_layout(mc);
   p.bms_fault_layout = parse_fault_layout(bms);
   p.other_fault_layout = parse_fault_layout(other);
   p.mc_voltage_current_order = parse_mc_vi_order(vi);
+  p.mc_answer_id = parse_mc_answer_id(answer);
+  p.wheel_size_unit = parse_wheel_size_unit(wheel);
+  p.wheel_adjust_unit = parse_wheel_adjust_unit(adjust);
+  p.pack_stats_discharge_current_first = currents == "discharge_first";
+  p.pack_stats_time_unit =
+      time_unit == "min" ? motinova::PackTimeUnit::kMinutes : motinova::PackTimeUnit::kHours;
   s.boolean("bms_current_charge_positive", p.bms_current_charge_positive);
   s.boolean("mc_current_signed", p.mc_current_signed);
   s.string_array("lock_state_names", p.lock_state_names, false);
   s.string_array("lock_kinds", p.lock_kinds, true);
+  {
+    std::array<std::string, motinova::kPackStatsCounters> order = p.pack_stats_counter_order;
+    s.string_array("pack_stats_counter_order", order, false);
+    if (const std::string why = set_pack_stats_counter_order(p, {order.begin(), order.end()});
+        !why.empty()) {
+      s.invalid("pack_stats_counter_order", why);
+    }
+  }
+  {
+    auto assist = s.sub("assist_names");
+    std::map<std::string, std::string> names;
+    assist.string_map(names);
+    for (const auto& [value, name] : names) {
+      if (const std::string why = set_assist_name(p, value, name); !why.empty()) {
+        assist.invalid(value, why);
+      }
+    }
+  }
+  read_fault_names(s, "mc_fault_names", motinova::FaultSource::kMc, p);
+  read_fault_names(s, "bms_fault_names", motinova::FaultSource::kBms, p);
+  read_fault_names(s, "iot_fault_names", motinova::FaultSource::kIot, p);
+  read_fault_names(s, "lock_fault_names", motinova::FaultSource::kLock, p);
   (void)problems;
 }
 
@@ -414,6 +466,106 @@ motinova::McVoltageCurrentOrder parse_mc_vi_order(std::string_view s) {
   if (s == "auto") return motinova::McVoltageCurrentOrder::kAuto;
   throw std::invalid_argument(fmt::format(
       "MC voltage/current order must be voltage_first, current_first or auto, got \"{}\"", s));
+}
+
+motinova::McAnswerId parse_mc_answer_id(std::string_view s) {
+  if (s == "0x713") return motinova::McAnswerId::k713;
+  if (s == "0x716") return motinova::McAnswerId::k716;
+  if (s == "0x710") return motinova::McAnswerId::k710;
+  if (s == "auto") return motinova::McAnswerId::kAuto;
+  throw std::invalid_argument(
+      fmt::format("MC answer ID must be 0x713, 0x716, 0x710 or auto, got \"{}\"", s));
+}
+
+motinova::WheelSizeUnit parse_wheel_size_unit(std::string_view s) {
+  if (s == "circumference_cm") return motinova::WheelSizeUnit::kCircumferenceCm;
+  if (s == "diameter_cm") return motinova::WheelSizeUnit::kDiameterCm;
+  if (s == "diameter_inch") return motinova::WheelSizeUnit::kDiameterInch;
+  throw std::invalid_argument(fmt::format(
+      "wheel size unit must be circumference_cm, diameter_cm or diameter_inch, got \"{}\"", s));
+}
+
+motinova::WheelAdjustUnit parse_wheel_adjust_unit(std::string_view s) {
+  if (s == "cm") return motinova::WheelAdjustUnit::kCm;
+  if (s == "mm") return motinova::WheelAdjustUnit::kMm;
+  throw std::invalid_argument(fmt::format("wheel adjust unit must be cm or mm, got \"{}\"", s));
+}
+
+namespace {
+// Names become JSON keys' values, log text and MQTT payloads: keep them plain identifiers.
+bool plain_name(std::string_view name) {
+  if (name.empty() || name.size() > 64) return false;
+  for (char c : name) {
+    const bool ok = (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') || c == '_';
+    if (!ok) return false;
+  }
+  return true;
+}
+}  // namespace
+
+std::string set_fault_name(motinova::DecodeOptions& p, motinova::FaultSource source,
+                           std::string_view bit, std::string_view name) {
+  const auto mask = motinova::parse_fault_bit(bit);
+  if (!mask) {
+    return fmt::format("\"{}\" is not one fault bit (e.g. low_0x0080, high_0x0002, 0x0080)", bit);
+  }
+  if (!plain_name(name)) {
+    return fmt::format("fault name \"{}\" must be 1-64 characters of a-z, 0-9 and _", name);
+  }
+  for (auto& o : p.fault_names) {
+    if (o.source == source && o.mask == *mask) {
+      o.name = std::string(name);
+      return "";
+    }
+  }
+  p.fault_names.push_back({source, *mask, std::string(name)});
+  return "";
+}
+
+std::string set_assist_name(motinova::DecodeOptions& p, std::string_view value,
+                            std::string_view name) {
+  unsigned v = 0;
+  const bool hex = value.starts_with("0x") || value.starts_with("0X");
+  const std::string_view digits = hex ? value.substr(2) : value;
+  const auto [end, ec] =
+      std::from_chars(digits.data(), digits.data() + digits.size(), v, hex ? 16 : 10);
+  if (digits.empty() || ec != std::errc{} || end != digits.data() + digits.size() || v > 0xFF) {
+    return fmt::format("assist level \"{}\" must be a byte value such as 0x33", value);
+  }
+  if (!plain_name(name)) {
+    return fmt::format("assist name \"{}\" must be 1-64 characters of a-z, 0-9 and _", name);
+  }
+  for (auto& a : p.assist_names) {
+    if (a.value == v) {
+      a.name = std::string(name);
+      return "";
+    }
+  }
+  p.assist_names.push_back({static_cast<uint8_t>(v), std::string(name)});
+  return "";
+}
+
+std::string set_pack_stats_counter_order(motinova::DecodeOptions& p,
+                                         const std::vector<std::string>& names) {
+  if (names.size() != motinova::kPackStatsCounters) {
+    return fmt::format("expected the {} counter names", motinova::kPackStatsCounters);
+  }
+  std::set<std::string_view> seen;
+  for (const auto& n : names) {
+    const bool known =
+        std::find(motinova::kPackStatsCounterNames.begin(), motinova::kPackStatsCounterNames.end(),
+                  n) != motinova::kPackStatsCounterNames.end();
+    if (!known || !seen.insert(n).second) {
+      return fmt::format(
+          "must name each of over_charge_count, over_discharge_count, charge_over_current_count, "
+          "discharge_over_current_count, short_circuit_count, charge_over_temp_count, "
+          "charge_under_temp_count, discharge_over_temp_count, discharge_under_temp_count once "
+          "(\"{}\")",
+          n);
+    }
+  }
+  std::copy(names.begin(), names.end(), p.pack_stats_counter_order.begin());
+  return "";
 }
 
 }  // namespace fleetgw::config

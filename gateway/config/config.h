@@ -167,5 +167,16 @@ motinova::FaultWordLayout parse_fault_layout(
     std::string_view s);  // documented | swapped | two_words_low_first
 motinova::McVoltageCurrentOrder parse_mc_vi_order(
     std::string_view s);  // voltage_first | current_first | auto
+motinova::McAnswerId parse_mc_answer_id(std::string_view s);  // 0x713 | 0x716 | 0x710 | auto
+motinova::WheelSizeUnit parse_wheel_size_unit(
+    std::string_view s);  // circumference_cm | diameter_cm | diameter_inch
+motinova::WheelAdjustUnit parse_wheel_adjust_unit(std::string_view s);  // cm | mm
+// These set one name and return "" or say why the input is refused (shared with the flags).
+std::string set_fault_name(motinova::DecodeOptions& p, motinova::FaultSource source,
+                           std::string_view bit, std::string_view name);  // U6/U18/U20/U22
+std::string set_assist_name(motinova::DecodeOptions& p, std::string_view value,
+                            std::string_view name);  // U7: "0x33", "smart"
+std::string set_pack_stats_counter_order(motinova::DecodeOptions& p,
+                                         const std::vector<std::string>& names);  // U17
 
 }  // namespace fleetgw::config

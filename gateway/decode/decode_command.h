@@ -3,8 +3,10 @@
 //
 // Contract: frames that fail CRC or framing are never printed as messages; with
 // `print_errors`, each reassembly error and each malformed log line becomes a JSON line of its
-// own ({"error": ...}). The exit status is 0 when the file could be read (errors in the data are
-// data, not a failure of the tool), 2 when it could not be opened.
+// own ({"error": ...}). The exit status is 0 when at least one message decoded (errors in the
+// data are data, not a failure of the tool), 1 when nothing decoded (garbage, a binary file,
+// every CRC failing: the error output then says what to try, e.g. --crc-order auto), 2 when the
+// file could not be opened.
 #pragma once
 
 #include <iosfwd>

@@ -52,6 +52,8 @@ struct FaultConfig {
   Micros debounce = 3s;
   // A fault word not heard this long is "unknown" (spec §3.7; the node registry's default).
   Micros stale = 2s;
+  // Fault-bit names of the uncertain readings (U6, U18, U20, U22), from the decoder's options.
+  std::vector<motinova::FaultNameOverride> fault_names;
 };
 
 struct PackConfig {
@@ -89,6 +91,7 @@ struct DomainConfig {
   void apply(const motinova::DecodeOptions& options) {
     locks.lock_kinds = options.lock_kinds;
     locks.lock_state_names = options.lock_state_names;
+    faults.fault_names = options.fault_names;
   }
   void validate() const;
 };

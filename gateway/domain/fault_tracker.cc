@@ -6,6 +6,7 @@
 
 #include "gateway/domain/payloads.h"
 #include "motinova/can.h"
+#include "motinova/fault_names.h"
 
 namespace fleetgw::domain {
 
@@ -88,7 +89,9 @@ std::size_t FaultTracker::active(motinova::Node node) const {
 
 void FaultTracker::emit(const Key& key, const Episode& e, storage::FaultEventKind kind) {
   const uint32_t mask = uint32_t{1} << key.second;
-  const motinova::FaultDef* def = motinova::find_fault(e.source, mask);
+  const std::optional<motinova::FaultDef> found =
+      motinova::describe_fault(e.source, mask, config_.fault_names);
+  const motinova::FaultDef* def = found ? &*found : nullptr;
   storage::FaultEvent ev;
   ev.node = key.first;
   ev.bit = key.second;

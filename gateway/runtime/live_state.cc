@@ -4,6 +4,7 @@
 
 #include <bit>
 
+#include "motinova/fault_names.h"
 #include "motinova/faults.h"
 
 namespace fleetgw::runtime {
@@ -41,7 +42,7 @@ void LiveState::update(const motinova::DecodedMessage& m, const motinova::Decode
     list.clear();
     if (const auto* f = m.find("raw"); f && f->valid) {
       motinova::for_each_active_fault(
-          m.desc->fault_source, static_cast<uint32_t>(f->raw),
+          m.desc->fault_source, static_cast<uint32_t>(f->raw), options,
           [&](uint32_t mask, const motinova::FaultDef* def) {
             ActiveFault a;
             a.node = std::string(motinova::node_name(src));

@@ -56,10 +56,10 @@ constexpr FieldDesc kMcString[] = {
 
 // 0x713/0x5408 MC settings report (§3.2.8), U11 for units and mode names.
 constexpr FieldDesc kMcSettings[] = {
-    {.name = "wheel_size_cm", .offset = 0, .unit = "cm"},
+    {.name = "wheel_size_cm", .offset = 0, .quirk = Quirk::kWheelSize, .unit = "cm"},
     {.name = "mode", .offset = 1},
     {.name = "speed_limit_kmh", .offset = 2, .unit = "km/h"},
-    {.name = "wheel_adjust_cm", .offset = 3, .kind = FieldKind::kSigned, .unit = "cm"},
+    {.name = "wheel_adjust_cm", .offset = 3, .kind = FieldKind::kSigned, .quirk = Quirk::kWheelAdjust, .unit = "cm"},
     {.name = "reserved", .offset = 4, .size = 2, .kind = FieldKind::kReserved},
     {.name = "speed_limit_offset_kmh", .offset = 6, .kind = FieldKind::kSigned, .unit = "km/h"},
     {.name = "reserved", .offset = 7, .size = 1, .kind = FieldKind::kReserved},

@@ -56,7 +56,7 @@ inline constexpr FieldDesc kAssistLightFields[] = {
 
 // 0x3408 write MC settings (spec §3.4.3). Offset 4 is the remote speed-limit function.
 inline constexpr FieldDesc kWriteMcSettingsFields[] = {
-    {.name = "wheel_adjust_cm", .offset = 0, .kind = FieldKind::kSigned, .unit = "cm"},
+    {.name = "wheel_adjust_cm", .offset = 0, .kind = FieldKind::kSigned, .quirk = Quirk::kWheelAdjust, .unit = "cm"},
     {.name = "mode", .offset = 1},
     {.name = "reserved", .offset = 2, .size = 2, .kind = FieldKind::kReserved},
     {.name = "speed_limit_offset_kmh", .offset = 4, .kind = FieldKind::kSigned, .unit = "km/h"},

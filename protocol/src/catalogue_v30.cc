@@ -43,10 +43,10 @@ constexpr FieldDesc kBlock12[] = {
 
 // 0x714/0x7308 MC settings to the HMI: the V3.0 0x5408 layout (no speed-limit offset).
 constexpr FieldDesc kMcSettingsV30[] = {
-    {.name = "wheel_size_cm", .offset = 0, .unit = "cm"},
+    {.name = "wheel_size_cm", .offset = 0, .quirk = Quirk::kWheelSize, .unit = "cm"},
     {.name = "mode", .offset = 1},
     {.name = "speed_limit_kmh", .offset = 2, .unit = "km/h"},
-    {.name = "wheel_adjust_cm", .offset = 3, .kind = FieldKind::kSigned, .unit = "cm"},
+    {.name = "wheel_adjust_cm", .offset = 3, .kind = FieldKind::kSigned, .quirk = Quirk::kWheelAdjust, .unit = "cm"},
     {.name = "reserved", .offset = 4, .size = 4, .kind = FieldKind::kReserved},
 };
 
@@ -188,7 +188,7 @@ constexpr FieldDesc kHmiData[] = {
 
 // 0x741/0x3208 HMI writes MC settings: wheel adjust s8, mode, 6 reserved.
 constexpr FieldDesc kHmiWriteMcSettings[] = {
-    {.name = "wheel_adjust_cm", .offset = 0, .kind = FieldKind::kSigned, .unit = "cm"},
+    {.name = "wheel_adjust_cm", .offset = 0, .kind = FieldKind::kSigned, .quirk = Quirk::kWheelAdjust, .unit = "cm"},
     {.name = "mode", .offset = 1},
     {.name = "reserved", .offset = 2, .size = 6, .kind = FieldKind::kReserved},
 };

@@ -16,6 +16,14 @@
 namespace motinova {
 namespace {
 
+// U14: where the MC may answer the IOT's reads.
+constexpr uint16_t kMcBroadcastId = 0x710;
+constexpr uint16_t kMcToObcId = 0x713;
+constexpr uint16_t kMcToIotId = 0x716;
+
+// U17: the nine event counters of 0x725/0x5028 start at offset 12, two bytes each.
+constexpr std::size_t kPackStatsFirstCounter = 12;
+
 // U9 auto-detection: a plausible 13S..16S pack voltage in mV.
 constexpr uint64_t kAutoVoltageMin = 20'000;
 constexpr uint64_t kAutoVoltageMax = 60'000;
@@ -73,12 +81,54 @@ bool voltage_current_swapped(const VoltageCurrentPair& pair, std::span<const uin
   return false;
 }
 
-std::size_t placed_offset(const FieldDesc& f, const VoltageCurrentPair& pair, bool swapped) {
+// U17: where the pack-statistics fields sit under the configured reading.
+std::size_t pack_stats_offset(const FieldDesc& f, const DecodeOptions& options) {
+  switch (f.quirk) {
+    case Quirk::kPackDischargeCurrent:
+    case Quirk::kPackChargeCurrent:
+      if (options.pack_stats_discharge_current_first) return f.offset;
+      // The two currents trade places: offset 2 <-> offset 4.
+      return f.quirk == Quirk::kPackDischargeCurrent ? f.offset + 2u : f.offset - 2u;
+    case Quirk::kPackCounter:
+      for (std::size_t i = 0; i < options.pack_stats_counter_order.size(); ++i) {
+        if (options.pack_stats_counter_order[i] == f.name) return kPackStatsFirstCounter + 2 * i;
+      }
+      return f.offset;
+    default:
+      return f.offset;
+  }
+}
+
+std::size_t placed_offset(const FieldDesc& f, const VoltageCurrentPair& pair, bool swapped,
+                          const DecodeOptions& options) {
   if (swapped && pair.present()) {
     if (&f == pair.voltage) return pair.current->offset;
     if (&f == pair.current) return pair.voltage->offset;
   }
-  return f.offset;
+  return pack_stats_offset(f, options);
+}
+
+// U11/U17: factor from the wire unit to the unit in the field's name.
+double unit_factor(const FieldDesc& f, const DecodeOptions& options) {
+  constexpr double kPi = 3.14159265358979323846;
+  switch (f.quirk) {
+    case Quirk::kWheelSize:
+      switch (options.wheel_size_unit) {
+        case WheelSizeUnit::kCircumferenceCm:
+          return 1.0;
+        case WheelSizeUnit::kDiameterCm:
+          return kPi;
+        case WheelSizeUnit::kDiameterInch:
+          return 2.54 * kPi;
+      }
+      return 1.0;
+    case Quirk::kWheelAdjust:
+      return options.wheel_adjust_unit == WheelAdjustUnit::kMm ? 0.1 : 1.0;
+    case Quirk::kPackTime:
+      return options.pack_stats_time_unit == PackTimeUnit::kMinutes ? 1.0 / 60.0 : 1.0;
+    default:
+      return 1.0;
+  }
 }
 
 std::string_view trim_ascii(std::span<const uint8_t> bytes) {
@@ -170,7 +220,7 @@ FieldValue decode_field(const FieldDesc& f, const MessageDesc& desc, std::span<c
       v.value = static_cast<double>(v.raw);
       break;
     default:
-      v.value = static_cast<double>(v.raw) * f.scale + f.bias;
+      v.value = (static_cast<double>(v.raw) * f.scale + f.bias) * unit_factor(f, options);
       if (flip_sign(f, options)) v.value = -v.value;
       break;
   }
@@ -179,6 +229,27 @@ FieldValue decode_field(const FieldDesc& f, const MessageDesc& desc, std::span<c
 
 std::size_t element_size(const FieldDesc& f) {
   return f.kind == FieldKind::kArray ? f.size : 1;
+}
+
+// U14: whether answers of the MC received on `can_id` are read as the 0x713 ones.
+bool answers_as_mc_to_obc(uint16_t can_id, const DecodeOptions& options) {
+  switch (options.mc_answer_id) {
+    case McAnswerId::k713:
+      return false;  // 0x713 itself is in the catalogue
+    case McAnswerId::k716:
+      return can_id == kMcToIotId;
+    case McAnswerId::k710:
+      return can_id == kMcBroadcastId;
+    case McAnswerId::kAuto:
+      return can_id == kMcToIotId || can_id == kMcBroadcastId;
+  }
+  return false;
+}
+
+// The MC's answers are its 0x713 report-mode messages (ACK, settings, parameter blocks).
+const MessageDesc* mc_answer(const Catalogue& catalogue, uint8_t function, uint8_t length) {
+  const MessageDesc* d = catalogue.find(kMcToObcId, function, length);
+  return d != nullptr && d->mode == Mode::kReport ? d : nullptr;
 }
 
 }  // namespace
@@ -235,6 +306,9 @@ void decode(const AppFrame& frame, const Catalogue& catalogue, const DecodeOptio
   const MessageDesc* desc = data.size() <= 0xFF ? catalogue.find(frame.can_id, frame.function,
                                                                  static_cast<uint8_t>(data.size()))
                                                 : nullptr;
+  if (desc == nullptr && data.size() <= 0xFF && answers_as_mc_to_obc(frame.can_id, options)) {
+    desc = mc_answer(catalogue, frame.function, static_cast<uint8_t>(data.size()));
+  }
   if (desc == nullptr) {
     out.status = catalogue.find(frame.can_id, frame.function) != nullptr
                      ? DecodeStatus::kLengthMismatch
@@ -249,7 +323,7 @@ void decode(const AppFrame& frame, const Catalogue& catalogue, const DecodeOptio
   const bool swapped = voltage_current_swapped(pair, data, options);
   for (const FieldDesc& f : desc->fields) {
     if (f.kind == FieldKind::kReserved) continue;
-    out.add(decode_field(f, *desc, data, placed_offset(f, pair, swapped), options));
+    out.add(decode_field(f, *desc, data, placed_offset(f, pair, swapped, options), options));
   }
 }
 
@@ -334,7 +408,7 @@ const FieldDesc& MessageWriter::field(std::string_view name) const {
 std::size_t MessageWriter::offset_of(const FieldDesc& f) const {
   // kAuto can only be resolved on receive; a sender uses the documented order.
   const bool swapped = options_.mc_voltage_current_order == McVoltageCurrentOrder::kCurrentFirst;
-  return placed_offset(f, voltage_current_pair(desc_), swapped);
+  return placed_offset(f, voltage_current_pair(desc_), swapped, options_);
 }
 
 void MessageWriter::put(const FieldDesc& f, int64_t raw, std::string_view what) {
@@ -388,7 +462,7 @@ MessageWriter& MessageWriter::value(std::string_view name, double physical) {
                                 " is not finite");
   }
   const double signed_physical = flip_sign(f, options_) ? -physical : physical;
-  const double scaled = std::round((signed_physical - f.bias) / f.scale);
+  const double scaled = std::round((signed_physical / unit_factor(f, options_) - f.bias) / f.scale);
   // Beyond ±2^62 no field can hold it; checking here keeps the cast below defined.
   constexpr double kLimit = 4.6e18;
   if (scaled < -kLimit || scaled > kLimit) {

@@ -21,14 +21,34 @@ constexpr auto kTable = make_table();
 
 // Each input byte is XORed into the low 8 bits and followed by four table steps, i.e. the
 // register is multiplied by x^32: exactly what the STM32 CRC unit does with a 32-bit word.
-inline uint32_t step(uint32_t reg, uint8_t byte) {
-  reg ^= byte;
+constexpr uint32_t four_steps(uint32_t reg) {
   reg = (reg << 8) ^ kTable[reg >> 24];
   reg = (reg << 8) ^ kTable[reg >> 24];
   reg = (reg << 8) ^ kTable[reg >> 24];
   reg = (reg << 8) ^ kTable[reg >> 24];
   return reg;
 }
+
+// four_steps is linear over GF(2), so it is the XOR of its value on each byte of the register:
+// four independent lookups instead of a chain of four dependent ones (CRC was ~9 % of
+// `fleetgw decode`).
+using SliceTables = std::array<std::array<uint32_t, 256>, 4>;
+constexpr SliceTables make_slices() {
+  SliceTables t{};
+  for (uint32_t k = 0; k < 4; ++k) {
+    for (uint32_t x = 0; x < 256; ++x) t[k][x] = four_steps(x << (8 * k));
+  }
+  return t;
+}
+constexpr auto kSlices = make_slices();
+
+inline uint32_t step(uint32_t reg, uint8_t byte) {
+  reg ^= byte;
+  return kSlices[3][reg >> 24] ^ kSlices[2][(reg >> 16) & 0xFF] ^ kSlices[1][(reg >> 8) & 0xFF] ^
+         kSlices[0][reg & 0xFF];
+}
+static_assert(four_steps(0x12345678u) ==
+              (kSlices[3][0x12] ^ kSlices[2][0x34] ^ kSlices[1][0x56] ^ kSlices[0][0x78]));
 
 }  // namespace
 

@@ -12,6 +12,7 @@
 
 #include "gateway/can/candump.h"
 #include "gateway/decode/decode_command.h"
+#include "gateway/decode/json_format.h"
 #include "motinova/codec.h"
 #include "motinova/segmenter.h"
 
@@ -47,6 +48,7 @@ struct Run {
   std::vector<json> lines;
   std::string err;
   DecodeSummary summary;
+  int exit_code = 0;
 };
 
 Run decode_text(const std::string& text, bool errors = false,
@@ -62,7 +64,7 @@ Run decode_text(const std::string& text, bool errors = false,
   o.protocol = std::move(protocol);
   std::ostringstream out, err;
   Run r;
-  EXPECT_EQ(run_decode(o, out, err, &r.summary), 0);
+  r.exit_code = run_decode(o, out, err, &r.summary);
   std::istringstream lines(out.str());
   for (std::string line; std::getline(lines, line);) r.lines.push_back(json::parse(line));
   r.err = err.str();
@@ -71,6 +73,7 @@ Run decode_text(const std::string& text, bool errors = false,
 
 TEST(DecodeTool, McRunningDataVectorGivesTheProductFields) {
   const auto r = decode_text(log_of(0x710, kMcStatus, 1763700000123456));
+  EXPECT_EQ(r.exit_code, 0);
   ASSERT_EQ(r.lines.size(), 1u);
   const json& m = r.lines[0];
   EXPECT_EQ(m["can_id"], "0x710");
@@ -185,13 +188,69 @@ TEST(DecodeTool, LittleEndianCrcNeedsTheOption) {
   std::string rev;
   for (int i = 3; i >= 0; --i) rev += le.substr(crc + static_cast<std::size_t>(i) * 2, 2);
   le.replace(crc, 8, rev);
-  EXPECT_TRUE(decode_text(log_of(0x770, le, 1763700000000000)).lines.empty());
+  const auto strict = decode_text(log_of(0x770, le, 1763700000000000));
+  EXPECT_TRUE(strict.lines.empty());
+  // Nothing decoded is a failure of the run, with the option to try named.
+  EXPECT_EQ(strict.exit_code, 1);
+  EXPECT_NE(strict.err.find("--crc-order auto"), std::string::npos) << strict.err;
   motinova::DecodeOptions automatic;
   automatic.crc_order = motinova::CrcOrder::kAuto;
   const auto r = decode_text(log_of(0x770, le, 1763700000000000), false, automatic);
+  EXPECT_EQ(r.exit_code, 0);
   ASSERT_EQ(r.lines.size(), 1u);
   EXPECT_EQ(r.summary.reassembly.crc_little_endian, 1u);
   EXPECT_NE(r.err.find("little-endian"), std::string::npos);
+}
+
+TEST(DecodeTool, GarbageOrBinaryInputFailsWithAHint) {
+  std::string binary;
+  for (int i = 0; i < 4096; ++i) binary += static_cast<char>((i * 131 + 7) & 0xFF);
+  const auto bin = decode_text(binary);
+  EXPECT_EQ(bin.exit_code, 1);
+  EXPECT_TRUE(bin.lines.empty());
+  EXPECT_NE(bin.err.find("candump -L"), std::string::npos) << bin.err;
+  EXPECT_LT(std::count(bin.err.begin(), bin.err.end(), '\n'), 30);  // not one line per garbage line
+
+  // Well-formed candump lines whose CRCs all fail.
+  std::string bad = kLockStatus;
+  bad[20] = bad[20] == '0' ? '1' : '0';
+  const auto crc = decode_text(log_of(0x770, bad, 1763700000000000));
+  EXPECT_EQ(crc.exit_code, 1);
+  EXPECT_NE(crc.err.find("--crc-order auto"), std::string::npos) << crc.err;
+
+  EXPECT_EQ(decode_text("").exit_code, 1);
+}
+
+// Bus text is untrusted: quotes, backslashes, control characters and bytes beyond ASCII in a
+// model-info block still give one valid JSON line with the text preserved.
+TEST(DecodeTool, UntrustedTextIsEscaped) {
+  std::vector<uint8_t> data(64, ' ');
+  const std::string model = "A\"B\\C\nD\x01";
+  std::copy(model.begin(), model.end(), data.begin());
+  data[10] = 0xC3;  // not valid UTF-8 on its own
+  data[11] = 0xFF;
+  const auto f = motinova::make_frame(0x710, motinova::Mode::kReport, 0x12, data);
+  std::string hex;
+  for (uint8_t b : motinova::encode_frame(f)) hex += fmt::format("{:02X}", b);
+  const auto r = decode_text(log_of(0x710, hex, 1763700000000000));
+  ASSERT_EQ(r.lines.size(), 1u);  // json::parse in decode_text would throw on invalid JSON
+  const std::string text = r.lines[0]["fields"]["model"];
+  EXPECT_EQ(text.substr(0, 8), model);
+  // Bytes beyond ASCII come out as the code points U+00C3 and U+00FF (valid UTF-8).
+  EXPECT_EQ(text.substr(8), "  \xC3\x83\xC3\xBF");
+}
+
+// The writer prints numbers exactly as nlohmann::json does (the format before issue 12).
+TEST(DecodeTool, NumbersPrintAsBefore) {
+  for (double v : {25.3, 0.12, 48.0, 1763700000.123956, 1763700000.0, -5.2, 1e-5, 0.0001, 1e16,
+                   123456789012345.6, -0.5, 3.0e-7, 21.93}) {
+    JsonBuffer mine;
+    append_json_double(mine, v);
+    EXPECT_EQ(mine.view(), json(v).dump()) << v;
+  }
+  JsonBuffer s;
+  append_json_string(s, "q\"b\\t\tn\nc\x1f");
+  EXPECT_EQ(s.view(), json("q\"b\\t\tn\nc\x1f").dump());
 }
 
 TEST(DecodeTool, MissingFileIsAnError) {

@@ -3,6 +3,7 @@
 // order and fault layout). Invariants checked beyond "no crash, no sanitizer report":
 //  * a reported frame re-encodes to bytes that parse back to the same frame;
 //  * the error counters equal the error events reported.
+#include <algorithm>
 #include <cstddef>
 #include <cstdint>
 #include <cstdlib>
@@ -42,6 +43,15 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   options.mc_voltage_current_order = static_cast<McVoltageCurrentOrder>((selector >> 5) % 3);
   options.bms_current_charge_positive = (selector & 0x80) != 0;
   const CrcOrder crc_order = static_cast<CrcOrder>(selector % 3);
+  // The readings made configurable by issue 11 (U11, U14, U17), from the same selector bits.
+  options.mc_answer_id = static_cast<McAnswerId>((selector >> 1) % 4);
+  options.wheel_size_unit = static_cast<WheelSizeUnit>((selector >> 3) % 3);
+  options.wheel_adjust_unit = static_cast<WheelAdjustUnit>((selector >> 5) & 1);
+  options.pack_stats_discharge_current_first = (selector & 0x40) != 0;
+  options.pack_stats_time_unit = static_cast<PackTimeUnit>((selector >> 2) & 1);
+  if (selector & 0x10) {
+    std::reverse(options.pack_stats_counter_order.begin(), options.pack_stats_counter_order.end());
+  }
 
   Reassembler reassembler(
       ReassemblerOptions{.gap_timeout = Micros(100'000), .crc_order = crc_order});

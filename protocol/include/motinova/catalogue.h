@@ -33,11 +33,17 @@ enum class FieldKind : uint8_t {
 // Fields whose reading depends on an uncertain-reading option (spec §6).
 enum class Quirk : uint8_t {
   kNone,
-  kBmsCurrent,  // U4: sign convention of BMS pack current
-  kMcCurrent,   // U4: MC bus current signed or not
-  kMcVoltage,   // U9: MC voltage/current position
-  kAssist,      // U7: assist-level names from DecodeOptions::assist_names
-  kLockState,   // U19: lock-state names from DecodeOptions::lock_state_names
+  kBmsCurrent,   // U4: sign convention of BMS pack current
+  kMcCurrent,    // U4: MC bus current signed or not
+  kMcVoltage,    // U9: MC voltage/current position
+  kAssist,       // U7: assist-level names from DecodeOptions::assist_names
+  kLockState,    // U19: lock-state names from DecodeOptions::lock_state_names
+  kWheelSize,    // U11: wheel size unit (DecodeOptions::wheel_size_unit), decoded as cm
+  kWheelAdjust,  // U11: wheel adjust unit (DecodeOptions::wheel_adjust_unit), decoded as cm
+  kPackDischargeCurrent,  // U17: 0x5028 offset 2 (swapped with offset 4 when configured)
+  kPackChargeCurrent,     // U17: 0x5028 offset 4
+  kPackTime,              // U17: 0x5028 offsets 8/10 in hours or minutes, decoded as hours
+  kPackCounter,           // U17: 0x5028 counters placed per pack_stats_counter_order
 };
 
 // How an enum appears in JSON: "assist": 2, "assist_name": "norm" (kRawThenName) or
