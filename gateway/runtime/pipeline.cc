@@ -21,6 +21,11 @@ Micros system_now() {
 constexpr int kMaxSettleRounds = 16;
 // The simulator's clock is converted to the wall clock; never wait less than this for it.
 constexpr auto kMinSimWait = std::chrono::microseconds(200);
+// While frames flow they tick the core themselves (GatewayCore::on_can_frame), so the timer is
+// only a fallback for a bus that falls silent: it may fire this much after the core's next
+// event. A flowing bus then costs no timer wake-up of its own; on a silent bus the first tick
+// comes at most this late, the following ones on time.
+constexpr Micros kFlowingBusSlack{200'000};
 
 }  // namespace
 
@@ -224,11 +229,12 @@ void Pipeline::settle() {
 std::optional<Clock::time_point> Pipeline::core_deadline() const {
   // A replay's clock only moves with its frames, and on_can_frame() ticks the core by itself.
   if (bus_.replay) return std::nullopt;
-  const Micros next = core_.next_event();
+  const bool flowing = frame_since_timer_ || bus_flowing_;
+  const Micros next = core_.next_event() + (flowing ? kFlowingBusSlack : Micros(0));
   if (bus_.sim) {
     // Bus time -> wall time through the acceleration. While frames flow their timestamps are
     // the clock; a silent simulated bus runs on the simulator's own clock.
-    const Micros now = frame_since_timer_ ? bus_now() : bus_.sim->virtual_now();
+    const Micros now = flowing ? bus_now() : bus_.sim->virtual_now();
     const auto wait =
         std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double, std::micro>(
             static_cast<double>((next - now).count()) / bus_.sim_speed));
@@ -276,6 +282,7 @@ void Pipeline::on_timer() {
     if (bus_.sim && !frame_since_timer_) t = std::max(t, bus_.sim->virtual_now());
     if (t >= core_.next_event()) core_.tick(t);
   }
+  bus_flowing_ = frame_since_timer_;
   frame_since_timer_ = false;
   if (next_live_ && wall >= *next_live_) {
     std::ostream& out = options_.live_out ? *options_.live_out : std::cout;

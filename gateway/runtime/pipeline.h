@@ -142,7 +142,8 @@ class Pipeline {
   bool settling_ = false;
   bool publish_due_ = false;  // something was stored that the uplink has not seen
   bool stopping_ = false;
-  bool frame_since_timer_ = false;
+  bool frame_since_timer_ = false;  // a frame arrived since the last timer expiry
+  bool bus_flowing_ = false;        // frames arrived between the last two expiries
   Micros first_ts_{-1};
   Micros last_frame_ts_{0};
   PipelineCounters counters_;

@@ -746,10 +746,11 @@ bool Uplink::publish_direct(std::string_view kind, std::string payload, Micros n
 
 std::optional<std::chrono::steady_clock::time_point> Uplink::next_deadline() const {
   // Interim (contract E, H-uplink owns the real one): next_poll_due on the wall clock.
-  const Micros now = std::chrono::duration_cast<Micros>(
-      std::chrono::system_clock::now().time_since_epoch());
+  const Micros now =
+      std::chrono::duration_cast<Micros>(std::chrono::system_clock::now().time_since_epoch());
   if (impl_->state == LinkState::kStopped) return std::nullopt;
-  return std::chrono::steady_clock::now() + (next_poll_due(now) - now);
+  // Counted from the last poll, so the deadline does not move with the clock.
+  return std::chrono::steady_clock::now() + (next_poll_due(impl_->last_now) - now);
 }
 
 LinkState Uplink::state() const {
