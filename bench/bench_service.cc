@@ -10,6 +10,7 @@
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
+#include <cstdlib>
 #include <fstream>
 
 #include "tests/runtime/service_process.h"
@@ -26,7 +27,8 @@ void BM_ServiceCommandRoundTrip(benchmark::State& state) {
   auto key = fleetgw::command::Ed25519PrivateKey::generate();
   fleetgw::testing::ServiceConfigText c;
   c.scenario = std::filesystem::path(FLEETGW_SOURCE_DIR) / "config/scenarios/parked.toml";
-  c.speed = 20;
+  // SIM_SPEED overrides: the simulated lock's own reply time is bus time / speed.
+  c.speed = std::getenv("SIM_SPEED") ? std::atof(std::getenv("SIM_SPEED")) : 20.0;
   c.db = dir.path() / "fleetgw.db";
   c.broker_uri = broker.uri();
   c.vehicle = "bench-svc";
