@@ -142,6 +142,9 @@ Pipeline::Pipeline(asio::io_context& io, const config::Config& config, BusTransp
 
 Pipeline::~Pipeline() {
   alive_.reset();
+  // First: Paho's threads may call the wake-up (which touches this object) until the client
+  // is gone.
+  uplink_.reset();
 }
 
 Micros Pipeline::bus_now() const {
