@@ -143,8 +143,13 @@ struct Gateway {
     core->start(bus.now());
     service = std::make_unique<command::CommandService>(
         command::make_command_service_config(cfg),
-        command::CommandContext{
-            core->node(), *store, nullptr, command::default_clock_synchronised, {}});
+        command::CommandContext{.node = core->node(),
+                                .store = *store,
+                                .trackers = nullptr,
+                                .clock_synchronised = command::default_clock_synchronised,
+                                .wall_clock = {},
+                                .result_stored = {},
+                                .publish_unstored = {}});
     service->set_result_observer([this](const v1::CommandResult& r, bool) { last = r; });
     bus.run_for(2s);  // the lock is heard: online
   }

@@ -299,8 +299,10 @@ struct CommandService::Impl : std::enable_shared_from_this<CommandService::Impl>
       ++stats.storage_errors;
       spdlog::error("command {}: result {} could not be stored: {}", r.command_id(),
                     command_result_name(r.result()), e.what());
+      if (context.publish_unstored) context.publish_unstored(payload);
       return false;
     }
+    if (context.result_stored) context.result_stored();
     if (observer) observer(r, false);
     return true;
   }
@@ -405,6 +407,7 @@ struct CommandService::Impl : std::enable_shared_from_this<CommandService::Impl>
       spdlog::error("command {}: re-sending the stored result failed: {}", entry.command_id,
                     e.what());
     }
+    if (context.result_stored) context.result_stored();
     spdlog::info("command {}: duplicate delivery; stored result '{}' queued again",
                  entry.command_id, command_result_name(r.result()));
     if (observer) observer(r, true);

@@ -124,6 +124,11 @@ struct CommandContext {
   // timeline is simulated faster than real time or replayed from a log; timeouts and the
   // interlocks follow the `now` of the calls (the bus timeline). Empty: `now` is the wall clock.
   std::function<Micros()> wall_clock;
+  // Called after a result row was written to the store (the pipeline publishes at once).
+  std::function<void()> result_stored;
+  // Called with a serialized fleetgw.v1.CommandResult that could NOT be stored; false when it
+  // could not be handed to MQTT either.
+  std::function<bool(std::string serialized_result)> publish_unstored;
 };
 
 enum class Disposition : std::uint8_t {

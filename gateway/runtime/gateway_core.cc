@@ -53,9 +53,21 @@ GatewayCore::GatewayCore(const config::Config& config, node::FrameSender& sender
 
 bool GatewayCore::EchoSender::send(const motinova::AppFrame& frame) {
   if (!inner_.send(frame)) return false;
-  motinova::decode(frame, motinova::Catalogue::standard(), core_.options_, core_.echo_decoded_);
-  for (auto* l : core_.listeners_) l->on_message(core_.echo_decoded_, core_.now_);
+  core_.echoes_.push_back(frame);
   return true;
+}
+
+void GatewayCore::deliver_echoes() {
+  if (delivering_echoes_) return;  // the outer delivery loop picks up what was added
+  delivering_echoes_ = true;
+  // Index loop: a listener's reaction to an echo may transmit (and so append) again.
+  for (std::size_t i = 0; i < echoes_.size(); ++i) {
+    const motinova::AppFrame frame = echoes_[i];
+    motinova::decode(frame, motinova::Catalogue::standard(), options_, echo_decoded_);
+    for (auto* l : listeners_) l->on_message(echo_decoded_, now_);
+  }
+  echoes_.clear();
+  delivering_echoes_ = false;
 }
 
 GatewayCore::~GatewayCore() = default;
@@ -63,6 +75,7 @@ GatewayCore::~GatewayCore() = default;
 void GatewayCore::start(Micros now) {
   now_ = now;
   node_->start(now);
+  deliver_echoes();
   next_tick_ = now + kTickInterval;
 }
 
@@ -70,6 +83,7 @@ void GatewayCore::on_can_frame(const motinova::CanFrame& frame, Micros timestamp
   if (timestamp >= next_tick_) tick(timestamp);
   now_ = std::max(now_, timestamp);
   reassembler_.push(frame, timestamp, *this);
+  deliver_echoes();
 }
 
 void GatewayCore::on_frame(const motinova::AppFrame& frame, Micros ts) {
@@ -86,6 +100,8 @@ void GatewayCore::on_frame(const motinova::AppFrame& frame, Micros ts) {
   node_->on_frame(frame, decoded_, ts);
   live_.update(decoded_, options_);
   for (auto* l : listeners_) l->on_message(decoded_, ts);
+  // The gateway's reactions to this frame (answers, lock commands) come after it.
+  deliver_echoes();
 }
 
 void GatewayCore::on_error(const motinova::ReassemblyErrorEvent& e) {
@@ -105,7 +121,9 @@ void GatewayCore::tick(Micros now) {
   now_ = std::max(now_, now);
   reassembler_.expire(now, *this);
   node_->tick(now);
+  deliver_echoes();
   for (auto* l : listeners_) l->tick(now);
+  deliver_echoes();
   next_tick_ = now + kTickInterval;
 }
 

@@ -6,8 +6,15 @@
 //
 // Contract:
 //  * Single-threaded; every entry point takes `now`. on_can_frame() and tick() never block.
-//  * tick() must be called when now >= next_event() (the service calls it from a timer and
-//    whenever a frame's timestamp passes it). Partial messages are expired there too.
+//  * tick() must be called when now >= next_event() (the pipeline arms its one timer for it;
+//    on_can_frame() ticks by itself when a frame's timestamp passes it). Partial messages are
+//    expired there too.
+//  * Echoes: what the node transmits is shown to the listeners too (the bus does not echo a
+//    sender's own frames, and the trackers need the gateway's LOCK/UNLOCK/SHUTDOWN broadcasts),
+//    but never from inside the send: echoes are queued and delivered after the frame or tick
+//    being handled, in transmit order. A caller that makes the node send from outside the core
+//    (the command service) calls deliver_echoes() when that call has returned. So a listener is
+//    never re-entered and always sees a frame before the gateway's reaction to it.
 //  * Listeners and the FrameSender must outlive the core.
 #pragma once
 
@@ -45,6 +52,7 @@ struct CoreStats {
 class GatewayCore final : private motinova::FrameSink {
   // What the node transmits is shown to the listeners as well: the bus does not echo a
   // sender's own frames, and the trackers need the gateway's LOCK/UNLOCK/SHUTDOWN broadcasts.
+  // Queues every frame the node transmits successfully for deliver_echoes().
   class EchoSender final : public node::FrameSender {
    public:
     EchoSender(node::FrameSender& inner, GatewayCore& core) : inner_(inner), core_(core) {}
@@ -67,6 +75,9 @@ class GatewayCore final : private motinova::FrameSink {
   void on_can_frame(const motinova::CanFrame& frame, Micros timestamp);
   void tick(Micros now);
   Micros next_event() const { return next_tick_; }
+  // Delivers queued echoes (see the contract); a no-op when called from inside a delivery.
+  void deliver_echoes();
+  bool echoes_pending() const { return !echoes_.empty(); }
 
   node::IotNode& node() { return *node_; }
   const node::IotNode& node() const { return *node_; }
@@ -84,6 +95,8 @@ class GatewayCore final : private motinova::FrameSink {
   motinova::DecodeOptions options_;
   motinova::Reassembler reassembler_;
   EchoSender echo_;
+  std::vector<motinova::AppFrame> echoes_;  // transmitted, not yet shown to the listeners
+  bool delivering_echoes_ = false;
   motinova::DecodedMessage echo_decoded_;
   Micros now_{0};
   std::unique_ptr<node::IotNode> node_;

@@ -50,17 +50,19 @@ storage::StoreOptions make_store_options(const config::Config& c) {
   return o;
 }
 
-Recorder::Recorder(const config::Config& config, storage::Store& store, Micros now)
+Recorder::Recorder(const config::Config& config, storage::Store& store, Micros now,
+                   WallClock wall_clock)
     : store_(store),
       trackers_(make_domain_config(config), sink_),
-      flush_interval_(ms(config.storage.flush_ms)) {
+      flush_interval_(std::chrono::milliseconds(config.storage.flush_ms)),
+      wall_clock_(wall_clock ? std::move(wall_clock) : WallClock(&std::chrono::steady_clock::now)) {
   const auto open = store_.open_rides();
   if (!open.empty()) {
     spdlog::info("resuming {} open ride(s) from the previous run", open.size());
   }
   trackers_.restore(open, now);
-  next_flush_ = now + flush_interval_;
   last_now_ = now;
+  note_pending();
 }
 
 Recorder::~Recorder() {
@@ -71,24 +73,52 @@ Recorder::~Recorder() {
   }
 }
 
+void Recorder::note_pending() {
+  if (!pending_since_ && !(sink_.empty() && pending_.empty())) pending_since_ = wall_clock_();
+}
+
 void Recorder::on_message(const motinova::DecodedMessage& message, Micros now) {
   last_now_ = std::max(last_now_, now);
   trackers_.on_message(message, last_now_);
+  note_pending();
 }
 
 void Recorder::tick(Micros now) {
   last_now_ = std::max(last_now_, now);
   trackers_.tick(last_now_);
-  if (last_now_ >= next_flush_) {
-    flush(last_now_);
-    next_flush_ = last_now_ + flush_interval_;
-  }
+  note_pending();
+  const auto due = flush_deadline();
+  if (urgent() || (due && wall_clock_() >= *due)) flush(last_now_);
 }
 
-void Recorder::flush(Micros now) {
+bool Recorder::urgent() const {
+  // Interim (contract C, H-storage owns the real policy): anything but telemetry is urgent.
+  const storage::Batch& b = sink_.batch();
+  const std::size_t n = b.size();
+  return n != b.telemetry.size() || n >= 4096;
+}
+
+std::optional<std::chrono::steady_clock::time_point> Recorder::flush_deadline() const {
+  if (!pending_since_) return std::nullopt;
+  return *pending_since_ + flush_interval_;
+}
+
+storage::StorageHealth Recorder::health() const {
+  storage::StorageHealth h;
+  h.failing = !pending_.empty();
+  h.failed_writes = failures_;
+  return h;
+}
+
+FlushOutcome Recorder::flush(Micros now) {
+  FlushOutcome out;
   if (!sink_.empty()) append(pending_, sink_.take(now));
-  if (pending_.empty()) return;
+  if (pending_.empty()) {
+    pending_since_.reset();
+    return out;
+  }
   pending_.now_us = now.count();
+  out.records = pending_.size();
   try {
     const auto result = store_.write(pending_);
     ++batches_;
@@ -97,17 +127,23 @@ void Recorder::flush(Micros now) {
                    result.eviction->telemetry_rows, result.eviction->pack_snapshot_rows);
     }
     pending_.clear();
+    pending_since_.reset();
     if (after_flush_) after_flush_();
   } catch (const std::invalid_argument& e) {
     // A record the store refuses is a bug upstream; keeping it would block every later batch.
     ++failures_;
+    out.failed = true;
     spdlog::error("storage refused a batch of {} records: {}", pending_.size(), e.what());
     pending_.clear();
+    pending_since_.reset();
   } catch (const std::exception& e) {
     ++failures_;
+    out.failed = true;
+    pending_since_ = wall_clock_();  // retried one interval later
     spdlog::error("storage write failed ({} records kept for the next attempt): {}",
                   pending_.size(), e.what());
   }
+  return out;
 }
 
 }  // namespace fleetgw::runtime

@@ -11,6 +11,7 @@
 //    are never dropped silently.
 #pragma once
 
+#include <chrono>
 #include <functional>
 #include <memory>
 #include <optional>
@@ -19,22 +20,38 @@
 #include "gateway/domain/domain_sink.h"
 #include "gateway/domain/domain_trackers.h"
 #include "gateway/runtime/gateway_core.h"
+#include "storage/health.h"
 #include "storage/store.h"
 
 namespace fleetgw::runtime {
+
+struct FlushOutcome {
+  std::size_t records = 0;
+  bool failed = false;
+};
 
 domain::DomainConfig make_domain_config(const config::Config& config);
 storage::StoreOptions make_store_options(const config::Config& config);
 
 class Recorder final : public MessageListener {
  public:
+  using WallClock = std::function<std::chrono::steady_clock::time_point()>;
   // `store` must outlive the recorder.
-  Recorder(const config::Config& config, storage::Store& store, Micros now);
+  Recorder(const config::Config& config, storage::Store& store, Micros now,
+           WallClock wall_clock = {});
   ~Recorder() override;
 
   void on_message(const motinova::DecodedMessage& message, Micros now) override;
+  // Trackers' tick; flushes when urgent() or the wall-clock flush deadline has passed.
   void tick(Micros now) override;
-  void flush(Micros now);
+  FlushOutcome flush(Micros now);
+
+  // A pending record is not telemetry (results, faults, rides, locks...) or the pending batch
+  // reached its size limit: the pipeline flushes at once.
+  bool urgent() const;
+  // When pending telemetry must be written at the latest (wall clock); nullopt: nothing pending.
+  std::optional<std::chrono::steady_clock::time_point> flush_deadline() const;
+  storage::StorageHealth health() const;
 
   // Called after every successful write (the uplink polls then: new records to send).
   void set_after_flush(std::function<void()> hook) { after_flush_ = std::move(hook); }
@@ -47,9 +64,12 @@ class Recorder final : public MessageListener {
   storage::Store& store_;
   domain::DomainSink sink_;
   domain::DomainTrackers trackers_;
+  void note_pending();
+
   storage::Batch pending_;  // a batch whose write failed, retried first
-  Micros flush_interval_;
-  Micros next_flush_{0};
+  std::chrono::steady_clock::duration flush_interval_;
+  WallClock wall_clock_;
+  std::optional<std::chrono::steady_clock::time_point> pending_since_;
   Micros last_now_{0};
   uint64_t batches_ = 0;
   uint64_t failures_ = 0;

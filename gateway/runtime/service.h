@@ -1,6 +1,7 @@
-// `fleetgw run`: the long-running service. One asio event loop owns the CAN transport chosen in
-// the configuration, the GatewayCore, the periodic tick, the live view, and clean shutdown on
-// SIGINT/SIGTERM.
+// `fleetgw run`: the long-running service. It opens the CAN transport chosen in the
+// configuration and the store, hands them to the Pipeline (pipeline.h: the stages and all their
+// scheduling on one asio event loop), and adds what belongs to the process: clean shutdown on
+// SIGINT/SIGTERM, systemd notification and watchdog, the status socket.
 //
 // Contract:
 //  * run() blocks until a signal, the optional duration, or the end of a replayed log, and
@@ -16,6 +17,7 @@
 
 #include "gateway/config/config.h"
 #include "gateway/runtime/gateway_core.h"
+#include "gateway/runtime/pipeline.h"
 #include "gateway/uplink/uplink_config.h"
 
 namespace fleetgw::runtime {
@@ -38,6 +40,7 @@ struct ServiceReport {
   double virtual_seconds = 0;  // bus time covered
   double wall_seconds = 0;
   std::string last_live_line;
+  PipelineCounters counters;  // wake-ups, settles, polls: what the run cost the event loop
 };
 
 uplink::UplinkConfig make_uplink_config(const config::Config& config);

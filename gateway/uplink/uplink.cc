@@ -597,7 +597,10 @@ struct Uplink::Impl {
   }
   void handle(Micros, CommandArrived& e) {
     ++counters.commands_received;
-    if (!command_handler) return;
+    if (!command_handler) {
+      received_commands.push_back(std::move(e.payload));
+      return;
+    }
     try {
       command_handler(e.payload);
     } catch (const std::exception& ex) {
@@ -649,6 +652,7 @@ struct Uplink::Impl {
   UplinkStats counters;
   v1::BusState bus_state = v1::BUS_STATE_UNSPECIFIED;
   CommandHandler command_handler;
+  std::vector<std::string> received_commands;  // for take_commands()
   std::uint64_t connect_attempt = 0;
   std::uint64_t publish_id = 0;
   std::unordered_map<std::uint64_t, InFlightEntry> in_flight;
@@ -723,6 +727,30 @@ Micros Uplink::next_poll_due(Micros now) const {
 
 void Uplink::stop(Micros now, std::chrono::milliseconds timeout) {
   impl_->stop(now, timeout);
+}
+
+std::vector<std::string> Uplink::take_commands() {
+  return std::exchange(impl_->received_commands, {});
+}
+
+bool Uplink::publish_direct(std::string_view kind, std::string payload, Micros now) {
+  auto& i = *impl_;
+  if (i.state != LinkState::kConnected) return false;
+  const KindRoute* route = find_route(kind);
+  if (route == nullptr) return false;
+  v1::Envelope env;
+  i.fill_header(env, 0, now.count());
+  if (!route->body(env)->ParseFromString(payload)) return false;
+  return i.publish(i.topics.*(route->topic), env.SerializeAsString(), i.config.qos, false, {});
+}
+
+std::optional<std::chrono::steady_clock::time_point> Uplink::next_deadline() const {
+  // Interim (contract E, H-uplink owns the real one): next_poll_due on the wall clock.
+  const Micros now =
+      std::chrono::duration_cast<Micros>(std::chrono::system_clock::now().time_since_epoch());
+  if (impl_->state == LinkState::kStopped) return std::nullopt;
+  // Counted from the last poll, so the deadline does not move with the clock.
+  return std::chrono::steady_clock::now() + (next_poll_due(impl_->last_now) - now);
 }
 
 LinkState Uplink::state() const {

@@ -32,7 +32,9 @@
 #include <functional>
 #include <memory>
 #include <string>
+#include <optional>
 #include <string_view>
+#include <vector>
 
 #include "fleetgw/v1/status.pb.h"
 #include "gateway/uplink/outbox_source.h"
@@ -75,6 +77,9 @@ struct UplinkStats {
   std::int64_t last_publish_ok_us = 0;  // `now` of the poll that saw the last success; 0 never
   std::chrono::milliseconds last_backoff{0};  // the most recent reconnect delay chosen
   std::int64_t next_connect_at_us = 0;        // when kWaitingToReconnect: next attempt
+  std::string last_connect_error;             // e.g. "connection refused"
+  std::int64_t last_connect_error_us = 0;
+  std::uint64_t tls_failures = 0;
 };
 
 class Uplink {
@@ -105,6 +110,14 @@ class Uplink {
   bool wait_for_events(std::chrono::milliseconds max_wait);
   // Latest time by which poll() should run again even without a wake-up.
   Micros next_poll_due(Micros now) const;
+  // Commands received by poll() since the last call (raw SignedCommand payloads), in arrival
+  // order; without a command handler set, poll() only queues them here.
+  std::vector<std::string> take_commands();
+  // Publishes one record that is not in the outbox (QoS 1), e.g. an unstored command result;
+  // false when it could not be handed to the client.
+  bool publish_direct(std::string_view kind, std::string payload, Micros now);
+  // When poll() must run at the latest without a wake-up (wall clock); nullopt: only on wakeup.
+  std::optional<std::chrono::steady_clock::time_point> next_deadline() const;
   // Publishes the retained offline status (when connected), disconnects and waits at most
   // `timeout` for each step. Records still in flight stay in the outbox.
   void stop(Micros now, std::chrono::milliseconds timeout = std::chrono::seconds(5));

@@ -3,7 +3,10 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include <fstream>
+
 #include "gateway/runtime/service.h"
+#include "gateway/sim/recorder.h"
 #include "runtime_test_util.h"
 #include "storage/store.h"
 
@@ -92,6 +95,43 @@ TEST(ServiceE2E, ServiceKeepsRunningThroughBusTrouble) {
   storage::Store store(so);
   EXPECT_GT(rows(store.stats(), "telemetry"), 200u);
   EXPECT_EQ(store.integrity_check(), "ok");
+}
+
+}  // namespace
+}  // namespace fleetgw::runtime::testing
+
+namespace fleetgw::runtime::testing {
+namespace {
+
+// A replay as fast as possible is paced by its transport alone: the pipeline's one timer only
+// serves the wall-clock group commit (storage.flush_ms), never a tick per bus interval (the old
+// service woke every 50 ms and polled every 200 ms whatever the traffic).
+TEST(ServiceE2E, ReplayAsFastAsPossibleIsNotPacedByTimers) {
+  TempDir dir;
+  const auto log_path = dir / "ride.log";
+  {
+    std::ofstream log(log_path);
+    sim::VirtualBus bus(bundled("ride"));
+    bus.add(sim::candump_writer(log));
+    bus.run_until(bus.start() + sec(600));
+  }
+  const auto cfg =
+      make_config("[can]\ntransport = \"replay\"\nreplay_file = \"" + log_path.string() +
+                  "\"\n[storage]\npath = \"" + (dir / "db" / "fleetgw.db").string() + "\"\n");
+  ServiceOptions opts;
+  opts.duration = std::chrono::milliseconds(120'000);
+  ServiceReport report;
+  ASSERT_EQ(run_service(cfg, opts, &report), 0);
+  EXPECT_GE(report.virtual_seconds, 590.0);
+  EXPECT_GT(report.can_frames, 50'000u);
+  // At most one wake-up per 200 ms of wall time (group commit) plus a couple at start and end;
+  // 600 s of bus time at the old 50 ms tick would have been 12,000.
+  EXPECT_LE(static_cast<double>(report.counters.timer_wakeups), report.wall_seconds * 5 + 3)
+      << report.wall_seconds << " s";
+  storage::StoreOptions so;
+  so.path = (dir / "db" / "fleetgw.db").string();
+  storage::Store store(so);
+  EXPECT_GT(rows(store.stats(), "telemetry"), 400u);
 }
 
 }  // namespace

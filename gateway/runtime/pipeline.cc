@@ -1,0 +1,324 @@
+#include "gateway/runtime/pipeline.h"
+
+#include <spdlog/spdlog.h>
+
+#include <asio/post.hpp>
+#include <iostream>
+
+#include "gateway/runtime/service.h"
+
+namespace fleetgw::runtime {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+Micros system_now() {
+  return std::chrono::duration_cast<Micros>(std::chrono::system_clock::now().time_since_epoch());
+}
+
+// settle() repeats while stages keep producing work; a bound keeps one loop turn short even if
+// a stage misbehaves (the rest is picked up by the next settle, which is posted).
+constexpr int kMaxSettleRounds = 16;
+// The simulator's clock is converted to the wall clock; never wait less than this for it.
+constexpr auto kMinSimWait = std::chrono::microseconds(200);
+// While frames flow they tick the core themselves (GatewayCore::on_can_frame), so the timer is
+// only a fallback for a bus that falls silent: it may fire this much after the core's next
+// event. A flowing bus then costs no timer wake-up of its own; on a silent bus the first tick
+// comes at most this late, the following ones on time.
+constexpr Micros kFlowingBusSlack{200'000};
+
+}  // namespace
+
+// The command service sees every decoded bus message (motion interlock, lock confirmations)
+// and the core's tick (timeouts, retries).
+class Pipeline::CommandFeed final : public MessageListener {
+ public:
+  explicit CommandFeed(command::CommandService& service) : service_(service) {}
+  void on_message(const motinova::DecodedMessage& m, Micros t) override {
+    service_.on_message(m, t);
+  }
+  void tick(Micros t) override { service_.tick(t); }
+
+ private:
+  command::CommandService& service_;
+};
+
+Pipeline::Pipeline(asio::io_context& io, const config::Config& config, BusTransport bus,
+                   storage::Store& store, PipelineOptions options)
+    : io_(io),
+      config_(config),
+      options_(std::move(options)),
+      bus_(std::move(bus)),
+      store_(store),
+      sender_(*bus_.transport, config.protocol.crc_order),
+      core_(
+          config, sender_,
+          node::NodeHooks{
+              .on_peer_shutdown =
+                  [](motinova::Node initiator, Micros) {
+                    spdlog::info("{} broadcast SHUTDOWN: state saved, answering READY",
+                                 motinova::node_name(initiator));
+                  },
+              .acc_off =
+                  [](const node::ShutdownOutcome&) { spdlog::info("shutdown complete: ACC off"); },
+          }),
+      outbox_(store),
+      timer_(io) {
+  bus_.transport->start([this](const motinova::CanFrame& frame, Micros ts) { on_frame(frame, ts); },
+                        [this](const can::BusHealth& h) {
+                          spdlog::info("bus {}: {}{}{}", bus_.transport->name(),
+                                       can::controller_state_name(h.state), h.detail.empty() ? "" : ": ",
+                                       h.detail);
+                        });
+  start_ = bus_.replay ? Micros(0) : bus_now();
+  recorder_.emplace(config, store_, start_);
+
+  // Remote lock commands: verified, journaled in the store, executed through the node.
+  command::CommandContext context{
+      .node = core_.node(),
+      .store = store_,
+      .trackers = &recorder_->trackers(),
+      .clock_synchronised = command::default_clock_synchronised,
+      .wall_clock = system_now,
+      // A stored result is published in the next settle, not at a timer.
+      .result_stored =
+          [this] {
+            if (!uplink_) return;
+            publish_due_ = true;
+            request_settle();
+          },
+      .publish_unstored =
+          [this](std::string serialized) {
+            return uplink_ &&
+                   uplink_->publish_direct("command_result", std::move(serialized), system_now());
+          },
+  };
+  try {
+    commands_ = std::make_unique<command::CommandService>(
+        command::make_command_service_config(config), std::move(context));
+  } catch (const std::exception& e) {
+    throw PipelineError(std::string("invalid [command] configuration: ") + e.what());
+  }
+  if (const auto n = commands_->recover(start_)) {
+    spdlog::warn("{} command(s) interrupted by the previous stop finished as timeout", n);
+  }
+  command_feed_ = std::make_unique<CommandFeed>(*commands_);
+  core_.add_listener(*command_feed_);
+
+  if (config.mqtt.enabled) {
+    try {
+      uplink_ = std::make_unique<uplink::Uplink>(make_uplink_config(config), outbox_);
+    } catch (const std::exception& e) {
+      throw PipelineError(std::string("invalid [mqtt] configuration: ") + e.what());
+    }
+    // Paho's threads only raise a flag and, once, post a settle to the loop.
+    uplink_->set_wakeup([this, token = std::weak_ptr<int>(alive_)] {
+      if (uplink_woken_.exchange(true)) return;
+      asio::post(io_, [this, token] {
+        if (!token.expired()) settle();
+      });
+    });
+  }
+  core_.add_listener(*recorder_);
+  if (options_.on_core) options_.on_core(core_);
+  core_.start(start_);
+
+  if (options_.duration) stop_at_ = Clock::now() + *options_.duration;
+  if (options_.live_view) next_live_ = Clock::now() + std::chrono::seconds(1);
+  if (bus_.replay) {
+    bus_.replay->on_end([this](const can::ReplaySummary& s) {
+      spdlog::info("replay finished: {} lines, {} frames, {} malformed lines", s.lines, s.frames,
+                   s.malformed_lines);
+      core_.tick(last_frame_ts_ + GatewayCore::kTickInterval);
+      stop("end of replay");
+    });
+  }
+  if (uplink_) {
+    uplink_->start(system_now());
+    publish_due_ = true;  // whatever the outbox kept from the previous run
+  }
+  request_settle();
+}
+
+Pipeline::~Pipeline() {
+  alive_.reset();
+  // First: Paho's threads may call the wake-up (which touches this object) until the client
+  // is gone.
+  uplink_.reset();
+}
+
+Micros Pipeline::bus_now() const {
+  // The simulator's frames carry its virtual time; once they flow they are the clock, so a
+  // machine too slow for the acceleration sees a consistent (if slower) timeline.
+  if (bus_.sim) return last_frame_ts_.count() > 0 ? last_frame_ts_ : bus_.sim->virtual_now();
+  if (bus_.replay) return last_frame_ts_;
+  return system_now();
+}
+
+double Pipeline::bus_seconds() const {
+  return first_ts_.count() < 0 ? 0.0
+                               : static_cast<double>((last_frame_ts_ - first_ts_).count()) / 1e6;
+}
+
+void Pipeline::on_frame(const motinova::CanFrame& frame, Micros ts) {
+  if (stopping_) return;
+  if (first_ts_.count() < 0) first_ts_ = ts;
+  last_frame_ts_ = ts;
+  frame_since_timer_ = true;
+  core_.on_can_frame(frame, ts);
+  // Measured on the frames actually delivered: a paced simulator's clock can run ahead of a
+  // slow machine, the traffic cannot.
+  if (options_.bus_duration && ts - first_ts_ >= *options_.bus_duration) {
+    stop("bus duration reached");
+    return;
+  }
+  if (recorder_->urgent()) {
+    request_settle();
+  } else if (!armed_for_ && recorder_->flush_deadline()) {
+    arm_timer();  // first pending telemetry while nothing else is scheduled (replays)
+  }
+}
+
+void Pipeline::request_settle() {
+  if (settling_) return;  // the running settle() loops again
+  if (settle_posted_ || stopping_) return;
+  settle_posted_ = true;
+  asio::post(io_, [this, token = std::weak_ptr<int>(alive_)] {
+    if (token.expired()) return;
+    settle_posted_ = false;
+    settle();
+  });
+}
+
+void Pipeline::settle() {
+  if (settling_ || stopping_) return;
+  settling_ = true;
+  ++counters_.settles;
+  for (int round = 0; round < kMaxSettleRounds; ++round) {
+    bool more = false;
+    const auto due = recorder_->flush_deadline();
+    const bool urgent = recorder_->urgent();
+    if (urgent || (due && Clock::now() >= *due)) {
+      if (urgent) ++counters_.urgent_flushes;
+      const FlushOutcome out = recorder_->flush(bus_now());
+      if (uplink_ && out.records > 0 && !out.failed) publish_due_ = true;
+    }
+    if (uplink_) {
+      const auto poll_at = uplink_->next_deadline();
+      const bool woken = uplink_woken_.exchange(false);
+      if (publish_due_ || woken || (poll_at && Clock::now() >= *poll_at)) {
+        publish_due_ = false;
+        ++counters_.uplink_polls;
+        uplink_->poll(system_now());
+        // Commands are handled after poll() returned: poll is never re-entered.
+        for (auto& payload : uplink_->take_commands()) {
+          ++counters_.commands;
+          const auto d = commands_->on_payload(payload, bus_now());
+          spdlog::info("command received: {}", command::disposition_name(d));
+          core_.deliver_echoes();  // the LOCK/UNLOCK it sent, after the command's own work
+          more = true;
+        }
+      }
+    }
+    if (publish_due_ || recorder_->urgent()) more = true;
+    if (!more) break;
+  }
+  settling_ = false;
+  // The bound was reached (or a flush failed and keeps its records: retried at the deadline).
+  if (publish_due_) request_settle();
+  arm_timer();
+}
+
+std::optional<Clock::time_point> Pipeline::core_deadline() const {
+  // A replay's clock only moves with its frames, and on_can_frame() ticks the core by itself.
+  if (bus_.replay) return std::nullopt;
+  const bool flowing = frame_since_timer_ || bus_flowing_;
+  const Micros next = core_.next_event() + (flowing ? kFlowingBusSlack : Micros(0));
+  if (bus_.sim) {
+    // Bus time -> wall time through the acceleration. While frames flow their timestamps are
+    // the clock; a silent simulated bus runs on the simulator's own clock.
+    const Micros now = flowing ? bus_now() : bus_.sim->virtual_now();
+    const auto wait =
+        std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double, std::micro>(
+            static_cast<double>((next - now).count()) / bus_.sim_speed));
+    return Clock::now() + std::max<Clock::duration>(wait, kMinSimWait);
+  }
+  return Clock::now() + std::max<Clock::duration>(next - system_now(), Clock::duration::zero());
+}
+
+void Pipeline::arm_timer() {
+  if (stopping_) return;
+  std::optional<Clock::time_point> at;
+  auto consider = [&](std::optional<Clock::time_point> t) {
+    if (t && (!at || *t < *at)) at = t;
+  };
+  consider(core_deadline());
+  consider(recorder_->flush_deadline());
+  if (uplink_) consider(uplink_->next_deadline());
+  consider(next_live_);
+  consider(stop_at_);
+  if (!at) {
+    if (armed_for_) timer_.cancel();
+    armed_for_.reset();
+    return;
+  }
+  if (armed_for_ && *armed_for_ == *at) return;
+  armed_for_ = at;
+  timer_.expires_at(*at);
+  timer_.async_wait([this, token = std::weak_ptr<int>(alive_)](const std::error_code& ec) {
+    // A cancelled wait (re-armed or stopped) does nothing: the new wait is already pending.
+    if (ec || token.expired() || stopping_) return;
+    armed_for_.reset();
+    on_timer();
+  });
+}
+
+void Pipeline::on_timer() {
+  ++counters_.timer_wakeups;
+  const auto wall = Clock::now();
+  if (stop_at_ && wall >= *stop_at_) {
+    stop("duration reached");
+    return;
+  }
+  if (!bus_.replay) {
+    Micros t = bus_now();
+    if (bus_.sim && !frame_since_timer_) t = std::max(t, bus_.sim->virtual_now());
+    if (t >= core_.next_event()) core_.tick(t);
+  }
+  bus_flowing_ = frame_since_timer_;
+  frame_since_timer_ = false;
+  if (next_live_ && wall >= *next_live_) {
+    std::ostream& out = options_.live_out ? *options_.live_out : std::cout;
+    out << core_.live().line() << std::endl;
+    next_live_ = wall + std::chrono::seconds(1);
+  }
+  settle();  // due flushes and polls; re-arms the timer
+}
+
+void Pipeline::stop(const char* why) {
+  if (stopping_) return;
+  stopping_ = true;
+  spdlog::info("stopping: {}", why);
+  bus_.transport->stop();
+  timer_.cancel();
+  armed_for_.reset();
+  if (options_.on_stop) options_.on_stop(why);
+}
+
+void Pipeline::finish() {
+  recorder_->flush(bus_.replay ? last_frame_ts_ : bus_now());
+  if (!uplink_) return;
+  // Give the last records a moment to leave, then publish the retained offline status.
+  const auto deadline = Clock::now() + std::chrono::seconds(5);
+  while (Clock::now() < deadline && outbox_.stats().depth > 0 &&
+         uplink_->state() == uplink::LinkState::kConnected) {
+    uplink_->poll(system_now());
+    uplink_->wait_for_events(std::chrono::milliseconds(50));
+  }
+  uplink_->stop(system_now());
+  const auto s = uplink_->stats();
+  spdlog::info("uplink: {} records acked in {} messages, {} reconnects, {} still queued",
+               s.acked_records, s.acked_messages, s.reconnects, outbox_.stats().depth);
+}
+
+}  // namespace fleetgw::runtime

@@ -1,0 +1,153 @@
+// Pipeline: the engine of `fleetgw run`. It owns the stages -- GatewayCore (reassembly, decode,
+// node), Recorder (domain trackers -> SQLite), CommandService, Uplink (outbox -> MQTT) -- and
+// ALL their scheduling, on one asio::io_context thread.
+//
+// Contract:
+//  * Stages never call each other across the pipeline and are never re-entered. They signal:
+//    the recorder by urgent()/flush_deadline(), the command service by result_stored /
+//    publish_unstored, the uplink by its wake-up (Paho threads) and next_deadline(). The
+//    pipeline reacts in settle(), which runs after the handler that raised the signal returned:
+//    flush the recorder when urgent, poll the uplink once, hand the commands it took
+//    (Uplink::take_commands) to the CommandService, deliver the echoes of what the node sent,
+//    and repeat until nothing is left. settle() never runs inside itself.
+//  * Results, faults, alarms, rides and locks are published as soon as they are stored (an
+//    urgent recorder flush, or result_stored, polls the uplink at once); only telemetry waits
+//    for its group commit (storage.flush_ms of wall time) and the uplink's telemetry batch.
+//  * Deadline scheduling: ONE steady_timer, armed for the earliest real deadline: the core's
+//    next event (bus timeline, converted to the wall clock; not for replays, whose clock only
+//    moves with their frames), the recorder's flush deadline, the uplink's next deadline, the
+//    live view, the run's duration. Nothing else wakes the loop: a replay as fast as possible
+//    is paced by its transport alone, and an idle bus costs only the node's own schedule.
+//  * Time: the core, trackers and commands run on the transport's timeline (virtual for the
+//    simulator and replays, the system clock otherwise); the network and group commit run on
+//    the wall clock, even when the bus is accelerated.
+//  * stop() is idempotent; finish() (after io.run() returned) flushes the recorder, gives the
+//    uplink up to 5 s to send what is queued and publishes the retained offline status.
+#pragma once
+
+#include <asio/io_context.hpp>
+#include <asio/steady_timer.hpp>
+#include <atomic>
+#include <chrono>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <ostream>
+#include <stdexcept>
+#include <string>
+
+#include "gateway/can/replay_transport.h"
+#include "gateway/can/transport.h"
+#include "gateway/command/command_service.h"
+#include "gateway/config/config.h"
+#include "gateway/node/transport_sender.h"
+#include "gateway/runtime/gateway_core.h"
+#include "gateway/runtime/recorder.h"
+#include "gateway/runtime/store_outbox.h"
+#include "gateway/sim/sim_transport.h"
+#include "gateway/uplink/uplink.h"
+#include "storage/store.h"
+
+namespace fleetgw::runtime {
+
+// The CAN transport chosen in the configuration, with typed views of the two that carry their
+// own timeline.
+struct BusTransport {
+  std::unique_ptr<can::Transport> transport;
+  sim::SimTransport* sim = nullptr;
+  double sim_speed = 1.0;
+  can::ReplayTransport* replay = nullptr;
+};
+
+struct PipelineOptions {
+  std::optional<std::chrono::milliseconds> duration;  // stop after this much wall time
+  std::optional<Micros> bus_duration;                 // stop after this much bus time
+  bool live_view = false;                             // print LiveState::line() every second
+  std::ostream* live_out = nullptr;                   // default std::cout
+  std::function<void(GatewayCore&)> on_core;          // before the core starts (tests, demo)
+  std::function<void(const char* why)> on_stop;       // the owner stops its own handlers
+};
+
+// A stage could not be built from the configuration; what() names the section.
+class PipelineError : public std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+struct PipelineCounters {
+  std::uint64_t settles = 0;         // settle() runs
+  std::uint64_t timer_wakeups = 0;   // timer expiries handled
+  std::uint64_t uplink_polls = 0;    // Uplink::poll calls
+  std::uint64_t urgent_flushes = 0;  // recorder flushes because a record was urgent
+  std::uint64_t commands = 0;        // payloads handed to the CommandService
+};
+
+class Pipeline {
+ public:
+  // Builds every stage (throws PipelineError for a bad [command] or [mqtt] section) and starts
+  // the transport, the core and the uplink; the work happens in io.run(). `store` and `io`
+  // must outlive the pipeline.
+  Pipeline(asio::io_context& io, const config::Config& config, BusTransport bus,
+           storage::Store& store, PipelineOptions options);
+  ~Pipeline();
+  Pipeline(const Pipeline&) = delete;
+  Pipeline& operator=(const Pipeline&) = delete;
+
+  void stop(const char* why);
+  // After io.run() returned: final flush, last publishes, offline status.
+  void finish();
+
+  // The transport's timeline (see the contract).
+  Micros bus_now() const;
+  Micros started() const { return start_; }
+  bool stopping() const { return stopping_; }
+
+  GatewayCore& core() { return core_; }
+  const can::Transport& transport() const { return *bus_.transport; }
+  const uplink::Uplink* uplink() const { return uplink_.get(); }
+  const Recorder& recorder() const { return *recorder_; }
+  const PipelineCounters& counters() const { return counters_; }
+  // Bus time covered by the frames delivered so far (0 before the first frame).
+  double bus_seconds() const;
+
+ private:
+  class CommandFeed;
+
+  void on_frame(const motinova::CanFrame& frame, Micros ts);
+  void request_settle();
+  void settle();
+  void on_timer();
+  void arm_timer();
+  std::optional<std::chrono::steady_clock::time_point> core_deadline() const;
+
+  asio::io_context& io_;
+  const config::Config& config_;
+  PipelineOptions options_;
+  BusTransport bus_;
+  storage::Store& store_;
+  node::TransportSender sender_;
+  GatewayCore core_;
+  Micros start_{0};
+  std::optional<Recorder> recorder_;
+  std::unique_ptr<command::CommandService> commands_;
+  std::unique_ptr<CommandFeed> command_feed_;
+  StoreOutbox outbox_;
+  std::unique_ptr<uplink::Uplink> uplink_;
+
+  asio::steady_timer timer_;
+  std::optional<std::chrono::steady_clock::time_point> armed_for_;
+  std::optional<std::chrono::steady_clock::time_point> stop_at_;
+  std::optional<std::chrono::steady_clock::time_point> next_live_;
+  std::atomic<bool> uplink_woken_{false};  // set by Paho threads, consumed by settle()
+  bool settle_posted_ = false;
+  bool settling_ = false;
+  bool publish_due_ = false;  // something was stored that the uplink has not seen
+  bool stopping_ = false;
+  bool frame_since_timer_ = false;  // a frame arrived since the last timer expiry
+  bool bus_flowing_ = false;        // frames arrived between the last two expiries
+  Micros first_ts_{-1};
+  Micros last_frame_ts_{0};
+  PipelineCounters counters_;
+  std::shared_ptr<int> alive_ = std::make_shared<int>(0);  // guards posted handlers
+};
+
+}  // namespace fleetgw::runtime

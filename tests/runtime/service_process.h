@@ -1,0 +1,188 @@
+// The shipped `fleetgw run` as a child process against a real mosquitto, and an operator that
+// signs commands and waits for their results over MQTT (one Paho client in this process: two
+// in one process share Paho's network threads, which adds tens of ms per direction). Used by
+// the service tests and by bench/bench_service.cc.
+#pragma once
+
+#include <fcntl.h>
+#include <mqtt/async_client.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <condition_variable>
+#include <deque>
+#include <filesystem>
+#include <fstream>
+#include <mutex>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "fleetgw/v1/command.pb.h"
+#include "fleetgw/v1/envelope.pb.h"
+#include "gateway/command/command_tool.h"
+#include "gateway/command/ed25519.h"
+#include "gateway/uplink/tcp_nodelay.h"
+
+extern char** environ;
+
+namespace fleetgw::testing {
+
+using SteadyClock = std::chrono::steady_clock;
+
+// `fleetgw run --config <file>`, stopped with SIGTERM (and reaped) on destruction.
+class ServiceProcess {
+ public:
+  ServiceProcess(const std::filesystem::path& binary, const std::filesystem::path& config,
+                 const std::filesystem::path& log) {
+    std::vector<std::string> args{binary.string(), "run", "--config", config.string()};
+    std::vector<char*> argv;
+    for (auto& a : args) argv.push_back(a.data());
+    argv.push_back(nullptr);
+    posix_spawn_file_actions_t fa;
+    posix_spawn_file_actions_init(&fa);
+    posix_spawn_file_actions_addopen(&fa, 1, log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    posix_spawn_file_actions_adddup2(&fa, 1, 2);
+    const int rc = posix_spawn(&pid_, argv[0], &fa, nullptr, argv.data(), environ);
+    posix_spawn_file_actions_destroy(&fa);
+    if (rc != 0) throw std::runtime_error("cannot start " + binary.string());
+  }
+  ~ServiceProcess() { stop(); }
+  ServiceProcess(const ServiceProcess&) = delete;
+  ServiceProcess& operator=(const ServiceProcess&) = delete;
+
+  pid_t pid() const { return pid_; }
+  // SIGTERM and wait; the exit status (-1 if it was already reaped).
+  int stop() {
+    if (pid_ <= 0) return -1;
+    ::kill(pid_, SIGTERM);
+    int status = 0;
+    ::waitpid(pid_, &status, 0);
+    pid_ = -1;
+    return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+  }
+
+ private:
+  pid_t pid_ = -1;
+};
+
+// Signs lock commands and waits for the CommandResult bound to each command id.
+class CommandOperator {
+ public:
+  CommandOperator(const std::string& broker_uri, std::string vehicle,
+                  command::Ed25519PrivateKey key, std::string key_id)
+      : client_(broker_uri, "operator-" + vehicle, mqtt::create_options(MQTTVERSION_3_1_1)),
+        vehicle_(std::move(vehicle)),
+        key_(std::move(key)),
+        key_id_(std::move(key_id)) {
+    client_.set_message_callback([this](mqtt::const_message_ptr m) {
+      {
+        std::lock_guard l(mu_);
+        inbox_.push_back(std::move(m));
+      }
+      cv_.notify_one();
+    });
+    mqtt::connect_options co;
+    co.set_clean_session(true);
+    client_.connect(co)->wait();
+    client_.subscribe("fleet/v1/" + vehicle_ + "/cmd/result", 1)->wait();
+    // As `fleetgw command` does after connecting.
+    if (const auto port = uplink::broker_port(broker_uri))
+      uplink::enable_tcp_nodelay_to_port(*port);
+  }
+  ~CommandOperator() {
+    try {
+      client_.disconnect()->wait_for(std::chrono::seconds(1));
+    } catch (...) {
+    }
+  }
+
+  struct Outcome {
+    bool answered = false;
+    v1::CommandResultCode result = v1::COMMAND_RESULT_CODE_UNSPECIFIED;
+    std::string reason;
+    std::chrono::microseconds round_trip{0};
+  };
+
+  // Publishes one signed command and waits up to `timeout` for its result.
+  // `signer` overrides the key (e.g. an untrusted one), signed under the same key id.
+  Outcome send(const std::string& id, std::string_view lock, std::string_view action,
+               std::chrono::milliseconds timeout,
+               const command::Ed25519PrivateKey* signer = nullptr) {
+    using namespace std::chrono;
+    const auto wall = duration_cast<motinova::Micros>(system_clock::now().time_since_epoch());
+    auto c = command::make_command(vehicle_, lock, action, wall, wall + seconds(60), id);
+    const std::string payload = command::sign_command(*c, signer ? *signer : key_, key_id_);
+    Outcome out;
+    const auto t0 = SteadyClock::now();
+    const auto deadline = t0 + timeout;
+    client_.publish("fleet/v1/" + vehicle_ + "/cmd", payload.data(), payload.size(), 1, false);
+    std::unique_lock l(mu_);
+    while (!out.answered) {
+      if (!cv_.wait_until(l, deadline, [this] { return !inbox_.empty(); })) break;
+      const auto m = std::move(inbox_.front());
+      inbox_.pop_front();
+      v1::Envelope env;
+      const auto& p = m->get_payload_ref();
+      if (env.ParseFromArray(p.data(), static_cast<int>(p.size())) && env.has_command_result() &&
+          env.command_result().command_id() == id) {
+        out.answered = true;
+        out.result = env.command_result().result();
+        out.reason = env.command_result().reason();
+      }
+    }
+    out.round_trip = duration_cast<microseconds>(SteadyClock::now() - t0);
+    return out;
+  }
+
+ private:
+  mqtt::async_client client_;
+  std::string vehicle_;
+  command::Ed25519PrivateKey key_;
+  std::string key_id_;
+  std::mutex mu_;
+  std::condition_variable cv_;
+  std::deque<mqtt::const_message_ptr> inbox_;
+};
+
+// A config for `fleetgw run` on the simulator with the uplink to `broker_uri`, trusting
+// `key_id` = `public_key_b64`. The *_extra strings are TOML lines added to their sections.
+struct ServiceConfigText {
+  std::filesystem::path scenario;
+  double speed = 1.0;
+  std::filesystem::path db;
+  std::string broker_uri;
+  std::string vehicle;
+  std::string key_id;
+  std::string public_key_b64;
+  std::string storage_extra;
+  std::string mqtt_extra;
+  std::string text() const {
+    return "[log]\nlevel = \"info\"\n[vehicle]\nid = \"" + vehicle +
+           "\"\n[can]\ntransport = \"sim\"\n[sim]\nscenario = \"" + scenario.string() +
+           "\"\nspeed = " + std::to_string(speed) + "\nstart_now = true\n[storage]\npath = \"" +
+           db.string() + "\"\n" + storage_extra + "[mqtt]\nenabled = true\nuri = \"" + broker_uri +
+           "\"\n" + mqtt_extra + "[command.trusted_keys]\n" + key_id + " = \"" + public_key_b64 +
+           "\"\n";
+  }
+};
+
+// Waits (polling) until `file` contains `text`; false after `limit`.
+inline bool wait_for_text(const std::filesystem::path& file, std::string_view text,
+                          std::chrono::milliseconds limit) {
+  const auto end = SteadyClock::now() + limit;
+  while (SteadyClock::now() < end) {
+    std::ifstream in(file);
+    const std::string all((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    if (all.find(text) != std::string::npos) return true;
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  return false;
+}
+
+}  // namespace fleetgw::testing
