@@ -279,13 +279,14 @@ int run_service(const config::Config& config, const ServiceOptions& options,
     poll_uplink = [&] {
       if (stopping) return;
       up->poll(system_now());
+      // Commands are handled after poll() returned, never inside it.
+      for (const auto& payload : up->take_commands()) {
+        const auto d = commands->on_payload(payload, now());
+        spdlog::info("command received: {}", command::disposition_name(d));
+        recorder.flush(now());  // results leave at once, not at the next flush
+      }
     };
     up->set_wakeup([&io, &poll_uplink] { asio::post(io, [&poll_uplink] { poll_uplink(); }); });
-    up->set_command_handler([&](std::string_view payload) {
-      const auto d = commands->on_payload(payload, now());
-      spdlog::info("command received: {}", command::disposition_name(d));
-      recorder.flush(now());  // results leave at once, not at the next flush
-    });
     recorder.set_after_flush([&] { poll_uplink(); });
   }
   core.add_listener(recorder);
@@ -330,7 +331,7 @@ int run_service(const config::Config& config, const ServiceOptions& options,
     // Give the last records a moment to leave, then publish the retained offline status.
     const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(5);
     while (std::chrono::steady_clock::now() < deadline && outbox.stats().depth > 0 &&
-           up->state() == uplink::LinkState::kConnected) {
+           up->state() == uplink::UplinkState::kConnected) {
       up->poll(system_now());
       up->wait_for_events(std::chrono::milliseconds(50));
     }
