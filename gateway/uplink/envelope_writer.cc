@@ -111,28 +111,38 @@ std::optional<std::string> serialize_record(const KindRoute& route, const Envelo
   return env.SerializeAsString();
 }
 
-bool TelemetryBatchWriter::add(std::string_view stored_sample, std::uint64_t seq) {
+std::optional<SampleSplice> TelemetryBatchWriter::prepare(std::string_view stored_sample,
+                                                          std::uint64_t seq) {
   const auto parts = split_sample(stored_sample);
-  if (!parts) return false;
+  if (!parts) return std::nullopt;
+  return SampleSplice{parts->head, parts->tail, seq, sample_size(*parts, seq)};
+}
+
+void TelemetryBatchWriter::add(const SampleSplice& sample) {
   batch_.push_back(
       static_cast<char>((kBatchSamplesField << 3) | WireFormatLite::WIRETYPE_LENGTH_DELIMITED));
-  append_varint(batch_, sample_size(*parts, seq));
+  append_varint(batch_, sample.size);
   // Field 1 first, as the generated serializer orders fields by number.
-  if (seq != 0) {
+  if (sample.seq != 0) {
     batch_.push_back(static_cast<char>(kSequenceTag));
-    append_varint(batch_, seq);
+    append_varint(batch_, sample.seq);
   }
-  batch_.append(parts->head);
-  batch_.append(parts->tail);
+  batch_.append(sample.head);
+  batch_.append(sample.tail);
   ++samples_;
-  return true;
+}
+
+bool TelemetryBatchWriter::add(std::string_view stored_sample, std::uint64_t seq) {
+  const auto sample = prepare(stored_sample, seq);
+  if (sample) add(*sample);
+  return sample.has_value();
 }
 
 std::optional<std::size_t> TelemetryBatchWriter::accounted_size(std::string_view stored_sample,
                                                                 std::uint64_t seq) {
-  const auto parts = split_sample(stored_sample);
-  if (!parts) return std::nullopt;
-  return sample_size(*parts, seq) + 4;
+  const auto sample = prepare(stored_sample, seq);
+  if (!sample) return std::nullopt;
+  return sample->accounted_size();
 }
 
 std::string TelemetryBatchWriter::take_envelope(const EnvelopeHeader& header) {

@@ -57,12 +57,23 @@ void fill_header(v1::Envelope& env, const EnvelopeHeader& header);
 std::optional<std::string> serialize_record(const KindRoute& route, const EnvelopeHeader& header,
                                             std::string_view body);
 
+// One stored sample, checked and measured, ready to be spliced (views into the stored bytes).
+struct SampleSplice {
+  std::string_view head;  // the stored bytes before a stored sequence field (usually empty)
+  std::string_view tail;  // the stored bytes after it (usually all of them)
+  std::uint64_t seq = 0;
+  std::size_t size = 0;  // serialized sample size with `seq`
+  // Bytes it adds to the batch as the uplink accounts them (size + 4 for tag and length).
+  std::size_t accounted_size() const { return size + 4; }
+};
+
 class TelemetryBatchWriter {
  public:
-  // Appends one sample; false (nothing added) if `stored_sample` is not well-formed.
+  // Checks and measures one stored sample; nullopt if it is not well-formed wire format.
+  static std::optional<SampleSplice> prepare(std::string_view stored_sample, std::uint64_t seq);
+  void add(const SampleSplice& sample);
+  // prepare() + add(); false (nothing added) if `stored_sample` is not well-formed.
   bool add(std::string_view stored_sample, std::uint64_t seq);
-  // Bytes a sample adds to the batch (sample size + 4 for tag and length, as before); nullopt
-  // if `stored_sample` is not well-formed.
   static std::optional<std::size_t> accounted_size(std::string_view stored_sample,
                                                    std::uint64_t seq);
 

@@ -167,13 +167,14 @@ bool Uplink::Impl::batch_due(Micros now) const {
 
 // Adds a telemetry record to the batch; false if the window is full and it was not taken.
 bool Uplink::Impl::add_telemetry(Micros now, const OutgoingRecord& e) {
-  const auto size = TelemetryBatchWriter::accounted_size(e.payload, e.seq);
-  if (!size) {
+  const auto sample = TelemetryBatchWriter::prepare(e.payload, e.seq);
+  if (!sample) {
     reject(e, "payload is not a fleetgw.v1.TelemetrySample");
     return true;
   }
+  const std::size_t size = sample->accounted_size();
   if (!batch.empty() && (batch.seqs.size() >= config.telemetry_batch_max_samples ||
-                         batch.bytes + *size > config.telemetry_batch_max_bytes)) {
+                         batch.bytes + size > config.telemetry_batch_max_bytes)) {
     if (capacity() == 0) return false;
     flush_batch(now);
   }
@@ -184,9 +185,9 @@ bool Uplink::Impl::add_telemetry(Micros now, const OutgoingRecord& e) {
   }
   batch.oldest_created_us = std::min(batch.oldest_created_us, e.created_us);
   batch.newest_created_us = std::max(batch.newest_created_us, e.created_us);
-  batch.writer.add(e.payload, e.seq);
+  batch.writer.add(*sample);
   batch.seqs.push_back(e.seq);
-  batch.bytes += *size;
+  batch.bytes += size;
   claimed.insert(e.seq);
   if (batch.seqs.size() >= config.telemetry_batch_max_samples) {
     if (capacity() == 0) return true;  // stays pending; flushed when the window opens
