@@ -335,8 +335,11 @@ void Uplink::Impl::stop(Micros now, milliseconds timeout) {
   in_flight.clear();
   claimed.clear();
   batch = PendingBatch{};
-  events.take();
-  events.commands_taken(commands.size());
+  std::size_t dropped_commands = commands.size();
+  for (const auto& ev : events.take()) {
+    dropped_commands += std::holds_alternative<detail::CommandArrived>(ev) ? 1 : 0;
+  }
+  events.commands_taken(dropped_commands);
   commands.clear();
 }
 

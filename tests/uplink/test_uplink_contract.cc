@@ -141,6 +141,27 @@ TEST(UplinkContract, NothingListeningIsReportedAsConnectionRefused) {
   EXPECT_EQ(up.stats().tls_failures, 0u);
 }
 
+TEST(UplinkContract, RefusedCredentialsAreReportedAsNotAuthorised) {
+  testing::MosquittoOptions o;
+  o.extra_config = "allow_anonymous false\n";  // the later setting wins; no user is known
+  MosquittoBroker broker(o);
+  broker.start();
+  MemoryOutbox box;
+  auto cfg = plain_config(broker.uri(), "bike-auth");
+  cfg.username = "nobody";
+  cfg.password = "not-the-password";
+  cfg.allow_plaintext_credentials = true;
+  Uplink up(cfg, box);
+  up.start(wall_now());
+  ASSERT_TRUE(drive(
+      up, [&] { return !up.stats().last_connect_error.empty(); }, 10s))
+      << broker.log();
+  const std::string reason = up.stats().last_connect_error;
+  EXPECT_EQ(reason.rfind("not authorised", 0), 0u) << reason;
+  EXPECT_EQ(reason.find("not-the-password"), std::string::npos);
+  EXPECT_EQ(up.stats().tls_failures, 0u);
+}
+
 TEST(UplinkContract, OversizedCommandIsDroppedAndItsMemoryReturned) {
   MosquittoBroker broker;
   broker.start();
