@@ -194,7 +194,13 @@ TEST(UplinkContract, OversizedCommandIsDroppedAndItsMemoryReturned) {
   drive(
       up, [&] { return rss_kb() - before < 1024; }, 3s);
   const long after = rss_kb();
+#if defined(__SANITIZE_ADDRESS__)
+  // AddressSanitizer keeps freed memory in quarantine: resident memory cannot drop there. The
+  // drop and the client replacement still run (and are checked for memory errors).
+  (void)after;
+#else
   EXPECT_LT(after - before, 1024) << "RSS " << before << " kB -> " << after << " kB";
+#endif
   EXPECT_TRUE(up.take_commands().empty());
   // The link comes back by itself (the client was replaced to free Paho's read buffer) and
   // still publishes.
