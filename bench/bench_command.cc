@@ -313,19 +313,19 @@ void BM_CommandMqttRoundTrip(benchmark::State& state) {
     answered = Clock::now();
     in_gateway.push_back(std::chrono::duration<double, std::micro>(answered - arrived).count());
   });
-  link.set_command_handler([&](std::string_view payload) {
-    arrived = Clock::now();
-    gw.service->on_payload(payload, gw.bus.now());
-  });
   auto step = [&] {
     const Micros now = wall_now();
     if (now > gw.bus.now()) gw.bus.run_until(now);
     link.poll(now);
+    for (const auto& payload : link.take_commands()) {
+      arrived = Clock::now();
+      gw.service->on_payload(payload, gw.bus.now());
+    }
     link.wait_for_events(1ms);
   };
   link.start(wall_now());
   const auto connect_deadline = Clock::now() + 30s;
-  while (link.state() != uplink::LinkState::kConnected && Clock::now() < connect_deadline) step();
+  while (link.state() != uplink::UplinkState::kConnected && Clock::now() < connect_deadline) step();
   for (const auto end = Clock::now() + 1s; Clock::now() < end;) step();
   const char g = 1;
   (void)!::write(go[1], &g, 1);

@@ -75,7 +75,7 @@ void drain_until_empty(Uplink& up, MemoryOutbox& box) {
 
 void connect(Uplink& up) {
   up.start(wall_now());
-  while (up.state() != LinkState::kConnected) {
+  while (up.state() != UplinkState::kConnected) {
     up.poll(wall_now());
     up.wait_for_events(std::chrono::milliseconds(5));
   }

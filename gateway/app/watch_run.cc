@@ -13,6 +13,7 @@
 #include "fleetgw/v1/envelope.pb.h"
 #include "fleetgw/v1/status.pb.h"
 #include "gateway/app/watch_command.h"
+#include "gateway/uplink/mqtt_connection.h"
 #include "proto/schema_reflection.h"
 
 namespace fleetgw::app {
@@ -43,19 +44,19 @@ int run_watch(const WatchOptions& options, std::ostream& out) {
   const proto::SchemaReflection schema;
   std::mt19937_64 rng(std::random_device{}());
   const std::string client_id = "fleetgw-watch-" + std::to_string(rng() % 1'000'000);
-  mqtt::async_client client(options.broker, client_id, mqtt::create_options(MQTTVERSION_3_1_1));
-  auto conn = mqtt::connect_options_builder().clean_session(true).keep_alive_interval(
-      std::chrono::seconds(30));
-  if (!options.username.empty()) conn.user_name(options.username).password(options.password);
-  if (options.broker.rfind("ssl://", 0) == 0 || options.broker.rfind("mqtts://", 0) == 0) {
-    auto ssl = mqtt::ssl_options_builder().enable_server_cert_auth(true).verify(true);
-    if (!options.ca_file.empty()) ssl.trust_store(options.ca_file);
-    if (!options.cert_file.empty()) ssl.key_store(options.cert_file).private_key(options.key_file);
-    conn.ssl(ssl.finalize());
+  // The uplink's connection builder: TLS verification on, mqtts:// spelled as Paho wants.
+  uplink::ConnectionSettings settings;
+  settings.broker_uri = uplink::normalise_broker_uri(options.broker);
+  if (uplink::uses_tls(options.broker)) {
+    settings.tls = uplink::TlsConfig{options.ca_file, options.cert_file, options.key_file, true};
   }
+  settings.username = options.username;
+  settings.password = options.password;
+  mqtt::async_client client(settings.broker_uri, client_id,
+                            mqtt::create_options(MQTTVERSION_3_1_1));
   try {
     client.start_consuming();
-    client.connect(conn.finalize())->wait();
+    client.connect(uplink::make_connect_options(settings))->wait();
     client.subscribe(options.topic, 1)->wait();
   } catch (const mqtt::exception& e) {
     std::cerr << "watch: cannot subscribe to " << options.topic << " at " << options.broker << ": "

@@ -12,6 +12,7 @@
 #include "fleetgw/v1/command.pb.h"
 #include "fleetgw/v1/envelope.pb.h"
 #include "gateway/command/verifier.h"
+#include "gateway/uplink/mqtt_connection.h"
 #include "gateway/uplink/tcp_nodelay.h"
 
 namespace fleetgw::command {
@@ -194,7 +195,7 @@ int run_command_tool(const CommandToolOptions& o) {
   if (o.broker.find('@') != std::string::npos) {
     return usage("--broker: no credentials in the URI; use --username/--password");
   }
-  const bool tls = o.broker.rfind("ssl://", 0) == 0;
+  const bool tls = uplink::uses_tls(o.broker);
   if (!tls && (!o.username.empty() || !o.password.empty()) && !o.allow_plaintext_credentials) {
     return usage("refusing to send credentials over plain tcp://; use ssl://");
   }
@@ -223,29 +224,18 @@ int run_command_tool(const CommandToolOptions& o) {
   const std::string result_topic = base + "/cmd/result";
 
   try {
-    mqtt::async_client client(o.broker, "fleetgw-cmd-" + hex(random_bytes(6)),
+    mqtt::async_client client(uplink::normalise_broker_uri(o.broker),
+                              "fleetgw-cmd-" + hex(random_bytes(6)),
                               mqtt::create_options(MQTTVERSION_3_1_1));
     Inbox inbox;
     client.set_message_callback([&inbox](mqtt::const_message_ptr m) { inbox.push(std::move(m)); });
-    mqtt::connect_options opts;
-    opts.set_mqtt_version(MQTTVERSION_3_1_1);
-    opts.set_clean_session(true);
-    opts.set_keep_alive_interval(30);
-    opts.set_connect_timeout(static_cast<int>(std::max<std::int64_t>(1, o.timeout.count())));
-    if (!o.username.empty()) opts.set_user_name(o.username);
-    if (!o.password.empty()) opts.set_password(o.password);
-    if (tls) {
-      mqtt::ssl_options ssl;
-      if (!o.ca_file.empty()) ssl.set_trust_store(o.ca_file);
-      if (!o.cert_file.empty()) {
-        ssl.set_key_store(o.cert_file);
-        ssl.set_private_key(o.key_file);
-      }
-      ssl.set_enable_server_cert_auth(true);
-      ssl.set_verify(true);
-      ssl.set_ssl_version(MQTT_SSL_VERSION_TLS_1_2);
-      opts.set_ssl(std::move(ssl));
-    }
+    uplink::ConnectionSettings settings;  // the uplink's builder: TLS verification on
+    settings.broker_uri = uplink::normalise_broker_uri(o.broker);
+    if (tls) settings.tls = uplink::TlsConfig{o.ca_file, o.cert_file, o.key_file, true};
+    settings.username = o.username;
+    settings.password = o.password;
+    settings.connect_timeout = std::chrono::seconds(std::max<std::int64_t>(1, o.timeout.count()));
+    const mqtt::connect_options opts = uplink::make_connect_options(settings);
     const auto t0 = std::chrono::steady_clock::now();
     const auto deadline = t0 + o.timeout;
     auto remaining = [&] {

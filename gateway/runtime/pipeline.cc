@@ -67,8 +67,8 @@ Pipeline::Pipeline(asio::io_context& io, const config::Config& config, BusTransp
   bus_.transport->start([this](const motinova::CanFrame& frame, Micros ts) { on_frame(frame, ts); },
                         [this](const can::BusHealth& h) {
                           spdlog::info("bus {}: {}{}{}", bus_.transport->name(),
-                                       can::controller_state_name(h.state), h.detail.empty() ? "" : ": ",
-                                       h.detail);
+                                       can::controller_state_name(h.state),
+                                       h.detail.empty() ? "" : ": ", h.detail);
                         });
   start_ = bus_.replay ? Micros(0) : bus_now();
   recorder_.emplace(config, store_, start_);
@@ -89,8 +89,8 @@ Pipeline::Pipeline(asio::io_context& io, const config::Config& config, BusTransp
           },
       .publish_unstored =
           [this](std::string serialized) {
-            return uplink_ &&
-                   uplink_->publish_direct("command_result", std::move(serialized), system_now());
+            return uplink_ && uplink_->publish_direct(uplink::kind::kCommandResult,
+                                                      std::move(serialized), system_now());
           },
   };
   try {
@@ -311,7 +311,7 @@ void Pipeline::finish() {
   // Give the last records a moment to leave, then publish the retained offline status.
   const auto deadline = Clock::now() + std::chrono::seconds(5);
   while (Clock::now() < deadline && outbox_.stats().depth > 0 &&
-         uplink_->state() == uplink::LinkState::kConnected) {
+         uplink_->state() == uplink::UplinkState::kConnected) {
     uplink_->poll(system_now());
     uplink_->wait_for_events(std::chrono::milliseconds(50));
   }

@@ -83,13 +83,13 @@ nlohmann::json make_status_json(const StatusInputs& in) {
       {"enabled", in.uplink != nullptr}, {"connected", false}, {"uri", ""}, {"last_error", ""}};
   if (in.uplink) {
     const auto s = in.uplink->stats();
-    broker["connected"] = s.state == uplink::LinkState::kConnected;
+    broker["connected"] = s.state == uplink::UplinkState::kConnected;
     broker["state"] = std::string(uplink::to_string(s.state));
     broker["uri"] = uplink::redact_uri(in.config.mqtt.uri);
     broker["acked_records"] = s.acked_records;
     broker["reconnects"] = s.reconnects;
     broker["last_publish_ok_us"] = s.last_publish_ok_us;
-    if (s.state != uplink::LinkState::kConnected && s.connect_failures > 0) {
+    if (s.state != uplink::UplinkState::kConnected && s.connect_failures > 0) {
       broker["last_error"] = "connect failed " + std::to_string(s.connect_failures) + " time(s)";
     }
     broker["connect_failures"] = s.connect_failures;

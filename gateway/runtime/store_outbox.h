@@ -18,8 +18,8 @@ class StoreOutbox final : public uplink::OutboxSource {
  public:
   explicit StoreOutbox(storage::Store& store) : store_(store) {}
 
-  std::vector<uplink::OutboxEntry> peek(std::size_t max_entries, std::size_t max_bytes,
-                                        const std::set<std::uint64_t>& exclude) override;
+  std::vector<uplink::OutgoingRecord> peek(std::size_t max_entries, std::size_t max_bytes,
+                                           const std::set<std::uint64_t>& exclude) override;
   void ack(std::span<const std::uint64_t> seqs) override;
   uplink::OutboxStats stats() const override;
 

@@ -9,15 +9,15 @@ std::uint64_t MemoryOutbox::push(int priority, std::string kind, std::int64_t cr
   std::lock_guard lock(mutex_);
   const std::uint64_t seq = next_seq_++;
   entries_.emplace(Key{priority, seq},
-                   OutboxEntry{seq, priority, std::move(kind), created_us, std::move(payload)});
+                   OutgoingRecord{seq, priority, std::move(kind), created_us, std::move(payload)});
   priority_of_.emplace(seq, priority);
   return seq;
 }
 
-std::vector<OutboxEntry> MemoryOutbox::peek(std::size_t max_entries, std::size_t max_bytes,
-                                            const std::set<std::uint64_t>& exclude) {
+std::vector<OutgoingRecord> MemoryOutbox::peek(std::size_t max_entries, std::size_t max_bytes,
+                                               const std::set<std::uint64_t>& exclude) {
   std::lock_guard lock(mutex_);
-  std::vector<OutboxEntry> out;
+  std::vector<OutgoingRecord> out;
   std::size_t bytes = 0;
   for (const auto& [key, entry] : entries_) {
     if (out.size() >= max_entries) break;

@@ -20,8 +20,8 @@ class MemoryOutbox final : public OutboxSource {
  public:
   std::uint64_t push(int priority, std::string kind, std::int64_t created_us, std::string payload);
 
-  std::vector<OutboxEntry> peek(std::size_t max_entries, std::size_t max_bytes,
-                                const std::set<std::uint64_t>& exclude) override;
+  std::vector<OutgoingRecord> peek(std::size_t max_entries, std::size_t max_bytes,
+                                   const std::set<std::uint64_t>& exclude) override;
   void ack(std::span<const std::uint64_t> seqs) override;
   OutboxStats stats() const override;
 
@@ -31,7 +31,7 @@ class MemoryOutbox final : public OutboxSource {
  private:
   using Key = std::pair<int, std::uint64_t>;  // (priority, seq): the peek order
   mutable std::mutex mutex_;
-  std::map<Key, OutboxEntry> entries_;
+  std::map<Key, OutgoingRecord> entries_;
   std::map<std::uint64_t, int> priority_of_;  // seq -> priority, to find a record by seq
   std::uint64_t next_seq_ = 1;
   std::uint64_t acked_records_ = 0;

@@ -40,16 +40,18 @@ inline constexpr const char* kCommandResult = "cmd_result";  // payload: fleetgw
 inline constexpr const char* kEviction = "eviction";         // payload: fleetgw.v1.EvictionReport
 }  // namespace kind
 
-// One stored record.
-struct OutboxEntry {
+// One stored record as the uplink sees it (storage::OutboxEntry is the store's row type).
+struct OutgoingRecord {
   std::uint64_t seq = 0;        // outbox sequence number (unique, increasing)
   int priority = 0;             // lower leaves first
   std::string kind;             // one of fleetgw::uplink::kind
   std::int64_t created_us = 0;  // when the record was made, microseconds since the Unix epoch
   std::string payload;          // the serialized body message named by `kind` (not an Envelope)
 
-  friend bool operator==(const OutboxEntry&, const OutboxEntry&) = default;
+  friend bool operator==(const OutgoingRecord&, const OutgoingRecord&) = default;
 };
+// Old name, kept so that code written against it still compiles; use OutgoingRecord.
+using OutboxEntry = OutgoingRecord;
 
 // Queue figures for the status message and metrics.
 struct OutboxStats {
@@ -61,8 +63,8 @@ class OutboxSource {
  public:
   virtual ~OutboxSource() = default;
 
-  virtual std::vector<OutboxEntry> peek(std::size_t max_entries, std::size_t max_bytes,
-                                        const std::set<std::uint64_t>& exclude) = 0;
+  virtual std::vector<OutgoingRecord> peek(std::size_t max_entries, std::size_t max_bytes,
+                                           const std::set<std::uint64_t>& exclude) = 0;
   virtual void ack(std::span<const std::uint64_t> seqs) = 0;
   virtual OutboxStats stats() const = 0;
 };

@@ -1,15 +1,18 @@
 // Uplink: drains an OutboxSource to an MQTT broker as fleetgw.v1.Envelope messages (Paho MQTT
-// C++ async client) and delivers remote commands from the broker.
+// C++ async client) and receives remote commands from the broker.
 //
 // Contract:
-//  * Threading: Paho calls back on its own threads; those callbacks only queue events. All real
-//    work -- outbox reads and acks, publishing, reconnect decisions, the command handler -- runs
-//    inside poll(), on the caller's thread. The owner calls poll() whenever the wake-up hook
-//    fires (e.g. it posts to its asio::io_context), at next_poll_due(), and after adding records
-//    to the outbox. wait_for_events() serves owners without an event loop (tests, benchmarks).
+//  * Threading: Paho calls back on its own threads; those callbacks only queue events and call
+//    the wake-up hook (connection change, publish completed, command arrived, diagnosis done).
+//    All real work -- outbox reads and acks, publishing, reconnect decisions -- runs inside
+//    poll(), on the owner's thread. poll() never calls out to the owner and is never re-entered:
+//    commands are only queued, and the owner collects them with take_commands() after poll()
+//    returns. The owner calls poll() when the wake-up hook fires, at next_deadline(), and after
+//    adding records to the outbox. wait_for_events() serves owners without an event loop.
 //    Apart from the wake-up hook and wait_for_events(), methods must not be called concurrently.
 //  * Time: no clock is read for decisions; every entry point takes `now` (microseconds since the
 //    Unix epoch) and back-off, telemetry batching and status refresh run on that timeline.
+//    next_deadline() converts the next due time to steady_clock for timers.
 //  * Delivery: records leave in outbox order (priority, then sequence). A record is acked to the
 //    outbox only when the publish carrying it completed successfully (PUBACK for QoS 1; written
 //    to the socket for QoS 0 live telemetry). At most max_in_flight publishes are unacknowledged.
@@ -17,13 +20,19 @@
 //    duplicates are possible (consumers de-duplicate on vehicle id + sequence), loss is not.
 //    Records whose payload does not decode as their kind's message, or of unknown kind, are
 //    logged, counted (rejected_records) and removed, so one bad record cannot block the queue.
+//    Telemetry samples are spliced into the batch as stored, never parsed (envelope_writer.h).
 //  * Session: client id = vehicle id, persistent session (clean_session = false), retained
 //    online Status on connect, retained offline Status as last will and on stop().
-//  * Security: TLS verification (chain and host name) on by default; the password is never
-//    logged, URIs are logged without user information.
-//  * Commands: payloads on <prefix>/<vehicle_id>/cmd larger than max_command_bytes or not
-//    decodable as fleetgw.v1.SignedCommand are logged and dropped; others go, raw, to the
-//    command handler inside poll(). An exception from the handler is logged and swallowed.
+//  * Connect failures: each is diagnosed (connect_diagnosis.h) off the owner's thread; the reason
+//    lands in UplinkStats::last_connect_error and is logged once per distinct reason, not per
+//    retry.
+//  * Security: TLS verification (chain and host name) on by default (mqtt_connection.h); the
+//    password is never logged, URIs are logged without user information.
+//  * Commands: payloads on <prefix>/<vehicle_id>/cmd larger than max_command_bytes are dropped
+//    on Paho's thread before anything is copied or parsed (and the heap is trimmed after large
+//    ones); payloads not decodable as fleetgw.v1.SignedCommand are dropped too; at most
+//    max_queued_commands wait for take_commands(), more are dropped. All drops are logged and
+//    counted.
 #pragma once
 
 #include <chrono>
@@ -31,8 +40,8 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
-#include <string>
 #include <optional>
+#include <string>
 #include <string_view>
 #include <vector>
 
@@ -46,16 +55,20 @@ namespace fleetgw::uplink {
 
 using motinova::Micros;
 
-enum class LinkState {
+// State of the uplink's MQTT connection (not the CAN bus link, can::LinkState, nor the
+// ConnectionState published in fleetgw.v1.Status).
+enum class UplinkState {
   kStopped,             // not started, or stopped
   kConnecting,          // a connect attempt is under way
   kConnected,           // connected; draining the outbox
   kWaitingToReconnect,  // the last attempt failed or the connection dropped; see next_connect_at
 };
-std::string_view to_string(LinkState state);
+std::string_view to_string(UplinkState state);
+// Old name, kept so that code written against it still compiles; use UplinkState.
+using LinkState = UplinkState;
 
 struct UplinkStats {
-  LinkState state = LinkState::kStopped;
+  UplinkState state = UplinkState::kStopped;
   std::uint64_t published_messages = 0;  // MQTT publishes handed to the client (incl. status)
   std::uint64_t published_records = 0;   // outbox records in those publishes (re-sends count)
   std::uint64_t acked_messages = 0;      // publishes whose token completed successfully
@@ -67,7 +80,7 @@ struct UplinkStats {
   std::uint64_t reconnects = 0;          // successful connections after the first
   std::uint64_t connect_failures = 0;    // failed connect attempts
   std::uint64_t connection_losses = 0;   // established connections that dropped
-  std::uint64_t commands_received = 0;   // commands handed to the handler
+  std::uint64_t commands_received = 0;   // commands queued for take_commands()
   std::uint64_t commands_dropped = 0;    // oversized, undecodable or overflowing commands
   std::size_t in_flight_messages = 0;    // publishes awaiting their token
   std::size_t in_flight_records = 0;     // records in those publishes
@@ -77,16 +90,16 @@ struct UplinkStats {
   std::int64_t last_publish_ok_us = 0;  // `now` of the poll that saw the last success; 0 never
   std::chrono::milliseconds last_backoff{0};  // the most recent reconnect delay chosen
   std::int64_t next_connect_at_us = 0;        // when kWaitingToReconnect: next attempt
-  std::string last_connect_error;             // e.g. "connection refused"
-  std::int64_t last_connect_error_us = 0;
-  std::uint64_t tls_failures = 0;
+  // Why the most recent connect attempt failed, e.g. "TLS: certificate verify failed (unable to
+  // get local issuer certificate)", "TLS: host name mismatch", "connection refused",
+  // "unreachable (...)", "not authorised"; empty once connected again.
+  std::string last_connect_error;
+  std::int64_t last_connect_error_us = 0;  // `now` when it was set; 0 when empty
+  std::uint64_t tls_failures = 0;          // failed attempts whose reason is a TLS failure
 };
 
 class Uplink {
  public:
-  // `payload` is the raw MQTT payload (a serialized fleetgw.v1.SignedCommand).
-  using CommandHandler = std::function<void(std::string_view payload)>;
-
   // Validates the configuration (std::invalid_argument) and creates the MQTT client. Does not
   // connect. `outbox` must outlive the Uplink.
   Uplink(UplinkConfig config, OutboxSource& outbox);
@@ -97,7 +110,6 @@ class Uplink {
   Uplink& operator=(const Uplink&) = delete;
 
   // Set before start(). The wake-up hook is called on Paho threads: thread-safe, non-blocking.
-  void set_command_handler(CommandHandler handler);
   void set_wakeup(std::function<void()> wakeup);
   // Reported in Status messages.
   void set_bus_state(fleetgw::v1::BusState state);
@@ -108,21 +120,24 @@ class Uplink {
   void poll(Micros now);
   // Blocks until a Paho event is queued or `max_wait` passed; true if events are queued.
   bool wait_for_events(std::chrono::milliseconds max_wait);
-  // Latest time by which poll() should run again even without a wake-up.
-  Micros next_poll_due(Micros now) const;
-  // Commands received by poll() since the last call (raw SignedCommand payloads), in arrival
-  // order; without a command handler set, poll() only queues them here.
+  // Commands received since the last call (raw serialized fleetgw.v1.SignedCommand payloads, in
+  // arrival order), already checked for size and decodability. Call after poll().
   std::vector<std::string> take_commands();
-  // Publishes one record that is not in the outbox (QoS 1), e.g. an unstored command result;
-  // false when it could not be handed to the client.
+  // Publishes one record that is not in the outbox (QoS 1, sequence 0), e.g. a command result
+  // that could not be stored. `kind` is one of fleetgw::uplink::kind; `payload` its serialized
+  // body message. False when not connected, when the payload does not decode as the kind's
+  // message, or when the client refused it; true once handed to MQTT.
   bool publish_direct(std::string_view kind, std::string payload, Micros now);
-  // When poll() must run at the latest without a wake-up (wall clock); nullopt: only on wakeup.
+  // Latest time by which poll() should run again even without a wake-up, on the `now` timeline.
+  Micros next_poll_due(Micros now) const;
+  // The same as a steady_clock deadline (reconnect due, telemetry batch due, status refresh,
+  // stale resend); nullopt = poll only on a wake-up.
   std::optional<std::chrono::steady_clock::time_point> next_deadline() const;
   // Publishes the retained offline status (when connected), disconnects and waits at most
   // `timeout` for each step. Records still in flight stay in the outbox.
   void stop(Micros now, std::chrono::milliseconds timeout = std::chrono::seconds(5));
 
-  LinkState state() const;
+  UplinkState state() const;
   UplinkStats stats() const;
   const Topics& topics() const;
 

@@ -39,8 +39,6 @@ class LiveGateway {
     c.reconnect_min = 200ms;
     c.reconnect_max = 1000ms;
     link = std::make_unique<uplink::Uplink>(c, outbox);
-    link->set_command_handler(
-        [this](std::string_view payload) { rig.service->on_payload(payload, rig.bus.now()); });
     link->start(wall_now());
   }
   ~LiveGateway() { link->stop(wall_now(), 2s); }
@@ -49,13 +47,14 @@ class LiveGateway {
     const Micros now = wall_now();
     if (now > rig.bus.now()) rig.bus.run_until(now);
     link->poll(now);
+    for (const auto& payload : link->take_commands()) rig.service->on_payload(payload, now);
     link->wait_for_events(2ms);
   }
   bool run_until_connected(std::chrono::seconds limit) {
     const auto end = std::chrono::steady_clock::now() + limit;
     while (std::chrono::steady_clock::now() < end) {
       step();
-      if (link->state() == uplink::LinkState::kConnected) {
+      if (link->state() == uplink::UplinkState::kConnected) {
         // Let the cmd subscription complete and the locks be heard.
         const auto settle = std::chrono::steady_clock::now() + 1500ms;
         while (std::chrono::steady_clock::now() < settle) step();

@@ -241,7 +241,7 @@ TEST(UplinkMqtt, OutageLosesNothingAndKeepsOrderWithinEachPriority) {
   Uplink up(cfg, box);
   up.start(wall_now());
   ASSERT_TRUE(drive(
-      up, [&] { return up.state() == LinkState::kConnected; }, 10s));
+      up, [&] { return up.state() == UplinkState::kConnected; }, 10s));
   // Phase 1: stream with the broker up.
   for (int round = 0; round < 20; ++round) {
     produce(25);
@@ -256,7 +256,7 @@ TEST(UplinkMqtt, OutageLosesNothingAndKeepsOrderWithinEachPriority) {
     drive(
         up, [] { return false; }, 15ms);
   }
-  EXPECT_NE(up.state(), LinkState::kConnected);
+  EXPECT_NE(up.state(), UplinkState::kConnected);
   const auto during = up.stats();
   EXPECT_GE(during.connection_losses, 1u);
   EXPECT_GE(during.connect_failures, 1u);
@@ -309,7 +309,7 @@ TEST(UplinkMqtt, InFlightIsBoundedAndNothingIsAckedWithoutPuback) {
   // The broker dies with those publishes unacknowledged: they must stay in the outbox.
   broker.kill();
   ASSERT_TRUE(drive(
-      up, [&] { return up.state() != LinkState::kConnected; }, 10s));
+      up, [&] { return up.state() != UplinkState::kConnected; }, 10s));
   EXPECT_EQ(box.acked_records(), 0u);
   EXPECT_EQ(box.stats().depth, 200u);
   broker.start();
@@ -333,7 +333,7 @@ TEST(UplinkMqtt, BackoffIsObservableAndConnectsWhenTheBrokerAppears) {
   ASSERT_TRUE(drive(
       up, [&] { return up.stats().connect_failures >= 4; }, 10s));
   auto st = up.stats();
-  EXPECT_EQ(st.state, LinkState::kWaitingToReconnect);
+  EXPECT_EQ(st.state, UplinkState::kWaitingToReconnect);
   EXPECT_GE(st.last_backoff.count(), 80);  // 4th failure: d = 160 ms, wait in [80, 160]
   EXPECT_LE(st.last_backoff.count(), 160);
   EXPECT_GT(st.next_connect_at_us, 0);
@@ -374,14 +374,14 @@ TEST(UplinkMqtt, BrokerSocketGetsTcpNodelayAfterEveryConnect) {
     Uplink up(cfg, box);
     up.start(wall_now());
     ASSERT_TRUE(drive(
-        up, [&] { return up.state() == LinkState::kConnected; }, 10s));
+        up, [&] { return up.state() == UplinkState::kConnected; }, 10s));
     EXPECT_EQ(nodelay_of_sockets_to(broker.port()), std::vector<int>{enabled ? 1 : 0});
     if (enabled) {
       // A reconnect opens a new socket: it gets the option too.
       broker.stop();
       broker.start();
       ASSERT_TRUE(drive(
-          up, [&] { return up.stats().reconnects >= 1 && up.state() == LinkState::kConnected; },
+          up, [&] { return up.stats().reconnects >= 1 && up.state() == UplinkState::kConnected; },
           15s));
       EXPECT_EQ(nodelay_of_sockets_to(broker.port()), std::vector<int>{1});
     }
@@ -399,7 +399,10 @@ TEST(UplinkMqtt, BadCommandPayloadsAreDroppedAndTheClientKeepsWorking) {
   cfg.max_command_bytes = 4096;
   Uplink up(cfg, box);
   std::vector<std::string> handled;
-  up.set_command_handler([&](std::string_view p) { handled.emplace_back(p); });
+  // Commands are only queued inside poll(); the owner takes them after it returns.
+  auto take = [&] {
+    for (auto& c : up.take_commands()) handled.push_back(std::move(c));
+  };
   up.start(wall_now());
   ASSERT_TRUE(drive(
       up, [&] { return up.stats().acked_messages >= 1; }, 10s));
@@ -422,7 +425,12 @@ TEST(UplinkMqtt, BadCommandPayloadsAreDroppedAndTheClientKeepsWorking) {
   pub.publish(topic, std::string(), 1, false)->wait();                       // empty
   pub.publish(topic, good, 1, false)->wait();
   ASSERT_TRUE(drive(
-      up, [&] { return handled.size() == 1 && up.stats().commands_dropped == 3; }, 10s))
+      up,
+      [&] {
+        take();
+        return handled.size() == 1 && up.stats().commands_dropped == 3;
+      },
+      10s))
       << handled.size() << " " << up.stats().commands_dropped;
   EXPECT_EQ(handled[0], good);
   // Still publishing after the garbage.
@@ -430,7 +438,7 @@ TEST(UplinkMqtt, BadCommandPayloadsAreDroppedAndTheClientKeepsWorking) {
   ASSERT_TRUE(drive(
       up, [&] { return box.stats().depth == 0; }, 10s));
   EXPECT_TRUE(sub.wait_until([](auto& m) { return m.size() == 1; }, 5s));
-  EXPECT_EQ(up.state(), LinkState::kConnected);
+  EXPECT_EQ(up.state(), UplinkState::kConnected);
 }
 
 // ---- status and last will --------------------------------------------------------------------
@@ -453,7 +461,7 @@ TEST(UplinkMqtt, StopPublishesRetainedOfflineStatus) {
     ASSERT_TRUE(drive(
         up, [&] { return up.stats().acked_messages >= 1; }, 10s));
     up.stop(wall_now());
-    EXPECT_EQ(up.state(), LinkState::kStopped);
+    EXPECT_EQ(up.state(), UplinkState::kStopped);
   }
   // A consumer arriving later reads the retained status.
   Subscriber late(broker.uri(), "fleet/v1/bike-stop/status", "backend-late");

@@ -3,6 +3,10 @@
 // write only below its own topic prefix).
 #include <gtest/gtest.h>
 
+#include <spdlog/sinks/ringbuffer_sink.h>
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
 #include <fstream>
 #include <regex>
 #include <sstream>
@@ -96,9 +100,14 @@ TEST_F(UplinkTls, RefusesAServerWhoseCertificateNamesAnotherHost) {
     Uplink up(vehicle_config(broker.uri(), "bike-name", cert), box);
     up.start(wall_now());
     ASSERT_TRUE(drive(
-        up, [&] { return up.stats().connect_failures >= 2; }, 15s));
+        up,
+        [&] { return up.stats().connect_failures >= 2 && !up.stats().last_connect_error.empty(); },
+        15s));
     EXPECT_EQ(up.stats().connects, 0u);
     EXPECT_EQ(box.stats().depth, 1u);
+    // The reason a technician can act on, not "rc -1".
+    EXPECT_EQ(up.stats().last_connect_error, "TLS: host name mismatch");
+    EXPECT_GE(up.stats().tls_failures, 1u);
   }
   // Control: the same broker and chain are accepted once name checking is off, so the refusal
   // above was the host name and nothing else.
@@ -120,8 +129,52 @@ TEST_F(UplinkTls, RefusesAServerFromAnUntrustedCa) {
   Uplink up(cfg, box);
   up.start(wall_now());
   ASSERT_TRUE(drive(
-      up, [&] { return up.stats().connect_failures >= 2; }, 15s));
+      up,
+      [&] { return up.stats().connect_failures >= 2 && !up.stats().last_connect_error.empty(); },
+      15s));
   EXPECT_EQ(up.stats().connects, 0u);
+  const std::string reason = up.stats().last_connect_error;
+  EXPECT_EQ(reason.rfind("TLS: certificate verify failed (", 0), 0u) << reason;
+  EXPECT_EQ(reason.find("host name"), std::string::npos) << reason;
+  EXPECT_GE(up.stats().tls_failures, 1u);
+  EXPECT_GT(up.stats().last_connect_error_us, 0);
+}
+
+TEST_F(UplinkTls, ReasonIsLoggedOncePerDistinctCauseAndClearedOnConnect) {
+  auto log = std::make_shared<spdlog::sinks::ringbuffer_sink_mt>(256);
+  spdlog::default_logger()->sinks().push_back(log);
+  const auto count_reason_lines = [&] {
+    int n = 0;
+    for (const auto& line : log->last_formatted()) {
+      if (line.find("cannot connect") != std::string::npos) ++n;
+    }
+    return n;
+  };
+  MosquittoBroker broker(tls_options(pki_->server()));
+  broker.start();
+  MemoryOutbox box;
+  box.push(1, kind::kFault, wall_now().count(), testing::fault_payload(2));
+  // An untrusted CA first: every retry fails the same way.
+  auto cfg = vehicle_config(broker.uri(), "bike-once", pki_->issue_client("bike-once"));
+  cfg.tls->ca_file = pki_->foreign_ca_cert().string();
+  {
+    Uplink up(cfg, box);
+    up.start(wall_now());
+    ASSERT_TRUE(drive(
+        up, [&] { return up.stats().connect_failures >= 5 && up.stats().tls_failures >= 3; }, 20s));
+    EXPECT_EQ(count_reason_lines(), 1) << "one line per distinct reason, not per retry";
+  }
+  // The right CA: connected, the reason is gone.
+  cfg.tls->ca_file = pki_->ca_cert().string();
+  Uplink up(cfg, box);
+  up.start(wall_now());
+  ASSERT_TRUE(drive(
+      up, [&] { return box.stats().depth == 0; }, 15s))
+      << broker.log();
+  EXPECT_TRUE(up.stats().last_connect_error.empty());
+  EXPECT_EQ(up.stats().last_connect_error_us, 0);
+  auto& sinks = spdlog::default_logger()->sinks();
+  sinks.erase(std::remove(sinks.begin(), sinks.end(), log), sinks.end());
 }
 
 TEST_F(UplinkTls, BrokerRefusesAClientWithoutCertificate) {

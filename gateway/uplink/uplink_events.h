@@ -1,0 +1,148 @@
+// Internal to the uplink: what Paho's threads (and the connect diagnosis thread) hand to poll().
+//
+// Contract: events are plain values, nothing refers to Paho objects. EventQueue is the only
+// state shared between those threads and the owner's thread: push() is thread-safe and calls
+// the wake-up hook after every event; take() moves all queued events out. The number of queued
+// commands is tracked in an atomic so the Paho thread can bound it without scanning the queue.
+// Listeners tag tokens with our own integer id (never a pointer), so a late completion of a
+// publish already given up on is simply ignored.
+#pragma once
+
+#include <atomic>
+#include <chrono>
+#include <condition_variable>
+#include <cstdint>
+#include <deque>
+#include <functional>
+#include <mutex>
+#include <string>
+#include <utility>
+#include <variant>
+
+#include <mqtt/async_client.h>
+
+namespace fleetgw::uplink::detail {
+
+struct ConnectDone {
+  std::uint64_t attempt;
+  bool ok;
+  int rc;
+  std::string message;
+};
+struct ConnectionLost {
+  std::string cause;
+};
+struct PublishDone {
+  std::uint64_t id;
+  bool ok;
+  int rc;
+  std::string message;
+};
+struct SubscribeDone {
+  bool ok;
+  int rc;
+};
+struct CommandArrived {
+  std::string payload;
+};
+struct CommandDropped {
+  std::string reason;
+  bool large = false;  // a payload worth returning the heap to the system after
+};
+// The diagnosis of failed connect attempt `attempt` (connect_diagnosis.h).
+struct ConnectDiagnosed {
+  std::uint64_t attempt;
+  std::string reason;
+};
+using Event = std::variant<ConnectDone, ConnectionLost, PublishDone, SubscribeDone, CommandArrived,
+                           CommandDropped, ConnectDiagnosed>;
+
+class EventQueue {
+ public:
+  void push(Event e) {
+    {
+      std::lock_guard lock(mutex_);
+      if (std::holds_alternative<CommandArrived>(e)) ++queued_commands_;
+      events_.push_back(std::move(e));
+    }
+    cv_.notify_one();
+    if (wakeup_) wakeup_();
+  }
+  std::deque<Event> take() {
+    std::lock_guard lock(mutex_);
+    return std::exchange(events_, {});
+  }
+  bool wait(std::chrono::milliseconds max_wait) {
+    std::unique_lock lock(mutex_);
+    return cv_.wait_for(lock, max_wait, [&] { return !events_.empty(); });
+  }
+  // Commands queued or waiting for take_commands(); the owner releases them with
+  // commands_taken().
+  std::size_t queued_commands() const { return queued_commands_.load(); }
+  void commands_taken(std::size_t n) { queued_commands_ -= n; }
+
+  // Set before the client starts; read-only afterwards, so no lock is needed to call it.
+  std::function<void()> wakeup_;
+
+ private:
+  mutable std::mutex mutex_;
+  std::condition_variable cv_;
+  std::deque<Event> events_;
+  std::atomic<std::size_t> queued_commands_{0};
+};
+
+inline void* to_context(std::uint64_t id) {
+  return reinterpret_cast<void*>(static_cast<std::uintptr_t>(id));
+}
+inline std::uint64_t from_context(const mqtt::token& tok) {
+  return static_cast<std::uint64_t>(reinterpret_cast<std::uintptr_t>(tok.get_user_context()));
+}
+
+inline std::string token_error(const mqtt::token& tok) {
+  std::string msg = "rc " + std::to_string(tok.get_return_code());
+  const std::string text = mqtt::exception::error_str(tok.get_return_code());
+  if (!text.empty()) msg += " (" + text + ")";
+  return msg;
+}
+
+class ConnectListener final : public mqtt::iaction_listener {
+ public:
+  explicit ConnectListener(EventQueue& q) : q_(q) {}
+  void on_success(const mqtt::token& tok) override {
+    q_.push(ConnectDone{from_context(tok), true, 0, {}});
+  }
+  void on_failure(const mqtt::token& tok) override {
+    q_.push(ConnectDone{from_context(tok), false, tok.get_return_code(), token_error(tok)});
+  }
+
+ private:
+  EventQueue& q_;
+};
+
+class PublishListener final : public mqtt::iaction_listener {
+ public:
+  explicit PublishListener(EventQueue& q) : q_(q) {}
+  void on_success(const mqtt::token& tok) override {
+    q_.push(PublishDone{from_context(tok), true, 0, {}});
+  }
+  void on_failure(const mqtt::token& tok) override {
+    q_.push(PublishDone{from_context(tok), false, tok.get_return_code(), token_error(tok)});
+  }
+
+ private:
+  EventQueue& q_;
+};
+
+class SubscribeListener final : public mqtt::iaction_listener {
+ public:
+  explicit SubscribeListener(EventQueue& q) : q_(q) {}
+  void on_success(const mqtt::token&) override { q_.push(SubscribeDone{true, 0}); }
+  void on_failure(const mqtt::token& tok) override {
+    q_.push(SubscribeDone{false, tok.get_return_code()});
+  }
+
+ private:
+  EventQueue& q_;
+};
+
+}  // namespace fleetgw::uplink::detail

@@ -1,0 +1,127 @@
+// Internal to the uplink: the state behind Uplink (uplink.h), shared by uplink.cc (lifecycle:
+// connect, diagnose, reconnect, stop, event dispatch) and uplink_publish.cc (outbox draining,
+// telemetry batching, publishing and acks).
+//
+// Contract: every member is touched only on the owner's thread (inside Uplink's methods),
+// except `events` and the listeners, which Paho's threads and the diagnosis thread use, and
+// which are declared so that they are destroyed after the client and the diagnosis thread.
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <memory>
+#include <set>
+#include <string>
+#include <thread>
+#include <unordered_map>
+#include <vector>
+
+#include <mqtt/async_client.h>
+
+#include "fleetgw/v1/status.pb.h"
+#include "gateway/uplink/backoff.h"
+#include "gateway/uplink/envelope_writer.h"
+#include "gateway/uplink/uplink.h"
+#include "gateway/uplink/uplink_events.h"
+
+namespace fleetgw::uplink {
+
+struct Uplink::Impl {
+  struct PendingBatch {
+    TelemetryBatchWriter writer;
+    std::vector<std::uint64_t> seqs;
+    std::size_t bytes = 0;
+    std::int64_t oldest_created_us = 0;
+    std::int64_t newest_created_us = 0;
+    std::int64_t first_created_us = 0;
+    bool empty() const { return seqs.empty(); }
+  };
+  struct InFlightEntry {
+    std::vector<std::uint64_t> seqs;  // outbox records carried; empty for other messages
+    int qos = 1;
+    std::uint64_t connection = 0;  // counters.connects when it was sent
+  };
+
+  Impl(UplinkConfig c, OutboxSource& o);
+  std::unique_ptr<mqtt::async_client> make_client();
+  void recycle_client(Micros now);
+
+  // ---- Paho thread ----
+  void on_message(const mqtt::message& msg);
+
+  // ---- owner's thread: lifecycle (uplink.cc) ----
+  mqtt::connect_options make_connect_options(Micros now) const;
+  void connect(Micros now);
+  void on_connect_failed(Micros now, int rc, const std::string& message);
+  void on_diagnosed(Micros now, const detail::ConnectDiagnosed& d);
+  void set_connect_error(Micros now, const std::string& reason);
+  void schedule_reconnect(Micros now);
+  void on_connected(Micros now);
+  void on_connection_lost(Micros now, const std::string& cause);
+  void poll(Micros now);
+  void handle(Micros now, detail::ConnectDone& e);
+  void handle(Micros now, detail::ConnectionLost& e);
+  void handle(Micros now, detail::PublishDone& e);
+  void handle(Micros now, detail::SubscribeDone& e);
+  void handle(Micros now, detail::CommandArrived& e);
+  void handle(Micros now, detail::CommandDropped& e);
+  void handle(Micros now, detail::ConnectDiagnosed& e);
+  void stop(Micros now, std::chrono::milliseconds timeout);
+  Micros next_due(Micros now) const;
+
+  // ---- owner's thread: publishing (uplink_publish.cc) ----
+  EnvelopeHeader header(std::uint64_t seq, std::int64_t created_us) const;
+  std::string serialize_status(Micros now, v1::OnlineState online, v1::ConnectionState conn) const;
+  void publish_status(Micros now);
+  bool publish(const std::string& topic, std::string payload, int qos, bool retained,
+               std::vector<std::uint64_t> seqs);
+  bool publish_direct(std::string_view kind, std::string payload, Micros now);
+  void on_publish_done(Micros now, const detail::PublishDone& d);
+  void resend_stale(Micros now);
+  void release(const std::vector<std::uint64_t>& seqs);
+  void reject(const OutgoingRecord& e, std::string_view why);
+  std::size_t capacity() const;
+  void flush_batch(Micros now);
+  bool batch_due(Micros now) const;
+  bool add_telemetry(Micros now, const OutgoingRecord& e);
+  bool publish_record(const OutgoingRecord& e);
+  void drain(Micros now);
+
+  UplinkConfig config;
+  OutboxSource& outbox;
+  Topics topics;
+  Backoff backoff;
+  UplinkState state = UplinkState::kStopped;
+  UplinkStats counters;
+  v1::BusState bus_state = v1::BUS_STATE_UNSPECIFIED;
+  std::vector<std::string> commands;  // waiting for take_commands()
+  std::uint64_t connect_attempt = 0;
+  std::uint64_t publish_id = 0;
+  std::unordered_map<std::uint64_t, InFlightEntry> in_flight;
+  std::set<std::uint64_t> claimed;  // in flight or in the pending batch
+  PendingBatch batch;
+  bool head_is_telemetry = true;  // the last outbox read ended in telemetry records
+  Micros last_status{0};
+  Micros connected_at{0};
+  Micros last_now{0};  // the latest `now` we were given (for the destructor's offline status)
+  std::string logged_connect_error;  // the reason last logged (each distinct one logged once)
+  bool last_failure_was_tls = false;
+  bool diagnosis_done = true;  // the diagnosis thread's result was handled
+  Micros heap_trim_due{0};     // 0 = none; after a large command was dropped
+  Micros recycle_due{0};       // 0 = none; when to replace the client after a large command
+  Micros last_recycle{0};
+  std::chrono::steady_clock::time_point last_poll_steady{};  // when `last_now` was given
+
+  // Declared last, destroyed first (reverse order): the diagnosis thread and Paho may still
+  // push events while they shut down, so the queue and listeners must outlive them.
+  detail::EventQueue events;
+  detail::ConnectListener connect_listener;
+  detail::PublishListener publish_listener;
+  detail::SubscribeListener subscribe_listener;
+  // A pointer so it can be replaced: Paho C keeps a read buffer as large as the largest packet
+  // it ever received until its last client is destroyed (recycle_client()).
+  std::unique_ptr<mqtt::async_client> client;
+  std::jthread diagnosis;  // at most one diagnosis at a time
+};
+
+}  // namespace fleetgw::uplink
