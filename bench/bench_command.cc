@@ -27,7 +27,7 @@
 #include "fleetgw/v1/command.pb.h"
 #include "fleetgw/v1/envelope.pb.h"
 #include "gateway/command/command_service.h"
-#include "gateway/command/command_tool.h"
+#include "gateway/command/signing.h"
 #include "gateway/config/config.h"
 #include "gateway/node/messages.h"
 #include "gateway/runtime/gateway_core.h"
@@ -144,7 +144,7 @@ struct Gateway {
     service = std::make_unique<command::CommandService>(
         command::make_command_service_config(cfg),
         command::CommandContext{
-            core->node(), *store, nullptr, command::default_clock_synchronised, {}});
+            core->node(), *store, nullptr, command::default_clock_synchronised, {}, {}, {}});
     service->set_result_observer([this](const v1::CommandResult& r, bool) { last = r; });
     bus.run_for(2s);  // the lock is heard: online
   }

@@ -247,7 +247,7 @@ int run_service(const config::Config& config, const ServiceOptions& options,
     commands = std::make_unique<command::CommandService>(
         command::make_command_service_config(config),
         command::CommandContext{core.node(), *store, &recorder.trackers(),
-                                command::default_clock_synchronised, system_now});
+                                command::default_clock_synchronised, system_now, {}, {}});
   } catch (const std::exception& e) {
     spdlog::critical("invalid [command] configuration: {}", e.what());
     return 1;
