@@ -27,7 +27,7 @@
 #include "fleetgw/v1/command.pb.h"
 #include "fleetgw/v1/envelope.pb.h"
 #include "gateway/command/command_service.h"
-#include "gateway/command/command_tool.h"
+#include "gateway/command/signing.h"
 #include "gateway/config/config.h"
 #include "gateway/node/messages.h"
 #include "gateway/runtime/gateway_core.h"

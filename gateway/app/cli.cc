@@ -10,7 +10,7 @@
 #include "gateway/app/check_config.h"
 #include "gateway/app/logging.h"
 #include "gateway/app/watch_command.h"
-#include "gateway/command/command_tool.h"
+#include "gateway/app/command_tool.h"
 #include "gateway/config/config.h"
 #include "gateway/decode/decode_command.h"
 #include "gateway/runtime/recorder.h"

@@ -22,7 +22,7 @@
 namespace fleetgw::can {
 
 // State of the CAN controller / interface as the bus sees it (ISO 11898 error states plus
-// "interface down"); not to be confused with uplink::LinkState, the MQTT connection.
+// "interface down"); not to be confused with uplink::UplinkState, the MQTT connection.
 enum class ControllerState : uint8_t { kUp, kErrorWarning, kErrorPassive, kBusOff, kDown };
 std::string_view controller_state_name(ControllerState s);
 

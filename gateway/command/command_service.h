@@ -22,9 +22,24 @@
 //  * Exactly one CommandResult per authenticated command id (rejections included: the id is
 //    journaled with the rejection). It is written with the journal's final state in ONE
 //    transaction, at outbox priority 0 (kind command_result -> uplink cmd_result) with the
-//    serialized fleetgw.v1.CommandResult as payload, so it survives outages and restarts.
+//    serialized fleetgw.v1.CommandResult as payload, so it survives outages and restarts; after
+//    each stored result CommandContext::result_stored() runs (the pipeline publishes at once).
+//  * Every result carries command_sha256, the SHA-256 of the exact SignedCommand.command bytes
+//    it answers, and `stored`. A payload that fails authentication never touches the journal,
+//    the seen ids or the result table: its (rate limited) rejection goes to the outbox only,
+//    bound to the forged bytes, so a genuine command with the same id executes normally and an
+//    operator tool that checks the digest never mistakes the forgery's answer for its own.
 //    Results for payloads that were not authentic (and re-sent results of duplicates) are rate
 //    limited (`unauthenticated_results_per_minute`) so a flood of junk cannot fill the disk.
+//  * A result the store refuses (disk full, I/O error) is still answered: it goes, serialized
+//    with stored=false, to CommandContext::publish_unstored. Its journal row and result row are
+//    kept in memory (bounded, `max_unjournaled`) and written at a later tick once the store
+//    accepts them (with the outbox payload only if publish_unstored could not hand it to MQTT);
+//    until then a redelivery of that id gets the same answer again, never a second execution.
+//    A command whose "executing" entry cannot be journaled is rejected (storage_error) and
+//    answered that way; nothing moves.
+//  * Received strings quoted in reasons and logs are escaped and cut on code-point boundaries
+//    (common/untrusted_text.h): a stored or published reason is always valid UTF-8 and one line.
 //  * Interlocks per lock kind (InterlockRule): by default the frame, wheel and steering locks
 //    never engage and the battery lock never releases while the bike moves: mc_status speed
 //    above interlock_speed_kmh, or motor rpm > 0 within the last interlock_motor_window. Without
@@ -55,6 +70,7 @@
 #include <string_view>
 #include <vector>
 
+#include "gateway/command/motion_interlock.h"
 #include "gateway/command/verifier.h"
 #include "gateway/node/iot_node.h"
 #include "motinova/codec.h"
@@ -74,15 +90,6 @@ class CommandResult;
 }
 
 namespace fleetgw::command {
-
-// When an action on a lock kind is refused while the bike moves.
-struct InterlockRule {
-  bool block_lock_while_moving = false;    // e.g. frame: a bolt must never hit a turning wheel
-  bool block_unlock_while_moving = false;  // e.g. battery: never released while riding
-};
-
-// frame/wheel/rear_wheel/steering: lock blocked; battery: unlock blocked.
-std::map<std::string, InterlockRule> default_interlocks();
 
 struct CommandServiceConfig {
   VerifierConfig verifier;
@@ -104,6 +111,9 @@ struct CommandServiceConfig {
   Micros rejected_retention = 10min;
   int unauthenticated_results_per_minute = 30;
   Micros purge_interval = 60s;
+  // Results the store refused, kept for a later journal write; beyond this the oldest is
+  // given up (counted in CommandStats::unjournaled_dropped).
+  std::size_t max_unjournaled = 256;
 };
 
 // Fills the config from fleetgw.toml: [vehicle].id, [command], [protocol] lock kinds and names.
@@ -124,10 +134,13 @@ struct CommandContext {
   // timeline is simulated faster than real time or replayed from a log; timeouts and the
   // interlocks follow the `now` of the calls (the bus timeline). Empty: `now` is the wall clock.
   std::function<Micros()> wall_clock;
-  // Called after a result row was written to the store (the pipeline publishes at once).
+  // Called after a result row (and its outbox entry) was written to the store: the pipeline
+  // publishes at once instead of waiting for a timer. May be empty.
   std::function<void()> result_stored;
-  // Called with a serialized fleetgw.v1.CommandResult that could NOT be stored; false when it
-  // could not be handed to MQTT either.
+  // Called with a serialized fleetgw.v1.CommandResult (stored = false) that could NOT be stored;
+  // the pipeline publishes it directly on the command-result topic. Returns false when it could
+  // not be handed to MQTT (the result then goes to the outbox once the store accepts it). May be
+  // empty (treated as "not handed over").
   std::function<bool(std::string serialized_result)> publish_unstored;
 };
 
@@ -151,12 +164,16 @@ struct CommandStats {
   std::uint64_t recovered = 0;
   std::uint64_t results_dropped = 0;  // rate limit
   std::uint64_t storage_errors = 0;
+  std::uint64_t results_unstored = 0;               // handed to publish_unstored (or attempted)
+  std::uint64_t unstored_not_published = 0;         // publish_unstored returned false / missing
+  std::uint64_t unjournaled_dropped = 0;            // given up: max_unjournaled exceeded
   std::map<std::string, std::uint64_t> rejections;  // by reason name
 };
 
 class CommandService {
  public:
-  // Called with every result produced or re-sent (after it was stored). For tests, live view.
+  // Called with every result produced or re-sent, after it was stored (stored() true) or handed
+  // to publish_unstored (stored() false). For tests, live view.
   using ResultObserver = std::function<void(const v1::CommandResult& result, bool resent)>;
 
   // Throws std::invalid_argument for a bad configuration (trusted keys, vehicle id).
@@ -174,6 +191,8 @@ class CommandService {
 
   void set_result_observer(ResultObserver observer);
   bool busy() const;
+  // Results the store refused that still wait for their journal write.
+  std::size_t unjournaled() const;
   const CommandStats& stats() const;
   const CommandServiceConfig& config() const;
 

@@ -4,13 +4,31 @@
 #include <stdexcept>
 
 #include "fleetgw/v1/command.pb.h"
+#include "gateway/command/sha256.h"
+#include "gateway/common/untrusted_text.h"
 
 namespace fleetgw::command {
 namespace {
 
 Rejection reject(RejectReason reason, std::string detail, std::string command_id = {},
-                 bool authenticated = false) {
-  return Rejection{reason, std::move(detail), std::move(command_id), authenticated};
+                 bool authenticated = false, std::string command_sha256 = {}) {
+  return Rejection{reason,        std::move(detail),         std::move(command_id),
+                   authenticated, std::move(command_sha256), {}};
+}
+
+// A payload that failed authentication: bound to the whole payload, never to its command bytes.
+Rejection unauthentic(std::span<const std::uint8_t> payload, RejectReason reason,
+                      std::string detail, std::string command_id = {}) {
+  Rejection r{reason, std::move(detail), std::move(command_id), false, {}, {}};
+  r.payload_sha256 = sha256({reinterpret_cast<const char*>(payload.data()), payload.size()});
+  return r;
+}
+
+// Longest excerpt of a received string quoted in a rejection detail.
+constexpr std::size_t kMaxQuoted = 64;
+
+std::string quote_untrusted(std::string_view untrusted) {
+  return "'" + common::untrusted_excerpt(untrusted, kMaxQuoted) + "'";
 }
 
 bool valid_vehicle_id(std::string_view id) {
@@ -113,18 +131,21 @@ VerifyResult CommandVerifier::authenticate(std::span<const std::uint8_t> payload
   }
   v1::SignedCommand signed_cmd;
   if (!signed_cmd.ParseFromArray(payload.data(), static_cast<int>(payload.size()))) {
-    return reject(RejectReason::kMalformed, "not a fleetgw.v1.SignedCommand");
+    return unauthentic(payload, RejectReason::kMalformed, "not a fleetgw.v1.SignedCommand");
   }
-  if (signed_cmd.command().empty()) return reject(RejectReason::kMalformed, "empty command");
+  if (signed_cmd.command().empty()) {
+    return unauthentic(payload, RejectReason::kMalformed, "empty command");
+  }
   v1::Command cmd;
   if (!cmd.ParseFromString(signed_cmd.command())) {
-    return reject(RejectReason::kMalformed, "command bytes are not a fleetgw.v1.Command");
+    return unauthentic(payload, RejectReason::kMalformed,
+                       "command bytes are not a fleetgw.v1.Command");
   }
   // The id is reported back even for commands that fail later checks, but only when it is
   // well-formed: arbitrary bytes never reach logs, topics or the database.
   std::string id = is_valid_command_id(cmd.command_id()) ? cmd.command_id() : std::string();
   auto bad = [&](std::string detail) {
-    return reject(RejectReason::kMalformed, std::move(detail), id);
+    return unauthentic(payload, RejectReason::kMalformed, std::move(detail), id);
   };
   if (signed_cmd.signature().empty()) return bad("no signature");
   if (signed_cmd.key_id().empty()) return bad("no key id");
@@ -150,19 +171,22 @@ VerifyResult CommandVerifier::authenticate(std::span<const std::uint8_t> payload
 
   const auto key = keys_.find(signed_cmd.key_id());
   if (key == keys_.end()) {
-    return reject(RejectReason::kUnknownKey,
-                  "key id '" + signed_cmd.key_id().substr(0, 64) + "' is not trusted", id);
+    return unauthentic(payload, RejectReason::kUnknownKey,
+                       "key id " + quote_untrusted(signed_cmd.key_id()) + " is not trusted", id);
   }
   const auto* msg = reinterpret_cast<const std::uint8_t*>(signed_cmd.command().data());
   const auto* sig = reinterpret_cast<const std::uint8_t*>(signed_cmd.signature().data());
   if (!key->second.verify({msg, signed_cmd.command().size()},
                           {sig, signed_cmd.signature().size()})) {
-    return reject(RejectReason::kBadSignature,
-                  "Ed25519 signature does not verify with key '" + key->first + "'", id);
+    return unauthentic(payload, RejectReason::kBadSignature,
+                       "Ed25519 signature does not verify with key " + quote_untrusted(key->first),
+                       id);
   }
+  // Authentic from here on: bound to the signed bytes.
+  std::string digest = sha256(signed_cmd.command());
   if (cmd.vehicle_id() != config_.vehicle_id) {
     return reject(RejectReason::kWrongVehicle,
-                  "command is for vehicle '" + cmd.vehicle_id().substr(0, 64) + "'", id, true);
+                  "command is for vehicle " + quote_untrusted(cmd.vehicle_id()), id, true, digest);
   }
 
   VerifiedCommand out;
@@ -175,7 +199,7 @@ VerifyResult CommandVerifier::authenticate(std::span<const std::uint8_t> payload
                                                        : node::LockTarget::kUnlocked;
   out.whole_vehicle = cmd.target_case() == v1::Command::kWholeVehicle;
   if (!out.whole_vehicle) out.lock_kind = cmd.lock_kind();
-  out.command_bytes = signed_cmd.command();
+  out.command_sha256 = std::move(digest);
   return out;
 }
 
@@ -183,7 +207,7 @@ std::optional<Rejection> CommandVerifier::check(VerifiedCommand& c, Micros now,
                                                 bool clock_synchronised,
                                                 const SeenPredicate& seen) const {
   auto reject_auth = [&](RejectReason r, std::string detail) {
-    return reject(r, std::move(detail), c.command_id, true);
+    return reject(r, std::move(detail), c.command_id, true, c.command_sha256);
   };
   if (!clock_synchronised) {
     return reject_auth(RejectReason::kClockUnsynchronised,
@@ -219,7 +243,7 @@ std::optional<Rejection> CommandVerifier::check(VerifiedCommand& c, Micros now,
     }
     if (c.lock_index < 0) {
       return reject_auth(RejectReason::kLockNotFitted,
-                         "no '" + c.lock_kind.substr(0, 64) + "' lock fitted to this vehicle");
+                         "no " + quote_untrusted(c.lock_kind) + " lock fitted to this vehicle");
     }
   }
   return std::nullopt;

@@ -22,7 +22,15 @@
 //    redelivery of a command it already journaled before judging its freshness again.
 //  * Rejection::command_id is the id found in the payload when one could be parsed, even if the
 //    command was not authentic (so an operator sees why their command was refused);
-//    Rejection::authenticated tells whether the signature was valid.
+//    Rejection::authenticated tells whether the signature was valid. A VerifiedCommand and an
+//    authenticated Rejection carry the SHA-256 of the received `command` bytes (sha256.h); an
+//    unauthenticated Rejection carries only the SHA-256 of the whole payload: a forged payload
+//    can copy a genuine command's bytes and id with a broken signature, so its answer must not
+//    be bound to those bytes.
+//  * The payload is parsed once: one SignedCommand parse, one Command parse.
+//  * Received strings quoted in a detail (key id, vehicle id, lock kind) are untrusted: they go
+//    through common::untrusted_excerpt (valid UTF-8, control characters escaped, cut on a
+//    code-point boundary), so a detail is always safe to log, store and serialize.
 //  * The constructor throws std::invalid_argument for a trusted key that is not a base64 raw
 //    Ed25519 public key (naming the key id) or an invalid vehicle id.
 #pragma once
@@ -83,6 +91,11 @@ struct Rejection {
   std::string detail;      // e.g. "expires_at 2024-06-01T08:00:00Z <= now 2024-06-01T08:00:05Z"
   std::string command_id;  // from the payload when parseable; may be empty
   bool authenticated = false;
+  // Authenticated: SHA-256 of the received SignedCommand.command bytes (32 raw bytes).
+  // Not authenticated: empty, and payload_sha256 is the SHA-256 of the whole payload (empty for
+  // an oversized one). Copied into the CommandResult so it is bound to what was received.
+  std::string command_sha256{};
+  std::string payload_sha256{};
 };
 
 // A command that passed authentication (and, from verify(), every check).
@@ -96,7 +109,9 @@ struct VerifiedCommand {
   bool whole_vehicle = false;
   std::string lock_kind;  // empty for whole_vehicle
   int lock_index = -1;    // 0-based LOCK k (node 7 + k); -1 for whole_vehicle or not yet resolved
-  std::string command_bytes;  // the signed Command bytes (tells a redelivery from id reuse)
+  // SHA-256 of the signed Command bytes: binds the result to them and tells a redelivery (same
+  // bytes) from a reused id (different bytes).
+  std::string command_sha256;
 };
 
 using VerifyResult = std::variant<VerifiedCommand, Rejection>;

@@ -55,7 +55,7 @@ namespace fleetgw::uplink {
 
 using motinova::Micros;
 
-// State of the uplink's MQTT connection (not the CAN bus link, can::LinkState, nor the
+// State of the uplink's MQTT connection (not the CAN bus link, can::ControllerState, nor the
 // ConnectionState published in fleetgw.v1.Status).
 enum class UplinkState {
   kStopped,             // not started, or stopped

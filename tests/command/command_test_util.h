@@ -14,8 +14,8 @@
 
 #include "fleetgw/v1/command.pb.h"
 #include "gateway/command/command_service.h"
-#include "gateway/command/command_tool.h"
 #include "gateway/command/ed25519.h"
+#include "gateway/command/signing.h"
 #include "gateway/config/config.h"
 #include "gateway/domain/domain_trackers.h"
 #include "gateway/node/messages.h"
@@ -151,9 +151,13 @@ struct Rig {
     return c;
   }
   void make_service() {
-    service = std::make_unique<CommandService>(
-        service_config(),
-        CommandContext{core->node(), *store, trackers.get(), clock_synced, wall_clock});
+    CommandContext context{core->node(), *store, trackers.get(), clock_synced, wall_clock, {}, {}};
+    context.result_stored = [this] { ++stored_calls; };
+    context.publish_unstored = [this](std::string serialized) {
+      unstored.push_back(std::move(serialized));
+      return publish_unstored_ok;
+    };
+    service = std::make_unique<CommandService>(service_config(), std::move(context));
     service->set_result_observer([this](const v1::CommandResult& r, bool resent) {
       results.push_back(r);
       resent_flags.push_back(resent);
@@ -236,8 +240,35 @@ struct Rig {
   std::function<void(CommandServiceConfig&)> tweak;
   std::vector<v1::CommandResult> results;
   std::vector<bool> resent_flags;
+  // CommandContext::result_stored calls, and what went to CommandContext::publish_unstored.
+  int stored_calls = 0;
+  std::vector<std::string> unstored;
+  bool publish_unstored_ok = true;
   Disposition last_disposition = Disposition::kRejected;
 };
+
+// The genuine command's bytes and id with a broken signature (what a subscriber to `cmd` can
+// make from the genuine payload without the key).
+inline std::string broken_copy(const std::string& genuine) {
+  v1::SignedCommand s;
+  s.ParseFromString(genuine);
+  std::string sig = s.signature();
+  sig[0] = static_cast<char>(sig[0] ^ 0x01);
+  s.set_signature(sig);
+  return s.SerializeAsString();
+}
+
+// Same id, different content (lock instead of unlock), a made-up signature.
+inline std::string forged_other(const std::string& genuine) {
+  v1::SignedCommand s;
+  s.ParseFromString(genuine);
+  v1::Command c;
+  c.ParseFromString(s.command());
+  c.set_action(v1::COMMAND_ACTION_LOCK);
+  s.set_command(c.SerializeAsString());
+  s.set_signature(std::string(64, 'x'));
+  return s.SerializeAsString();
+}
 
 inline std::string reason_code(const v1::CommandResult& r) {
   return r.reason().substr(0, r.reason().find(':'));

@@ -10,6 +10,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "gateway/app/command_tool.h"
 #include "gateway/runtime/store_outbox.h"
 #include "gateway/uplink/uplink.h"
 #include "tests/command/command_test_util.h"
@@ -158,6 +159,51 @@ TEST(CommandMqtt, ToolExitsNonZeroWhenRejectedOrFailed) {
   const ToolRun failed = gw.drive_while(g);
   EXPECT_EQ(failed.exit_code, kExitNotSucceeded) << failed.out << failed.err;
   EXPECT_EQ(nlohmann::json::parse(failed.out)["result"], "failed");
+}
+
+TEST(CommandMqtt, ToolPrintsOnlyTheResultBoundToTheCommandItSent) {
+  // An attacker who sees the genuine payload on `cmd` gets two forgeries in before it: a copy
+  // of its exact command bytes and id with a broken signature, and a different command under
+  // the same id. Each is answered `rejected: signature_invalid` under that id, published before
+  // the genuine result; the tool must print the genuine `succeeded` only.
+  fleetgw::testing::MosquittoBroker broker;
+  broker.start();
+  LiveGateway gw(broker.uri());
+  int forged_first = 0;
+  gw.link->set_command_handler([&](std::string_view payload) {
+    const std::string genuine(payload);
+    if (Rig::id_of(genuine) == "cmd-spoofed" && forged_first == 0) {
+      for (const auto& forged : {broken_copy(genuine), forged_other(genuine)}) {
+        EXPECT_EQ(gw.rig.service->on_payload(forged, gw.rig.bus.now()), Disposition::kRejected);
+        ++forged_first;
+      }
+    }
+    gw.rig.service->on_payload(genuine, gw.rig.bus.now());
+  });
+  ASSERT_TRUE(gw.run_until_connected(20s)) << broker.log();
+  const auto key_file = gw.rig.dir.path() / "ops.pem";
+  gw.rig.key.write_pem(key_file);
+
+  auto o = tool_options(broker, key_file, "seat", "unlock");
+  o.command_id = "cmd-spoofed";
+  auto f = launch_tool(o);
+  const ToolRun run = gw.drive_while(f);
+  EXPECT_EQ(forged_first, 2);
+  EXPECT_EQ(run.exit_code, kExitSucceeded) << run.out << run.err;
+  EXPECT_EQ(std::count(run.out.begin(), run.out.end(), '\n'), 1) << run.out;
+  const auto j = nlohmann::json::parse(run.out);
+  EXPECT_EQ(j["command_id"], "cmd-spoofed");
+  EXPECT_EQ(j["result"], "succeeded");
+  EXPECT_EQ(j["stored"], true);
+  EXPECT_EQ(gw.rig.lock_state(0), sim::LockState::kUnlocked);
+  // The forgeries' answers did reach the tool, and were set aside.
+  std::size_t ignored = 0;
+  for (auto p = run.err.find("ignored a result for cmd-spoofed"); p != std::string::npos;
+       p = run.err.find("ignored a result for cmd-spoofed", p + 1)) {
+    ++ignored;
+  }
+  EXPECT_EQ(ignored, 2u) << run.err;
+  EXPECT_NE(run.err.find("signature_invalid"), std::string::npos) << run.err;
 }
 
 TEST(CommandMqtt, ToolExitsThreeWithoutAnswerAndTwoOnUsageErrors) {

@@ -1,4 +1,4 @@
-#include "gateway/command/command_tool.h"
+#include "gateway/app/command_tool.h"
 
 #include <mqtt/async_client.h>
 #include <nlohmann/json.hpp>
@@ -11,7 +11,9 @@
 
 #include "fleetgw/v1/command.pb.h"
 #include "fleetgw/v1/envelope.pb.h"
+#include "gateway/command/sha256.h"
 #include "gateway/command/verifier.h"
+#include "gateway/common/untrusted_text.h"
 #include "gateway/uplink/mqtt_connection.h"
 #include "gateway/uplink/tcp_nodelay.h"
 
@@ -30,16 +32,6 @@ std::string hex(std::span<const std::uint8_t> bytes) {
 
 Micros system_now() {
   return std::chrono::duration_cast<Micros>(std::chrono::system_clock::now().time_since_epoch());
-}
-
-bool valid_id_chars(std::string_view id) {
-  if (id.empty() || id.size() > 64) return false;
-  for (const char c : id) {
-    const bool ok = (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') ||
-                    c == '.' || c == '_' || c == '-';
-    if (!ok) return false;
-  }
-  return true;
 }
 
 std::string_view state_name(v1::LockState s) {
@@ -64,6 +56,8 @@ nlohmann::json to_json(const v1::CommandResult& r, std::string_view vehicle, Mic
   j["final_lock_state"] = state_name(r.final_lock_state());
   j["final_lock_state_name"] = r.final_lock_state_name();
   j["duration_ms"] = r.duration_ms();
+  j["command_sha256"] = to_hex(r.command_sha256());
+  j["stored"] = r.stored();
   j["round_trip_ms"] = round_trip.count() / 1000;
   nlohmann::json locks = nlohmann::json::array();
   for (const auto& l : r.locks()) {
@@ -104,79 +98,6 @@ class Inbox {
 
 }  // namespace
 
-std::string random_command_id() {
-  return hex(random_bytes(16));
-}
-
-std::optional<v1::Command> make_command(std::string_view vehicle, std::string_view lock,
-                                        std::string_view action, Micros issued_at,
-                                        Micros expires_at, std::string command_id) {
-  v1::Command c;
-  if (action == "lock") {
-    c.set_action(v1::COMMAND_ACTION_LOCK);
-  } else if (action == "unlock") {
-    c.set_action(v1::COMMAND_ACTION_UNLOCK);
-  } else {
-    return std::nullopt;
-  }
-  if (lock.empty()) return std::nullopt;
-  if (lock == "vehicle") {
-    c.set_whole_vehicle(true);
-  } else {
-    c.set_lock_kind(std::string(lock));
-  }
-  c.set_command_id(std::move(command_id));
-  c.set_vehicle_id(std::string(vehicle));
-  c.set_issued_at_us(issued_at.count());
-  c.set_expires_at_us(expires_at.count());
-  return c;
-}
-
-std::string sign_command(const v1::Command& command, const Ed25519PrivateKey& key,
-                         std::string_view key_id) {
-  v1::SignedCommand s;
-  // Serialized once: the signature covers exactly the bytes that travel.
-  s.set_command(command.SerializeAsString());
-  const auto* bytes = reinterpret_cast<const std::uint8_t*>(s.command().data());
-  const auto sig = key.sign({bytes, s.command().size()});
-  s.set_signature(std::string(sig.begin(), sig.end()));
-  s.set_key_id(std::string(key_id));
-  return s.SerializeAsString();
-}
-
-int run_keygen(const std::filesystem::path& path_prefix, std::ostream& out, std::ostream& err,
-               std::string_view key_id) {
-  try {
-    std::string id(key_id);
-    if (id.empty()) id = path_prefix.filename().string();
-    if (!valid_id_chars(id)) {
-      err << "keygen: key id '" << id << "' must be 1..64 characters of [A-Za-z0-9._-]\n";
-      return 1;
-    }
-    const auto key = Ed25519PrivateKey::generate();
-    const std::filesystem::path pem = path_prefix.string() + ".pem";
-    const std::filesystem::path pub = path_prefix.string() + ".pub";
-    if (std::filesystem::exists(pub)) {
-      err << "keygen: " << pub.string() << " exists; not overwritten\n";
-      return 1;
-    }
-    key.write_pem(pem);
-    const std::string pub64 = key.public_key().base64();
-    std::ofstream(pub) << pub64 << '\n';
-    err << "keygen: private key " << pem.string() << " (mode 0600), public key " << pub.string()
-        << "\nkeygen: add this line to [command.trusted_keys] of the gateways' config:\n";
-    out << id << " = \"" << pub64 << "\"\n";
-    return 0;
-  } catch (const std::exception& e) {
-    err << "keygen: " << e.what() << '\n';
-    return 1;
-  }
-}
-
-int run_keygen(const std::filesystem::path& path_prefix, std::ostream& out) {
-  return run_keygen(path_prefix, out, std::cerr);
-}
-
 int run_command_tool(const CommandToolOptions& o) {
   std::ostream& out = o.out != nullptr ? *o.out : std::cout;
   std::ostream& err = o.err != nullptr ? *o.err : std::cerr;
@@ -186,7 +107,7 @@ int run_command_tool(const CommandToolOptions& o) {
     return kExitUsage;
   };
 
-  if (!valid_id_chars(o.vehicle)) return usage("--vehicle: 1..64 characters of [A-Za-z0-9._-]");
+  if (!is_valid_tool_id(o.vehicle)) return usage("--vehicle: 1..64 characters of [A-Za-z0-9._-]");
   if (o.action != "lock" && o.action != "unlock") return usage("--action: lock or unlock");
   if (o.lock.empty() || o.lock.size() > 64) return usage("--lock: a lock kind or 'vehicle'");
   if (o.broker.rfind("tcp://", 0) != 0 && o.broker.rfind("ssl://", 0) != 0) {
@@ -209,7 +130,7 @@ int run_command_tool(const CommandToolOptions& o) {
     return usage("--topic-prefix: no wildcards");
   }
   std::string key_id = o.key_id.empty() ? o.key.stem().string() : o.key_id;
-  if (!valid_id_chars(key_id)) return usage("--key-id: 1..64 characters of [A-Za-z0-9._-]");
+  if (!is_valid_tool_id(key_id)) return usage("--key-id: 1..64 characters of [A-Za-z0-9._-]");
   std::optional<Ed25519PrivateKey> key;
   try {
     key = Ed25519PrivateKey::load_pem(o.key);
@@ -264,7 +185,8 @@ int run_command_tool(const CommandToolOptions& o) {
     const Micros now = clock();
     const auto cmd = make_command(o.vehicle, o.lock, o.action, now,
                                   now + std::chrono::duration_cast<Micros>(o.expires_in), id);
-    const std::string payload = sign_command(*cmd, *key, key_id);
+    const SentCommand sent = sign_for_sending(*cmd, *key, key_id);
+    const std::string& payload = sent.payload;
     const auto sent_at = std::chrono::steady_clock::now();
     if (!client.publish(cmd_topic, payload.data(), payload.size(), 1, false)
              ->wait_for(remaining())) {
@@ -274,6 +196,7 @@ int run_command_tool(const CommandToolOptions& o) {
     }
     err << "command: " << id << " published to " << cmd_topic << "; waiting for the result\n";
 
+    std::size_t unbound = 0;
     while (auto m = inbox.pop_until(deadline)) {
       if (m->get_topic() != result_topic) continue;
       v1::Envelope env;
@@ -281,6 +204,15 @@ int run_command_tool(const CommandToolOptions& o) {
       if (!env.ParseFromArray(p.data(), static_cast<int>(p.size())) || !env.has_command_result() ||
           env.command_result().command_id() != id) {
         continue;  // someone else's result, or a re-sent one of an older command
+      }
+      if (!result_answers(env.command_result(), id, sent)) {
+        // Our id, but not bound to what we sent: the answer to a forged payload that copied the
+        // id (or a gateway too old to bind its results), never ours.
+        ++unbound;
+        err << "command: ignored a result for " << id << " not bound to the command sent ("
+            << command_result_name(env.command_result().result()) << ": "
+            << common::untrusted_excerpt(env.command_result().reason(), 120) << ")\n";
+        continue;
       }
       const auto rtt =
           std::chrono::duration_cast<Micros>(std::chrono::steady_clock::now() - sent_at);
@@ -293,7 +225,9 @@ int run_command_tool(const CommandToolOptions& o) {
       return env.command_result().result() == v1::COMMAND_RESULT_CODE_SUCCEEDED ? kExitSucceeded
                                                                                 : kExitNotSucceeded;
     }
-    err << "command: no result for " << id << " within " << o.timeout.count() << " s\n";
+    err << "command: no result for " << id << " within " << o.timeout.count() << " s";
+    if (unbound > 0) err << " (" << unbound << " result(s) with this id but other bytes ignored)";
+    err << '\n';
     try {
       client.disconnect()->wait_for(std::chrono::seconds(1));
     } catch (const mqtt::exception&) {

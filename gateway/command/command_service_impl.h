@@ -1,0 +1,121 @@
+// Internal to the command service (not part of its API): the state behind CommandService and
+// the functions of its parts, one idea per source file:
+//   command_service.cc    the public wrapper, configuration, start-up recovery and purging
+//   command_intake.cc     a payload's way in: authenticate once, redelivery or id reuse,
+//                         freshness checks, the pre-flight checks (offline, busy, interlocks)
+//   command_execution.cc  the journal-first start and the lock-by-lock sequence on the bus
+//   command_results.cc    results: built, stored with the journal (or published unstored and
+//                         journaled later), rejections, re-sent answers, the rate limit
+//   motion_interlock.cc   whether the bike moves (MotionInterlock)
+// Contract: single-threaded; every function runs on the caller's thread inside one of the
+// CommandService entry points. Nothing here throws to the caller for a storage failure.
+#pragma once
+
+#include <map>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "fleetgw/v1/command.pb.h"
+#include "gateway/command/command_service.h"
+#include "gateway/command/motion_interlock.h"
+#include "storage/store.h"
+
+namespace fleetgw::command {
+
+inline constexpr std::string_view kExecuting = "executing";
+
+// Millisecond count of a duration, never negative.
+std::int64_t to_ms(Micros d);
+v1::LockState proto_state(std::optional<std::uint8_t> raw);
+
+// Writes a batch; the reason when the store refused it (a thrown error or a returned one).
+std::optional<std::string> write_batch(storage::Store& store, const storage::Batch& batch);
+
+struct CommandService::Impl : std::enable_shared_from_this<CommandService::Impl> {
+  struct Step {
+    int lock_index = 0;
+    v1::LockActionResult result;
+    int attempts = 0;
+    int commands_sent = 0;
+    Micros started{0};
+    Micros attempt_started{0};
+  };
+  struct Running {
+    VerifiedCommand cmd;
+    Micros received{0};
+    std::vector<Step> steps;
+    std::size_t next = 0;  // index of the step to run next / running
+    bool broadcast_sent = false;
+  };
+  // A result the store refused, waiting for its journal write.
+  struct Unjournaled {
+    v1::CommandResult result;               // as published (stored = false)
+    std::optional<Micros> journal_expires;  // set: the journal gets the final state too
+    Micros received{0};
+    Micros at{0};
+    bool published = false;  // handed to publish_unstored; else it goes through the outbox
+  };
+
+  Impl(CommandServiceConfig c, CommandContext ctx);
+
+  CommandServiceConfig config;
+  CommandContext context;
+  CommandVerifier verifier;
+  MotionInterlock motion;
+  std::vector<std::unique_ptr<Running>> running;
+  CommandStats stats;
+  ResultObserver observer;
+  // Rate limit for results not tied to a new authenticated command (token bucket per minute).
+  double tokens = 0;
+  Micros tokens_at{0};
+  Micros next_purge{0};
+  // SHA-256 of the commands journaled (or answered) by this process, until they expire: a
+  // command that reuses such an id with different bytes is not a redelivery but a different
+  // command (backend bug or id reuse) and is rejected as "replayed" instead of getting the
+  // other command's result. Authenticated commands only, so an attacker cannot grow it.
+  std::map<std::string, std::pair<std::string, Micros>, std::less<>> known;
+  static constexpr std::size_t kMaxKnown = 10'000;
+  // Results the store refused, by command id (empty id: outbox-only results are not kept).
+  std::map<std::string, Unjournaled, std::less<>> unjournaled;
+  Micros next_journal_retry{0};
+  static constexpr Micros kJournalRetryInterval = 1s;
+
+  Micros wall(Micros now) const { return context.wall_clock ? context.wall_clock() : now; }
+  void remember(const VerifiedCommand& c, Micros keep_until);
+  std::string state_name(std::optional<std::uint8_t> raw) const;
+  std::string_view kind_of(int k) const;
+  Running* find_running(std::string_view id);
+
+  // command_intake.cc
+  Disposition on_payload(std::span<const std::uint8_t> payload, Micros now);
+  std::optional<Rejection> preflight(const VerifiedCommand& cmd, Micros now);
+  std::vector<int> lock_indices(const VerifiedCommand& cmd) const;
+  std::optional<Rejection> interlock(int k, node::LockTarget target, Micros now);
+
+  // command_execution.cc
+  Disposition start(VerifiedCommand cmd, Micros now);
+  void advance(Running& r, Micros now);
+  bool attempt(Running& r, Step& s, Micros now);
+  void on_lock_result(const std::string& id, const node::LockResult& res);
+  void finish(Running& r, Micros now);
+
+  // command_results.cc
+  bool store_result(v1::CommandResult r, Micros now, std::optional<Micros> journal_expires,
+                    std::optional<Micros> received);
+  void answer_unstored(v1::CommandResult r, Micros now, std::optional<Micros> journal_expires,
+                       std::optional<Micros> received);
+  void retry_unjournaled(Micros now);
+  Disposition reject(const Rejection& rej, Micros now, std::optional<Micros> expires,
+                     bool always_answer = false);
+  Disposition duplicate(const storage::CommandJournalEntry& entry, const std::string& sha,
+                        Micros now);
+  Disposition duplicate_unjournaled(const Unjournaled& u, Micros now);
+  void finish_interrupted(const storage::CommandJournalEntry& entry, Micros now,
+                          const std::string& sha = {});
+  void count(const v1::CommandResult& r);
+  bool take_token(Micros now);
+};
+
+}  // namespace fleetgw::command
