@@ -71,7 +71,7 @@ LockStart LockActuator::start(int k, LockTarget target, Micros now, Callback on_
   if (!fitted_[i]) return LockStart::kNotFitted;
   if (jobs_[i]) return LockStart::kBusy;
   last_now_ = now;
-  Job& job = jobs_[i].emplace();
+  Job& job = jobs_[i].emplace(Job{});  // Job{}: clang cannot default-construct a nested class here
   job.target = target;
   job.started = now;
   job.deadline = now + timeout.value_or(policy_.timeout);
