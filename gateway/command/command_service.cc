@@ -293,12 +293,10 @@ struct CommandService::Impl : std::enable_shared_from_this<CommandService::Impl>
                             std::string(command_result_name(r.result())),
                             journal_expires->count()});
     }
-    try {
-      context.store.write(b);
-    } catch (const std::exception& e) {
+    if (const auto written = context.store.write(b); !written.ok()) {
       ++stats.storage_errors;
       spdlog::error("command {}: result {} could not be stored: {}", r.command_id(),
-                    command_result_name(r.result()), e.what());
+                    command_result_name(r.result()), written.error->message);
       return false;
     }
     if (observer) observer(r, false);
@@ -398,12 +396,10 @@ struct CommandService::Impl : std::enable_shared_from_this<CommandService::Impl>
     b.messages.push_back({storage::OutboxKind::kCommandResult,
                           static_cast<int>(storage::OutboxPriority::kCommandResult),
                           to_bytes(r.SerializeAsString())});
-    try {
-      context.store.write(b);
-    } catch (const std::exception& e) {
+    if (const auto written = context.store.write(b); !written.ok()) {
       ++stats.storage_errors;
       spdlog::error("command {}: re-sending the stored result failed: {}", entry.command_id,
-                    e.what());
+                    written.error->message);
     }
     spdlog::info("command {}: duplicate delivery; stored result '{}' queued again",
                  entry.command_id, command_result_name(r.result()));
@@ -533,11 +529,10 @@ struct CommandService::Impl : std::enable_shared_from_this<CommandService::Impl>
     b.now_us = now.count();
     b.commands.push_back(
         {cmd.command_id, now.count(), std::string(kExecuting), cmd.expires_at.count()});
-    try {
-      context.store.write(b);
-    } catch (const std::exception& e) {
+    if (const auto written = context.store.write(b); !written.ok()) {
       ++stats.storage_errors;
-      spdlog::error("command {}: journal write failed: {}", cmd.command_id, e.what());
+      spdlog::error("command {}: journal write failed: {}", cmd.command_id,
+                    written.error->message);
       return reject({RejectReason::kStorageError, "journal write failed", cmd.command_id, false},
                     now, std::nullopt);
     }

@@ -130,8 +130,6 @@ int run_service(const config::Config& config, const ServiceOptions& options,
 
   std::optional<storage::Store> store;
   try {
-    const std::filesystem::path db(config.storage.path);
-    if (db.has_parent_path()) std::filesystem::create_directories(db.parent_path());
     store.emplace(make_store_options(config));
   } catch (const std::exception& e) {
     spdlog::critical("cannot open the store {}: {}", config.storage.path, e.what());

@@ -6,7 +6,9 @@
 //    store's own in-flight marks are not used: the uplink is the single owner of "in flight".
 //  * Kind names are translated from storage's vocabulary to the uplink's; the store's JSON
 //    eviction reports become fleetgw.v1.EvictionReport payloads on the way out.
-//  * ack() deletes exactly the acknowledged rows.
+//  * ack() deletes exactly the acknowledged rows. Nothing here throws (storage contract B): a
+//    failed ack (full disk) leaves the rows queued, they are sent again later (the backend
+//    deduplicates by sequence number) and the failure shows in Store::health().
 #pragma once
 
 #include "gateway/uplink/outbox_source.h"
