@@ -4,6 +4,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include <chrono>
 #include <filesystem>
 #include <stdexcept>
 
@@ -151,9 +152,14 @@ bool Store::read_only() const {
 
 void Store::Impl::record_success() {
   if (health.failing) {
-    error_log.resolved("storage: writing to '" + options.path + "' works again");
-    log->info("storage: '{}' recovered after {} failed write attempt(s)", options.path,
-              health.failed_writes);
+    // A disk that is nearly full may flip between failing and working at every retry: the
+    // recovery is logged at most once per 10 s (the failures are counted meanwhile).
+    const auto now = std::chrono::steady_clock::now();
+    if (!last_recovery_logged || now - *last_recovery_logged >= std::chrono::seconds(10)) {
+      error_log.resolved("storage: writing to '" + options.path + "' works again (" +
+                         std::to_string(health.failed_writes) + " failed attempts so far)");
+      last_recovery_logged = now;
+    }
   }
   health.failing = false;
   health.failing_since_us = 0;

@@ -11,6 +11,7 @@
 // attempt (write(), ack(), purge...) through record_success()/record_failure().
 #pragma once
 
+#include <chrono>
 #include <cstdint>
 #include <memory>
 #include <optional>
@@ -88,6 +89,7 @@ struct Store::Impl {
   // health
   StorageHealth health;
   RateLimitedLog error_log;
+  std::optional<std::chrono::steady_clock::time_point> last_recovery_logged;
 
   explicit Impl(StoreOptions opts);
 
