@@ -71,5 +71,50 @@ TEST(Recorder, CommitsByWallClockNotByBusTime) {
   EXPECT_EQ(h.pending_records, 0u);
 }
 
+motinova::DecodedMessage mc_fault_word(std::uint32_t word) {
+  const motinova::MessageDesc* d = motinova::Catalogue::standard().find(0x710, 0x11);
+  EXPECT_NE(d, nullptr);
+  const auto frame =
+      motinova::MessageWriter(*d, motinova::DecodeOptions{}).raw("raw", word).frame();
+  motinova::DecodedMessage msg;
+  motinova::decode(frame, motinova::Catalogue::standard(), motinova::DecodeOptions{}, msg);
+  return msg;
+}
+
+TEST(Recorder, FullDiskBoundsRetryMemoryDropsTelemetryAndReports) {
+  TempDir dir;
+  const std::string path = dir.file("full.db");
+  std::uint64_t pages = 0;
+  {
+    storage::Store fresh(storage::StoreOptions{.path = path});
+    pages = fresh.stats().page_count;
+  }
+  // A "disk" with 4 pages to spare beyond the empty schema; fault events (never evicted) fill it.
+  storage::Store store(storage::StoreOptions{.path = path, .max_page_count = pages + 4});
+  config::Config config;
+  Clock::time_point wall{};
+  const auto t0 = Micros(1'700'000'000'000'000);
+  Recorder recorder(config, store, t0, [&] { return wall; });
+  recorder.set_retry_memory_bytes(16 * 1024);
+  for (int s = 0; s < 4 * 3600; ++s) {  // 4 bus-hours at 10x: 1440 s of wall time
+    const Micros now = t0 + Micros(std::int64_t{s} * 1'000'000);
+    wall += std::chrono::milliseconds(100);
+    recorder.on_message(bms_status(40.0 + (s % 7) * 0.1, 80), now);
+    // An MC fault raised and cleared every 20 s.
+    recorder.on_message(mc_fault_word((s / 10) % 2 == 0 ? 0x1u : 0x0u), now);
+    recorder.tick(now);  // never throws, whatever the store says
+  }
+  const auto h = recorder.health();
+  EXPECT_TRUE(h.failing);
+  EXPECT_EQ(h.last_error, "disk full (SQLITE_FULL)");
+  EXPECT_GT(h.failed_writes, 100u);
+  EXPECT_GT(h.failing_since_us, 0);
+  EXPECT_GT(h.dropped_records, 0u) << "retry memory is bounded: the oldest telemetry went";
+  EXPECT_LT(h.pending_records, 2000u) << "what is held stays near the bound";
+  // Retries follow the wall clock (once a second), not every tick (14,400 ticks).
+  EXPECT_GT(recorder.write_failures(), 100u);
+  EXPECT_LE(recorder.write_failures(), 1440u + 10u);
+}
+
 }  // namespace
 }  // namespace fleetgw::runtime
