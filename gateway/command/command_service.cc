@@ -531,8 +531,7 @@ struct CommandService::Impl : std::enable_shared_from_this<CommandService::Impl>
         {cmd.command_id, now.count(), std::string(kExecuting), cmd.expires_at.count()});
     if (const auto written = context.store.write(b); !written.ok()) {
       ++stats.storage_errors;
-      spdlog::error("command {}: journal write failed: {}", cmd.command_id,
-                    written.error->message);
+      spdlog::error("command {}: journal write failed: {}", cmd.command_id, written.error->message);
       return reject({RejectReason::kStorageError, "journal write failed", cmd.command_id, false},
                     now, std::nullopt);
     }
