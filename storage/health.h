@@ -14,6 +14,9 @@ struct StorageHealth {
   std::uint64_t configured_budget_bytes = 0; // storage.max_mb as configured (0 = unlimited)
   std::uint64_t effective_budget_bytes = 0;  // smaller than configured when clamped to the disk's size
   std::uint64_t dropped_records = 0;         // records given up because retry memory is bounded
+  // Added by H-storage after the contract's fields:
+  std::uint64_t full_recoveries = 0;         // writes that hit SQLITE_FULL and succeeded after evicting telemetry
+  std::uint64_t pending_records = 0;         // records held in memory waiting for a (re)try (Recorder::health)
 };
 
 }  // namespace fleetgw::storage

@@ -16,33 +16,44 @@
 //   one) in the outbox in ONE transaction, with the per-vehicle sequence counter persisted in
 //   the same transaction: either the whole batch and its sequence numbers are on disk, or none
 //   of it is. Sequence numbers are allocated gap-free and are never reused, even after acks,
-//   evictions, crashes or restarts. The gateway batches (every ~200 ms or when large) so the
-//   CAN path never waits for the disk: one commit costs about as much as one record.
-//   Bad input (empty ride id, negative timestamp, oversized payload...) throws
-//   std::invalid_argument naming the batch entry and field, before anything is written.
-//   Disk errors throw SqliteError; the transaction is then rolled back and nothing of the
-//   batch is stored or numbered.
+//   evictions, crashes or restarts.
+// - Errors never escape the write and ack paths (nothing on the hot path throws): write()
+//   returns WriteResult::error (kInvalid for bad input, naming the batch entry and field;
+//   kFull, kIo, kOther for disk and SQLite errors) and stores nothing of the batch. ack(),
+//   release(), peek_outbox() and outbox_depth() never throw either. Every failed write attempt
+//   is recorded in health() (reason, count, since when); the next successful one clears
+//   `failing`. Only the constructor throws (cannot open, not a store, schema too new...).
 // - Durability: Durability::kNormal (default, PRAGMA synchronous=NORMAL) makes every returned
-//   write() survive a crash or kill of the process; after a power cut or kernel panic the last
-//   commits before the cut (those still in the OS page cache, typically well under a second)
-//   may be lost, but the database is never corrupted. Durability::kFull (synchronous=FULL)
-//   fsyncs the WAL at every commit so a returned write() also survives power loss, at the cost
-//   of one fsync per batch (milliseconds on flash; wears SD/eMMC with 5 commits/s).
+//   write() survive a crash or kill of the process; after a power cut the last commits before
+//   the cut may be lost, but the database is never corrupted. Durability::kFull fsyncs the WAL
+//   at every commit so a returned write() also survives power loss.
 // - Outbox: priority 0 is the most urgent (OutboxPriority: command results 0, faults 1, rides 2,
 //   lock events 3, pack statistics 4, telemetry 5; eviction reports go at priority 1).
 //   peek_outbox() returns entries in (priority, seq) order, skipping the ones in flight, and
-//   marks what it returns as in flight (tracked in memory only: after a restart everything
-//   unacknowledged is sent again, the backend deduplicates by sequence number). ack() deletes
-//   exactly the acknowledged rows; release() puts in-flight entries back (publish failed).
-// - Disk budget (StoreOptions::max_bytes, 0 = none): measured as the live pages of the
-//   database ((page_count - freelist_count) * page_size) after each batch, inside the batch's
-//   transaction. Above the budget the oldest telemetry samples are evicted first (with their
-//   outbox rows), then the oldest pack snapshots, down to low_water * budget; faults, rides,
-//   lock events, command results, commands and other outbox entries are never evicted. Each
-//   pass is counted per table (persisted), logged, queued as an eviction_report outbox entry
-//   (JSON payload, EvictionReport::to_json) and returned from write() so the gateway can send
-//   its own protobuf instead. Freed pages go back to the file system (auto_vacuum=INCREMENTAL).
-//   The WAL file comes on top of the budget (bounded by wal_autocheckpoint/journal_size_limit).
+//   marks what it returns as in flight (in memory only). ack() deletes exactly the
+//   acknowledged rows; release() puts in-flight entries back (publish failed).
+// - Disk budget (storage/store_budget.h): StoreOptions::max_bytes covers everything the store
+//   writes: the database pages, the WAL (bounded: checkpointed when it reaches its allowance,
+//   never left above it) and the shared-memory file. At open the budget is clamped, with a
+//   warning, to what the file system can hold (statvfs). Inside the budget a reserve is kept
+//   for records that are never evicted: telemetry (then pack snapshots) is evicted, oldest
+//   first, as soon as the live pages pass (budget - WAL allowance - reserve), so the command
+//   journal, command results, faults, rides and lock events can still be written when
+//   telemetry has filled the rest. When SQLite reports SQLITE_FULL anyway (the disk filled up
+//   from elsewhere), write() checkpoints, evicts a chunk of telemetry (then pack snapshots),
+//   gives the pages back to the file system and retries before giving up. Each eviction is
+//   counted per table (persisted), logged, queued as an eviction_report outbox entry (JSON)
+//   and returned from write().
+// - WAL checkpoints run outside the write transaction: checkpoint_if_due() (the recorder calls
+//   it after a flush; a caller may call it when idle) checkpoints once the WAL holds half its
+//   allowance; write() itself checkpoints only when the WAL reached the whole allowance.
+// - Read-only (StoreOptions::read_only, the `fleetgw db` tools): opened with
+//   SQLITE_OPEN_READONLY, no lock file, no migration, no move-aside, never creates, moves or
+//   renames a file; works while the service writes (WAL). A missing file, a file that is not
+//   SQLite or an SQLite file without the fleetgw tables throws NotAStoreError naming the path.
+//   write()/ack() on a read-only store return an error.
+// - The directory of StoreOptions::path must exist; it is never created (a typo in
+//   storage.path must not silently start an empty store elsewhere).
 // - Technician tools: stats() and export_table() return data; the CLI formats it.
 #pragma once
 
@@ -55,11 +66,13 @@
 #include <optional>
 #include <ostream>
 #include <span>
+#include <stdexcept>
 #include <string>
 #include <string_view>
 #include <utility>
 #include <vector>
 
+#include "storage/health.h"
 #include "storage/records.h"
 
 namespace spdlog {
@@ -75,8 +88,14 @@ struct StoreOptions {
   std::uint64_t max_bytes = 0;  // disk budget; config `max_mb` * 1024 * 1024; 0 = unlimited
   double low_water = 0.9;       // eviction frees down to low_water * max_bytes
   Durability durability = Durability::kNormal;
-  int wal_autocheckpoint_pages =
-      1000;  // SQLite default; bounds the WAL to ~4 MB between checkpoints
+  // Upper bound of the WAL between checkpoints, in pages (0: derived from the budget, at most
+  // 1000 pages = 4 MB; with a budget, an eighth of it).
+  int wal_autocheckpoint_pages = 0;
+  // Open for inspection only (see the contract).
+  bool read_only = false;
+  // Hard cap of the database file in pages (PRAGMA max_page_count), 0 = none. Beyond it SQLite
+  // reports SQLITE_FULL exactly as a full disk does (tests use it to simulate one).
+  std::uint64_t max_page_count = 0;
   std::shared_ptr<spdlog::logger> logger{};  // default: spdlog's default logger
   // Wall clock (us since epoch) used only to name a moved-aside corrupt file. Default: system.
   std::function<std::int64_t()> wall_clock_us{};
@@ -118,6 +137,21 @@ struct Batch {
   void clear();
 };
 
+// Why a write did not happen.
+struct StoreError {
+  enum class Code : std::uint8_t { kFull, kIo, kInvalid, kOther };
+  Code code = Code::kOther;
+  std::string message;
+};
+std::string_view to_string(StoreError::Code code);
+
+// A file that is not a fleetgw store (missing, not SQLite, or SQLite without fleetgw's tables),
+// from a read-only open.
+class NotAStoreError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
 struct WriteResult {
   // Sequence numbers assigned by this batch: [first_seq, end_seq), contiguous; empty when the
   // batch queued nothing.
@@ -125,6 +159,8 @@ struct WriteResult {
   std::uint64_t end_seq = 0;
   std::size_t records = 0;  // table rows written
   std::optional<EvictionReport> eviction;
+  std::optional<StoreError> error;  // set when nothing of the batch was stored
+  bool ok() const { return !error.has_value(); }
 };
 
 struct OutboxDepth {
@@ -155,8 +191,11 @@ struct Stats {
   std::uint64_t page_size = 0;
   std::uint64_t page_count = 0;
   std::uint64_t freelist_pages = 0;
-  std::uint64_t live_bytes = 0;  // what the budget is measured against
-  std::uint64_t budget_bytes = 0;
+  std::uint64_t live_bytes = 0;    // what the budget is measured against
+  std::uint64_t budget_bytes = 0;  // effective budget (after clamping)
+  std::uint64_t configured_budget_bytes = 0;
+  std::uint64_t wal_allowance_bytes = 0;  // part of the budget kept for the WAL
+  std::uint64_t reserve_bytes = 0;        // part kept for records that are never evicted
   std::uint64_t next_seq = 0;
   std::vector<EvictionCounter> evictions;
   nlohmann::json to_json() const;
@@ -182,7 +221,9 @@ class Store {
   // cannot block the queue. The returned entries become in flight.
   std::vector<OutboxEntry> peek_outbox(std::size_t limit, std::size_t max_bytes);
   // Deletes the acknowledged entries (only those); returns how many rows existed and were
-  // deleted (an entry evicted meanwhile is not counted). Clears their in-flight mark.
+  // deleted (an entry evicted meanwhile is not counted). Clears their in-flight mark. On a
+  // disk error nothing is deleted (the entries are sent again later), 0 is returned and the
+  // failure is recorded in health().
   std::size_t ack(std::span<const std::uint64_t> seqs);
   // Makes in-flight entries eligible for peek_outbox() again.
   void release(std::span<const std::uint64_t> seqs);
@@ -191,6 +232,15 @@ class Store {
   std::vector<OutboxDepth> outbox_depth();
   std::optional<std::int64_t> oldest_unsent_us();
   std::uint64_t next_seq() const;
+
+  // Health as `fleetgw status` reports it (storage/health.h).
+  StorageHealth health() const;
+  // Checkpoints the WAL when it holds half its allowance or more; cheap otherwise (no syscall).
+  // Returns true when a checkpoint ran. Never throws.
+  bool checkpoint_if_due();
+  // The budget actually enforced (clamped to the file system at open), 0 = unlimited.
+  std::uint64_t effective_budget() const;
+  bool read_only() const;
 
   // State the gateway restores at start-up.
   std::vector<Ride> open_rides();

@@ -8,6 +8,7 @@
 #include <iostream>
 
 #include "gateway/app/check_config.h"
+#include "gateway/app/db_command.h"
 #include "gateway/app/logging.h"
 #include "gateway/app/watch_command.h"
 #include "gateway/app/command_tool.h"
@@ -17,7 +18,6 @@
 #include "gateway/runtime/service.h"
 #include "gateway/sim/sim_command.h"
 #include "gateway/status/status_command.h"
-#include "storage/store.h"
 
 namespace fleetgw::app {
 namespace {
@@ -233,19 +233,7 @@ int run_cli(int argc, char** argv) {
   sim_cmd->add_option("--record", sim_options.record, "write a candump -L log instead");
 
   // db
-  auto* db_cmd = app.add_subcommand("db", "inspect the SQLite store (technicians)");
-  db_cmd->require_subcommand(1);
-  std::string db_config = "/etc/fleetgw/fleetgw.toml", db_path, export_table;
-  int64_t export_since_us = 0;
-  auto* db_stats = db_cmd->add_subcommand("stats", "row counts, outbox depth, size, evictions");
-  auto* db_export = db_cmd->add_subcommand("export", "one JSON object per row");
-  for (auto* c : {db_stats, db_export}) {
-    c->add_option("--config", db_config, "configuration file (for storage.path)");
-    c->add_option("--db", db_path, "database file (overrides the configuration)");
-  }
-  db_export->add_option("--table", export_table, "table to export")->required();
-  db_export->add_option("--since", export_since_us,
-                        "only rows at or after this time (us since epoch)");
+  auto db = add_db_command(app);
 
   // watch
   // Options are validated here (so `fleetgw watch --help` and typos behave like every other
@@ -350,26 +338,7 @@ int run_cli(int argc, char** argv) {
       setup_logging("info");
       return sim::run_sim(sim_options);
     }
-    if (db_cmd->parsed()) {
-      storage::StoreOptions o;
-      if (db_path.empty()) {
-        o = runtime::make_store_options(config::load_config(db_config));
-      } else {
-        o.path = db_path;
-      }
-      if (!std::filesystem::exists(o.path)) {
-        std::cerr << "fleetgw db: no database at " << o.path << '\n';
-        return 1;
-      }
-      storage::Store store(o);
-      if (db_stats->parsed()) {
-        std::cout << store.stats().to_json().dump(2) << '\n';
-      } else {
-        const auto rows = store.export_table(export_table, export_since_us, std::cout);
-        std::cerr << rows << " rows\n";
-      }
-      return 0;
-    }
+    if (db->command->parsed()) return run_db_command(*db, std::cout, std::cerr);
     if (watch_cmd->parsed()) {
       int first = 1;
       while (first < argc && std::string_view(argv[first]) != "watch") ++first;

@@ -16,15 +16,6 @@ namespace {
 
 constexpr Micros kClockSyncEpoch{1'704'067'200'000'000};  // 2024-01-01T00:00:00Z
 
-// The store reports a refusal either by throwing (older stores) or in WriteResult::error.
-template <typename Result>
-std::optional<std::string> error_of(const Result& r) {
-  if constexpr (requires { r.error; }) {
-    if (r.error) return r.error->message;
-  }
-  return std::nullopt;
-}
-
 InterlockSettings interlock_settings(const CommandServiceConfig& c) {
   return {.rules = c.interlocks,
           .speed_kmh = c.interlock_speed_kmh,
@@ -56,11 +47,10 @@ v1::LockState proto_state(std::optional<std::uint8_t> raw) {
 }
 
 std::optional<std::string> write_batch(storage::Store& store, const storage::Batch& batch) {
-  try {
-    return error_of(store.write(batch));
-  } catch (const std::exception& e) {
-    return std::string(e.what());
-  }
+  // Store::write never throws: a disk error comes back in the result.
+  const storage::WriteResult written = store.write(batch);
+  if (written.error) return written.error->message;
+  return std::nullopt;
 }
 
 bool default_clock_synchronised(Micros now) {

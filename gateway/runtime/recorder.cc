@@ -2,6 +2,8 @@
 
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
+
 namespace fleetgw::runtime {
 namespace {
 
@@ -9,11 +11,20 @@ Micros ms(int64_t v) {
   return Micros(v * 1000);
 }
 
-// Appends every record of `from` to `to` (used to retry a failed batch together with new ones).
-void append(storage::Batch& to, storage::Batch&& from) {
-  auto move_all = [](auto& dst, auto& src) {
-    for (auto& x : src) dst.push_back(std::move(x));
-  };
+std::int64_t system_now_us() {
+  return std::chrono::duration_cast<std::chrono::microseconds>(
+             std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
+template <typename V>
+void move_all(V& dst, V& src) {
+  for (auto& x : src) dst.push_back(std::move(x));
+  src.clear();
+}
+
+// Appends every record of `from` to `to` (a failed batch is retried together with new ones).
+void append(storage::Batch& to, storage::Batch& from) {
   move_all(to.telemetry, from.telemetry);
   move_all(to.rides, from.rides);
   move_all(to.faults, from.faults);
@@ -24,6 +35,52 @@ void append(storage::Batch& to, storage::Batch&& from) {
   move_all(to.messages, from.messages);
   move_all(to.meta, from.meta);
   to.now_us = from.now_us;
+}
+
+// Anything the store never evicts (or that is not telemetry at all): worth a commit at once.
+bool has_non_telemetry(const storage::Batch& b) {
+  return !b.rides.empty() || !b.faults.empty() || !b.packs.empty() || !b.locks.empty() ||
+         !b.command_results.empty() || !b.commands.empty() || !b.messages.empty() ||
+         !b.meta.empty();
+}
+
+template <typename T>
+std::size_t footprint(const storage::Pending<T>& p) {
+  return sizeof(p) + (p.uplink ? p.uplink->capacity() : 0);
+}
+
+// Heap held by a batch, roughly (records plus payloads), for the retry-memory bound.
+std::size_t footprint(const storage::Batch& b) {
+  std::size_t n = 0;
+  for (const auto& x : b.telemetry) n += footprint(x);
+  for (const auto& x : b.rides) n += footprint(x);
+  for (const auto& x : b.faults) n += footprint(x);
+  for (const auto& x : b.packs) n += footprint(x) + x.record.lifetime_json.size();
+  for (const auto& x : b.locks) n += footprint(x);
+  for (const auto& x : b.command_results) n += footprint(x);
+  n += b.commands.size() * sizeof(storage::CommandJournalEntry);
+  for (const auto& m : b.messages) n += sizeof(m) + m.payload.capacity();
+  n += b.meta.size() * 64;
+  return n;
+}
+
+// Drops the oldest entries of `v` until `bytes` <= `limit`; returns how many were dropped.
+template <typename V>
+std::size_t drop_oldest(V& v, std::size_t& bytes, std::size_t limit) {
+  std::size_t n = 0;
+  while (n < v.size() && bytes > limit) {
+    const std::size_t size = [&] {
+      if constexpr (requires { v[n].uplink; }) {
+        return footprint(v[n]);
+      } else {
+        return sizeof(v[n]);
+      }
+    }();
+    bytes -= std::min(bytes, size);
+    ++n;
+  }
+  v.erase(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(n));
+  return n;
 }
 
 }  // namespace
@@ -54,27 +111,41 @@ Recorder::Recorder(const config::Config& config, storage::Store& store, Micros n
                    WallClock wall_clock)
     : store_(store),
       trackers_(make_domain_config(config), sink_),
+      wall_clock_(std::move(wall_clock)),
       flush_interval_(std::chrono::milliseconds(config.storage.flush_ms)),
-      wall_clock_(wall_clock ? std::move(wall_clock) : WallClock(&std::chrono::steady_clock::now)) {
+      error_log_(nullptr, std::chrono::seconds(10), wall_clock_),
+      drop_log_(nullptr, std::chrono::seconds(10), wall_clock_) {
   const auto open = store_.open_rides();
   if (!open.empty()) {
     spdlog::info("resuming {} open ride(s) from the previous run", open.size());
   }
   trackers_.restore(open, now);
-  last_now_ = now;
   note_pending();
+  last_now_ = now;
 }
 
 Recorder::~Recorder() {
   try {
-    flush(last_now_);
+    const auto outcome = flush(last_now_);
+    if (outcome.failed) {
+      spdlog::error("storage: {} record(s) could not be written before stopping: {}",
+                    pending_records(), last_error_);
+    }
   } catch (const std::exception& e) {
     spdlog::error("final flush failed: {}", e.what());
   }
 }
 
+std::chrono::steady_clock::time_point Recorder::wall() const {
+  return wall_clock_ ? wall_clock_() : std::chrono::steady_clock::now();
+}
+
 void Recorder::note_pending() {
-  if (!pending_since_ && !(sink_.empty() && pending_.empty())) pending_since_ = wall_clock_();
+  if (!first_pending_ && !sink_.empty()) first_pending_ = wall();
+}
+
+bool Recorder::retry_due() const {
+  return !next_retry_ || wall() >= *next_retry_;
 }
 
 void Recorder::on_message(const motinova::DecodedMessage& message, Micros now) {
@@ -87,63 +158,130 @@ void Recorder::tick(Micros now) {
   last_now_ = std::max(last_now_, now);
   trackers_.tick(last_now_);
   note_pending();
-  const auto due = flush_deadline();
-  if (urgent() || (due && wall_clock_() >= *due)) flush(last_now_);
+  if (urgent()) {
+    flush(last_now_);
+    return;
+  }
+  if (const auto deadline = flush_deadline(); deadline && wall() >= *deadline) flush(last_now_);
 }
 
 bool Recorder::urgent() const {
-  // Interim (contract C, H-storage owns the real policy): anything but telemetry is urgent.
-  const storage::Batch& b = sink_.batch();
-  const std::size_t n = b.size();
-  return n != b.telemetry.size() || n >= 4096;
+  if (pending_records() == 0) return false;
+  if (next_retry_ && !retry_due()) return false;  // failing: wait for the retry interval
+  const auto& b = sink_.batch();
+  return has_non_telemetry(b) || has_non_telemetry(retry_) || b.size() >= kMaxBatchRecords;
 }
 
 std::optional<std::chrono::steady_clock::time_point> Recorder::flush_deadline() const {
-  if (!pending_since_) return std::nullopt;
-  return *pending_since_ + flush_interval_;
-}
-
-storage::StorageHealth Recorder::health() const {
-  storage::StorageHealth h;
-  h.failing = !pending_.empty();
-  h.failed_writes = failures_;
-  return h;
+  if (pending_records() == 0) return std::nullopt;
+  if (next_retry_) return *next_retry_;
+  if (first_pending_) return *first_pending_ + flush_interval_;
+  return wall();
 }
 
 FlushOutcome Recorder::flush(Micros now) {
   FlushOutcome out;
-  if (!sink_.empty()) append(pending_, sink_.take(now));
-  if (pending_.empty()) {
-    pending_since_.reset();
+  if (!sink_.empty()) {
+    storage::Batch fresh = sink_.take(now);
+    append(retry_, fresh);
+  }
+  first_pending_.reset();
+  if (retry_.empty()) return out;
+  retry_.now_us = now.count();
+  const auto result = store_.write(retry_);
+  if (result.ok()) {
+    ++batches_;
+    out.records = retry_.size();
+    retry_.clear();
+    next_retry_.reset();
+    if (last_flush_failed_) error_log_.resolved("storage: pending records written, storage OK");
+    last_flush_failed_ = false;
+    failing_since_us_ = 0;
+    store_.checkpoint_if_due();  // outside the write transaction
+    if (after_flush_) after_flush_();
     return out;
   }
-  pending_.now_us = now.count();
-  out.records = pending_.size();
-  try {
-    const auto result = store_.write(pending_);
-    ++batches_;
-    if (result.eviction) {
-      spdlog::warn("storage budget reached: evicted {} telemetry and {} pack rows",
-                   result.eviction->telemetry_rows, result.eviction->pack_snapshot_rows);
-    }
-    pending_.clear();
-    pending_since_.reset();
-    if (after_flush_) after_flush_();
-  } catch (const std::invalid_argument& e) {
+
+  ++failures_;
+  out.failed = true;
+  if (!last_flush_failed_) failing_since_us_ = system_now_us();
+  last_flush_failed_ = true;
+  last_error_ = store_.health().last_error;
+  if (result.error->code == storage::StoreError::Code::kInvalid) {
     // A record the store refuses is a bug upstream; keeping it would block every later batch.
-    ++failures_;
-    out.failed = true;
-    spdlog::error("storage refused a batch of {} records: {}", pending_.size(), e.what());
-    pending_.clear();
-    pending_since_.reset();
-  } catch (const std::exception& e) {
-    ++failures_;
-    out.failed = true;
-    pending_since_ = wall_clock_();  // retried one interval later
-    spdlog::error("storage write failed ({} records kept for the next attempt): {}",
-                  pending_.size(), e.what());
+    error_log_.report("storage: refused a batch (dropped): " + result.error->message);
+    dropped_ += retry_.size();
+    retry_.clear();
+    next_retry_.reset();
+    return out;
   }
+  error_log_.report("storage: write failed, records kept in memory for a retry: " + last_error_);
+  if (result.error->code == storage::StoreError::Code::kFull &&
+      (!retry_.telemetry.empty() || !retry_.packs.empty()) && has_non_telemetry(retry_)) {
+    const auto first = write_without_evictable(now);
+    out.records += first.records;
+  }
+  next_retry_ = wall() + kRetryInterval;
+  bound_retry_memory();
   return out;
+}
+
+// On a full disk: the records that are never evicted go first, without the telemetry and pack
+// snapshots that may be what no longer fits.
+FlushOutcome Recorder::write_without_evictable(Micros now) {
+  FlushOutcome out;
+  storage::Batch evictable;
+  evictable.telemetry = std::exchange(retry_.telemetry, {});
+  evictable.packs = std::exchange(retry_.packs, {});
+  retry_.now_us = now.count();
+  const auto result = store_.write(retry_);
+  if (result.ok()) {
+    out.records = retry_.size();
+    retry_.clear();
+    if (after_flush_) after_flush_();
+  } else {
+    out.failed = true;
+  }
+  append(retry_, evictable);
+  return out;
+}
+
+void Recorder::bound_retry_memory() {
+  std::size_t bytes = footprint(retry_);
+  if (bytes <= retry_memory_bytes_) return;
+  std::size_t dropped = 0;
+  // Cheapest loss first; never beyond the soft bound for what is never evicted.
+  dropped += drop_oldest(retry_.telemetry, bytes, retry_memory_bytes_);
+  dropped += drop_oldest(retry_.packs, bytes, retry_memory_bytes_);
+  dropped += drop_oldest(retry_.locks, bytes, retry_memory_bytes_);
+  dropped += drop_oldest(retry_.rides, bytes, retry_memory_bytes_);
+  const std::size_t hard = retry_memory_bytes_ * 4;
+  if (bytes > hard) {
+    dropped += drop_oldest(retry_.messages, bytes, hard);
+    dropped += drop_oldest(retry_.meta, bytes, hard);
+    dropped += drop_oldest(retry_.faults, bytes, hard);
+    dropped += drop_oldest(retry_.commands, bytes, hard);
+    dropped += drop_oldest(retry_.command_results, bytes, hard);
+  }
+  if (dropped == 0) return;
+  dropped_ += dropped;
+  drop_log_.report(
+      "storage: memory for records waiting to be written is full; dropping the oldest "
+      "telemetry first (dropped records are counted in status)");
+}
+
+storage::StorageHealth Recorder::health() const {
+  storage::StorageHealth h = store_.health();
+  if (last_flush_failed_) {
+    if (!h.failing) {
+      h.failing = true;
+      h.failing_since_us = failing_since_us_;
+    }
+    if (h.last_error.empty()) h.last_error = last_error_;
+  }
+  h.dropped_records = dropped_;
+  h.pending_records = pending_records();
+  return h;
 }
 
 }  // namespace fleetgw::runtime

@@ -1,17 +1,34 @@
 // Recorder: the storage stage of the pipeline. It feeds every decoded message to the domain
-// trackers and writes what they produce to the SQLite store in one transaction per flush
-// interval (default 200 ms), so the bus never waits for the disk more than once per interval.
+// trackers and writes what they produce to the SQLite store, many records per transaction
+// (group commit by size and by wall-clock time).
 //
 // Contract:
-//  * Single-threaded, clock-free (it is a MessageListener: on_message/tick with `now`).
+//  * Single-threaded. Bus time (`now`, simulated or replayed) only goes into the records; when
+//    to write is decided on the WALL clock injected at construction (default steady_clock), so
+//    a replay at 1000x still commits about once per storage.flush_ms of real time, not 1000x as
+//    often.
+//  * urgent(): a pending record is not telemetry (command results, faults, rides, locks, pack
+//    snapshots, journal...) or the pending batch reached kMaxBatchRecords: the pipeline should
+//    flush at once. flush_deadline(): when pending telemetry must be written at the latest
+//    (first pending record + flush_ms of wall time); nullopt when nothing is pending. While the
+//    store is failing, both wait for the next retry (once per retry interval of wall time), so
+//    a full disk is not hammered.
+//  * flush(bus_now) writes everything pending now and returns what it wrote and whether it
+//    failed. tick(bus_now) still flushes when urgent() or the deadline has passed, so a caller
+//    that only ticks keeps working.
+//  * Errors never escape: a failed write keeps the records in memory and retries. Memory for
+//    retries is bounded (kRetryMemoryBytes): past it, telemetry is dropped first (oldest
+//    first), then pack snapshots, lock events and ride checkpoints; command results, faults,
+//    commands and the rest are only dropped past 4x the bound. Every dropped record is counted
+//    (health().dropped_records). On a full disk the records that are never evicted are written
+//    without the telemetry, so they do not wait behind it. Repeated identical errors are
+//    logged once per 10 s with a count; recovery (space back) is automatic and logged.
 //  * Opening restores an open ride of a previous run (DomainTrackers::restore) before the first
-//    message. flush() writes whatever is pending; the destructor flushes too, so a clean stop
-//    loses nothing. A crash loses at most the last interval (never the database).
-//  * A failed write (disk error) is logged and the batch is kept for the next flush: records
-//    are never dropped silently.
+//    message. The destructor flushes, so a clean stop loses nothing that can be written.
 #pragma once
 
 #include <chrono>
+#include <cstddef>
 #include <functional>
 #include <memory>
 #include <optional>
@@ -21,58 +38,74 @@
 #include "gateway/domain/domain_trackers.h"
 #include "gateway/runtime/gateway_core.h"
 #include "storage/health.h"
+#include "storage/rate_limited_log.h"
 #include "storage/store.h"
 
 namespace fleetgw::runtime {
 
-struct FlushOutcome {
-  std::size_t records = 0;
-  bool failed = false;
-};
-
 domain::DomainConfig make_domain_config(const config::Config& config);
 storage::StoreOptions make_store_options(const config::Config& config);
+
+struct FlushOutcome {
+  std::size_t records = 0;  // records written by this flush
+  bool failed = false;      // a write was attempted and failed (records kept for a retry)
+};
 
 class Recorder final : public MessageListener {
  public:
   using WallClock = std::function<std::chrono::steady_clock::time_point()>;
+  static constexpr std::size_t kMaxBatchRecords = 4096;
+  static constexpr std::size_t kRetryMemoryBytes = 8u << 20;
+  static constexpr std::chrono::milliseconds kRetryInterval{1000};
+
   // `store` must outlive the recorder.
   Recorder(const config::Config& config, storage::Store& store, Micros now,
            WallClock wall_clock = {});
   ~Recorder() override;
 
   void on_message(const motinova::DecodedMessage& message, Micros now) override;
-  // Trackers' tick; flushes when urgent() or the wall-clock flush deadline has passed.
   void tick(Micros now) override;
   FlushOutcome flush(Micros now);
 
-  // A pending record is not telemetry (results, faults, rides, locks...) or the pending batch
-  // reached its size limit: the pipeline flushes at once.
   bool urgent() const;
-  // When pending telemetry must be written at the latest (wall clock); nullopt: nothing pending.
   std::optional<std::chrono::steady_clock::time_point> flush_deadline() const;
   storage::StorageHealth health() const;
 
   // Called after every successful write (the uplink polls then: new records to send).
   void set_after_flush(std::function<void()> hook) { after_flush_ = std::move(hook); }
+  // Test hook: a smaller retry-memory bound.
+  void set_retry_memory_bytes(std::size_t bytes) { retry_memory_bytes_ = bytes; }
 
   domain::DomainTrackers& trackers() { return trackers_; }
   uint64_t batches_written() const { return batches_; }
   uint64_t write_failures() const { return failures_; }
+  std::size_t pending_records() const { return retry_.size() + sink_.batch().size(); }
 
  private:
+  std::chrono::steady_clock::time_point wall() const;
+  void note_pending();
+  bool retry_due() const;
+  void bound_retry_memory();
+  FlushOutcome write_without_evictable(Micros now);
+
   storage::Store& store_;
   domain::DomainSink sink_;
   domain::DomainTrackers trackers_;
-  void note_pending();
-
-  storage::Batch pending_;  // a batch whose write failed, retried first
-  std::chrono::steady_clock::duration flush_interval_;
+  storage::Batch retry_;  // records whose write failed, retried first
   WallClock wall_clock_;
-  std::optional<std::chrono::steady_clock::time_point> pending_since_;
+  std::chrono::steady_clock::duration flush_interval_;
+  std::optional<std::chrono::steady_clock::time_point> first_pending_;
+  std::optional<std::chrono::steady_clock::time_point> next_retry_;
+  std::size_t retry_memory_bytes_ = kRetryMemoryBytes;
   Micros last_now_{0};
   uint64_t batches_ = 0;
   uint64_t failures_ = 0;
+  uint64_t dropped_ = 0;
+  bool last_flush_failed_ = false;
+  std::int64_t failing_since_us_ = 0;
+  std::string last_error_;
+  storage::RateLimitedLog error_log_;
+  storage::RateLimitedLog drop_log_;
   std::function<void()> after_flush_;
 };
 

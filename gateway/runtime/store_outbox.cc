@@ -2,6 +2,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <limits>
 
 #include "fleetgw/v1/eviction.pb.h"
@@ -54,19 +55,19 @@ std::string eviction_payload_from_json(std::string_view text, uint64_t seq) {
   return report.SerializeAsString();
 }
 
-std::vector<uplink::OutgoingRecord> StoreOutbox::peek(std::size_t max_entries,
-                                                      std::size_t max_bytes,
-                                                      const std::set<std::uint64_t>& exclude) {
-  std::vector<uplink::OutgoingRecord> out;
+std::vector<uplink::OutboxEntry> StoreOutbox::peek(std::size_t max_entries, std::size_t max_bytes,
+                                                   const std::set<std::uint64_t>& exclude) {
+  std::vector<uplink::OutboxEntry> out;
   if (max_entries == 0) return out;
+  retry_deletes();
   store_.release_all();
-  auto rows =
-      store_.peek_outbox(max_entries + exclude.size(), std::numeric_limits<std::size_t>::max());
+  auto rows = store_.peek_outbox(max_entries + exclude.size() + undeleted_.size(),
+                                 std::numeric_limits<std::size_t>::max());
   store_.release_all();
   std::size_t bytes = 0;
   for (auto& row : rows) {
-    if (exclude.count(row.seq)) continue;
-    uplink::OutgoingRecord e;
+    if (exclude.count(row.seq) || undeleted_.count(row.seq)) continue;
+    uplink::OutboxEntry e;
     e.seq = row.seq;
     e.priority = row.priority;
     e.kind = uplink_kind(row.kind);
@@ -87,12 +88,32 @@ std::vector<uplink::OutgoingRecord> StoreOutbox::peek(std::size_t max_entries,
 }
 
 void StoreOutbox::ack(std::span<const std::uint64_t> seqs) {
+  const auto failures_before = store_.health().failed_writes;
   store_.ack(seqs);
+  if (store_.health().failed_writes != failures_before) {
+    undeleted_.insert(seqs.begin(), seqs.end());
+    while (undeleted_.size() > kMaxUndeleted) undeleted_.erase(undeleted_.begin());
+    next_delete_retry_ = std::chrono::steady_clock::now() + std::chrono::seconds(1);
+  }
+  retry_deletes();
+}
+
+void StoreOutbox::retry_deletes() {
+  if (undeleted_.empty() || std::chrono::steady_clock::now() < next_delete_retry_) return;
+  const std::vector<std::uint64_t> seqs(undeleted_.begin(), undeleted_.end());
+  const auto failures_before = store_.health().failed_writes;
+  store_.ack(seqs);
+  if (store_.health().failed_writes == failures_before) {
+    undeleted_.clear();
+  } else {
+    next_delete_retry_ = std::chrono::steady_clock::now() + std::chrono::seconds(1);
+  }
 }
 
 uplink::OutboxStats StoreOutbox::stats() const {
   uplink::OutboxStats s;
   for (const auto& d : store_.outbox_depth()) s.depth += d.entries;
+  s.depth -= std::min<std::uint64_t>(s.depth, undeleted_.size());
   s.oldest_created_us = store_.oldest_unsent_us().value_or(0);
   return s;
 }

@@ -6,8 +6,16 @@
 //    store's own in-flight marks are not used: the uplink is the single owner of "in flight".
 //  * Kind names are translated from storage's vocabulary to the uplink's; the store's JSON
 //    eviction reports become fleetgw.v1.EvictionReport payloads on the way out.
-//  * ack() deletes exactly the acknowledged rows.
+//  * ack() deletes exactly the acknowledged rows. Nothing here throws (storage contract B). A
+//    failed ack (full disk) is remembered: those rows are no longer offered by peek() (the
+//    broker has them; re-sending them in a loop would only burn CPU and bandwidth) and their
+//    deletion is retried at the next ack()/peek(), at most once a second. The memory for that
+//    is bounded (kMaxUndeleted); past it the oldest are forgotten and simply sent again later
+//    (the backend deduplicates by sequence number). Failures show in Store::health().
 #pragma once
+
+#include <chrono>
+#include <set>
 
 #include "gateway/uplink/outbox_source.h"
 #include "storage/store.h"
@@ -16,15 +24,23 @@ namespace fleetgw::runtime {
 
 class StoreOutbox final : public uplink::OutboxSource {
  public:
+  static constexpr std::size_t kMaxUndeleted = 100'000;
+
   explicit StoreOutbox(storage::Store& store) : store_(store) {}
 
   std::vector<uplink::OutgoingRecord> peek(std::size_t max_entries, std::size_t max_bytes,
                                            const std::set<std::uint64_t>& exclude) override;
   void ack(std::span<const std::uint64_t> seqs) override;
   uplink::OutboxStats stats() const override;
+  // Acknowledged entries whose deletion failed and is still to be retried.
+  std::size_t undeleted() const { return undeleted_.size(); }
 
  private:
+  void retry_deletes();
+
   storage::Store& store_;
+  std::set<std::uint64_t> undeleted_;
+  std::chrono::steady_clock::time_point next_delete_retry_{};
 };
 
 // Exposed for tests: storage kind -> uplink kind, and the eviction JSON -> protobuf conversion.

@@ -29,6 +29,7 @@ std::vector<nlohmann::json> export_rows(storage::Store& store, std::string_view 
 
 std::string service_config(const TempDir& dir, const std::string& scenario, double speed,
                            const std::string& extra = "") {
+  std::filesystem::create_directories(dir / "db");  // the service never creates it
   return "[can]\ntransport = \"sim\"\n[sim]\nscenario = \"" + scenario_path(scenario).string() +
          "\"\nspeed = " + std::to_string(speed) + "\n[storage]\npath = \"" +
          (dir / "db" / "fleetgw.db").string() + "\"\n" + extra;

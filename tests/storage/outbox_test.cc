@@ -135,12 +135,10 @@ TEST(Outbox, RejectedBatchStoresNothingAndBurnsNoNumbers) {
 
   Batch bad = mixed_batch(2);
   bad.rides.push_back({ride_named("", 2, false), std::nullopt});
-  try {
-    store.write(bad);
-    FAIL() << "empty ride id must be rejected";
-  } catch (const std::invalid_argument& e) {
-    EXPECT_STREQ(e.what(), "storage: Batch.rides[1].ride_id: empty");
-  }
+  const auto rejected = store.write(bad);
+  ASSERT_FALSE(rejected.ok()) << "empty ride id must be rejected";
+  EXPECT_EQ(rejected.error->code, StoreError::Code::kInvalid);
+  EXPECT_EQ(rejected.error->message, "storage: Batch.rides[1].ride_id: empty");
   EXPECT_EQ(store.next_seq(), next);
   EXPECT_EQ(store.outbox_depth().size(), 6u);
 
@@ -151,7 +149,11 @@ TEST(Outbox, RejectedBatchStoresNothingAndBurnsNoNumbers) {
     Database raw(store.path());
     raw.exec("CREATE TRIGGER boom BEFORE INSERT ON meta BEGIN SELECT RAISE(ABORT, 'boom'); END");
   }
-  EXPECT_THROW(store.write(failing), SqliteError);
+  const auto failed = store.write(failing);  // never throws: the error is returned
+  ASSERT_FALSE(failed.ok());
+  EXPECT_NE(failed.error->message.find("boom"), std::string::npos) << failed.error->message;
+  EXPECT_TRUE(store.health().failing);
+  EXPECT_EQ(store.health().failed_writes, 2u) << "the rejected batch and the failed one";
   EXPECT_EQ(store.next_seq(), next);
   std::uint64_t total = 0;
   for (const auto& d : store.outbox_depth()) total += d.entries;
@@ -162,18 +164,18 @@ TEST(Outbox, RejectedBatchStoresNothingAndBurnsNoNumbers) {
   }
   auto r = store.write(mixed_batch(4));
   EXPECT_EQ(r.first_seq, next) << "numbers of the rolled-back batch are handed out again";
+  EXPECT_FALSE(store.health().failing) << "a successful write ends the failing stretch";
+  EXPECT_EQ(store.health().failing_since_us, 0);
 }
 
 TEST(Outbox, ValidationNamesEntryAndField) {
   TempDir dir;
   Store store(StoreOptions{.path = dir.file("o.db")});
   auto expect_reject = [&](const Batch& b, const std::string& message) {
-    try {
-      store.write(b);
-      ADD_FAILURE() << "expected rejection: " << message;
-    } catch (const std::invalid_argument& e) {
-      EXPECT_EQ(std::string(e.what()), message);
-    }
+    const auto r = store.write(b);
+    ASSERT_FALSE(r.ok()) << "expected rejection: " << message;
+    EXPECT_EQ(r.error->code, StoreError::Code::kInvalid);
+    EXPECT_EQ(r.error->message, message);
   };
   Batch b;
   b.telemetry.push_back({telemetry_at(-5), std::nullopt});

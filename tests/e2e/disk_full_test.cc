@@ -1,0 +1,397 @@
+// Issue 11, item 1-2: a full disk under the real `fleetgw run`. The store lives on a small
+// tmpfs; a simulated ride with recurring faults runs at high speed; a filler file takes every
+// free byte of the tmpfs (and keeps taking what is freed) until the store cannot write, then is
+// deleted. The process must never exit, storage must be reported failing and then OK again by
+// itself, inspection (`fleetgw db`) must work meanwhile, and no fault event may be lost
+// compared with the same ride on a roomy disk. Runs with the uplink off and on (real mosquitto).
+// Needs root for mount(2) (CI runs as root); skipped otherwise.
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <sqlite3.h>
+#include <sys/mount.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <thread>
+#include <vector>
+
+#include "tests/support/mosquitto_fixture.h"
+
+namespace {
+
+using fleetgw::testing::MosquittoBroker;
+using fleetgw::testing::TempDir;
+using namespace std::chrono_literals;
+namespace fs = std::filesystem;
+
+constexpr double kSpeed = 40;        // sim.speed
+constexpr double kBusSeconds = 720;  // the run ends after this much bus time (18 s of wall time)
+constexpr int kFaultPeriodS = 40;    // an MC over-heat is raised and cleared every 40 s of bus time
+
+std::string slurp(const fs::path& path) {
+  std::ifstream in(path);
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+bool wait_for(const std::function<bool()>& done, std::chrono::milliseconds limit) {
+  const auto end = std::chrono::steady_clock::now() + limit;
+  while (std::chrono::steady_clock::now() < end) {
+    if (done()) return true;
+    std::this_thread::sleep_for(50ms);
+  }
+  return done();
+}
+
+// A steady ride with an MC over-heat raised and cleared every kFaultPeriodS seconds.
+std::string write_scenario(const fs::path& dir) {
+  std::ostringstream s;
+  s << "[scenario]\nname = \"disk-full\"\nduration_s = 3600\n"
+    << "start_utc = 2024-07-01T08:00:00Z\n[bike]\nseed = 77\nsoc_pct = 90\n"
+    << "[[ride]]\nduration_s = 3600\nspeed_kmh = 21\n";
+  for (int t = 10; t < 3600; t += kFaultPeriodS) {
+    s << "[[event]]\nat_s = " << t << "\naction = \"fault\"\nnode = \"mc\"\n"
+      << "fault = \"over_heat_protect\"\n[[event]]\nat_s = " << t + kFaultPeriodS / 2
+      << "\naction = \"clear\"\nnode = \"mc\"\nfault = \"over_heat_protect\"\n";
+  }
+  const auto path = dir / "disk-full.toml";
+  std::ofstream(path) << s.str();
+  return path.string();
+}
+
+std::string write_config(const fs::path& dir, const fs::path& db, const std::string& scenario,
+                         const std::string& broker_uri) {
+  std::ostringstream c;
+  c << "[vehicle]\nid = \"disk-full-bike\"\n[log]\nlevel = \"info\"\n"
+    << "[can]\ntransport = \"sim\"\n[sim]\nscenario = \"" << scenario << "\"\nspeed = " << kSpeed
+    << "\n[storage]\npath = \"" << db.string() << "\"\nmax_mb = 4\n"
+    << "[status]\nsocket = \"" << (dir / "status.sock").string() << "\"\n";
+  if (!broker_uri.empty()) {
+    c << "[mqtt]\nenabled = true\nuri = \"" << broker_uri << "\"\ntelemetry_qos = 1\n"
+      << "reconnect_min_ms = 100\nreconnect_max_ms = 500\n";
+  }
+  const auto path = dir / "fleetgw.toml";
+  std::ofstream(path) << c.str();
+  return path.string();
+}
+
+pid_t spawn(const std::vector<std::string>& args, const fs::path& output) {
+  const pid_t pid = fork();
+  if (pid == 0) {
+    std::FILE* f = std::fopen(output.c_str(), "w");
+    if (f != nullptr) {
+      dup2(fileno(f), 1);
+      dup2(fileno(f), 2);
+    }
+    std::vector<char*> argv;
+    argv.push_back(const_cast<char*>(FLEETGW_BINARY));
+    for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+    argv.push_back(nullptr);
+    execv(FLEETGW_BINARY, argv.data());
+    _exit(127);
+  }
+  return pid;
+}
+
+int wait_exit(pid_t pid) {
+  int status = 0;
+  waitpid(pid, &status, 0);
+  return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+}
+
+bool alive(pid_t pid) {
+  int status = 0;
+  return waitpid(pid, &status, WNOHANG) == 0;
+}
+
+// Runs `fleetgw ...` to completion; returns exit code, stdout+stderr in `out`.
+int run_fleetgw(const std::vector<std::string>& args, const fs::path& scratch, std::string& out) {
+  const fs::path file = scratch / "cmd.out";
+  const int rc = wait_exit(spawn(args, file));
+  out = slurp(file);
+  return rc;
+}
+
+struct StoreCounts {
+  std::int64_t faults = -1, telemetry = -1;
+  std::string integrity;
+};
+
+StoreCounts read_store(const fs::path& db, std::int64_t window_us) {
+  StoreCounts c;
+  sqlite3* h = nullptr;
+  if (sqlite3_open_v2(db.c_str(), &h, SQLITE_OPEN_READONLY, nullptr) != SQLITE_OK) return c;
+  auto scalar = [&](const std::string& sql) -> std::int64_t {
+    sqlite3_stmt* st = nullptr;
+    std::int64_t v = -1;
+    if (sqlite3_prepare_v2(h, sql.c_str(), -1, &st, nullptr) == SQLITE_OK &&
+        sqlite3_step(st) == SQLITE_ROW) {
+      v = sqlite3_column_int64(st, 0);
+    }
+    sqlite3_finalize(st);
+    return v;
+  };
+  c.faults = scalar(
+      "SELECT count(*) FROM fault_events WHERE first_seen_us - (SELECT min(start_us) FROM rides) "
+      "<= " +
+      std::to_string(window_us));
+  c.telemetry = scalar("SELECT count(*) FROM telemetry");
+  sqlite3_stmt* st = nullptr;
+  if (sqlite3_prepare_v2(h, "PRAGMA integrity_check", -1, &st, nullptr) == SQLITE_OK &&
+      sqlite3_step(st) == SQLITE_ROW) {
+    c.integrity = reinterpret_cast<const char*>(sqlite3_column_text(st, 0));
+  }
+  sqlite3_finalize(st);
+  sqlite3_close(h);
+  return c;
+}
+
+// Keeps the file system holding `path` full: appends to `path` whenever a byte is free.
+class DiskFiller {
+ public:
+  explicit DiskFiller(fs::path path) : path_(std::move(path)) {
+    thread_ = std::thread([this] { run(); });
+  }
+  ~DiskFiller() { stop(); }
+  void stop() {
+    stop_ = true;
+    if (thread_.joinable()) thread_.join();
+  }
+  void remove() {
+    stop();
+    fs::remove(path_);
+  }
+
+ private:
+  void run() {
+    std::FILE* f = std::fopen(path_.c_str(), "ab");
+    if (f == nullptr) return;
+    std::setvbuf(f, nullptr, _IONBF, 0);
+    const std::vector<char> block(64 * 1024, 'x');
+    while (!stop_) {
+      for (std::size_t size = block.size(); size >= 512 && !stop_;) {
+        if (std::fwrite(block.data(), 1, size, f) != size) {
+          std::clearerr(f);
+          size /= 2;
+        }
+      }
+      std::this_thread::sleep_for(10ms);
+    }
+    std::fclose(f);
+  }
+
+  fs::path path_;
+  std::atomic<bool> stop_{false};
+  std::thread thread_;
+};
+
+class Tmpfs {
+ public:
+  Tmpfs(const fs::path& where, const std::string& size) : where_(where) {
+    fs::create_directories(where);
+    mounted_ = ::mount("tmpfs", where.c_str(), "tmpfs", 0, ("size=" + size).c_str()) == 0;
+  }
+  ~Tmpfs() {
+    if (mounted_) ::umount2(where_.c_str(), MNT_DETACH);
+  }
+  bool mounted() const { return mounted_; }
+
+ private:
+  fs::path where_;
+  bool mounted_ = false;
+};
+
+// The status document, or null when the socket does not answer.
+nlohmann::json status_json(const fs::path& dir) {
+  std::string out;
+  run_fleetgw({"status", "--json", "--socket", (dir / "status.sock").string()}, dir, out);
+  const auto brace = out.find('{');
+  if (brace == std::string::npos) return nullptr;
+  return nlohmann::json::parse(out.substr(brace), nullptr, false);
+}
+
+// storage.failing from `fleetgw status --json`; nullopt when the service does not report it.
+std::optional<bool> storage_failing(const fs::path& dir) {
+  const auto j = status_json(dir);
+  if (!j.is_object() || !j.contains("storage") || !j["storage"].contains("failing")) {
+    return std::nullopt;
+  }
+  return j["storage"]["failing"].get<bool>();
+}
+
+// Fault events raised in the first (kBusSeconds - 2 periods) of the ride, counted from the ride's
+// start (bus time starts at the wall clock of the run): the last period may be cut by the end.
+std::int64_t fault_window_us() {
+  return static_cast<std::int64_t>(kBusSeconds - 2 * kFaultPeriodS) * 1'000'000;
+}
+
+StoreCounts reference_run(const fs::path& base, const std::string& scenario) {
+  const fs::path dir = base / "reference";
+  fs::create_directories(dir);
+  const auto config = write_config(dir, dir / "fleetgw.db", scenario, "");
+  std::string out;
+  const int rc = run_fleetgw({"run", "--config", config, "--bus-duration",
+                              std::to_string(kBusSeconds), "--duration", "120"},
+                             dir, out);
+  EXPECT_EQ(rc, 0) << out;
+  return read_store(dir / "fleetgw.db", fault_window_us());
+}
+
+void disk_full_round(bool uplink) {
+  TempDir base("fleetgw-diskfull");
+  const fs::path disk = base.path() / "disk";
+  Tmpfs tmpfs(disk, "8m");
+  if (!tmpfs.mounted()) GTEST_SKIP() << "cannot mount a tmpfs here (needs root)";
+  std::optional<MosquittoBroker> broker;
+  if (uplink) {
+    broker.emplace();
+    broker->start();
+  }
+  const std::string scenario = write_scenario(base.path());
+  const StoreCounts reference = reference_run(base.path(), scenario);
+  ASSERT_GT(reference.faults, 10) << "the scenario raises and clears faults";
+
+  const fs::path db = disk / "fleetgw.db";
+  const auto config =
+      write_config(base.path(), db, scenario, uplink ? broker->uri() : std::string());
+  const fs::path log = base.path() / "fleetgw.log";
+  const pid_t pid = spawn({"run", "--config", config, "--bus-duration", std::to_string(kBusSeconds),
+                           "--duration", "120"},
+                          log);
+  ASSERT_TRUE(wait_for([&] { return fs::exists(base.path() / "status.sock"); }, 10s)) << slurp(log);
+
+  // Inspection while the service runs: read-only, works, changes nothing.
+  std::string stats;
+  ASSERT_TRUE(wait_for(
+      [&] {
+        if (run_fleetgw({"db", "stats", "--db", db.string()}, base.path(), stats) != 0) {
+          return false;
+        }
+        const auto j = nlohmann::json::parse(stats.substr(stats.find('{')), nullptr, false);
+        return j.is_object() && j["tables"]["telemetry"].get<int>() > 20;
+      },
+      10s))
+      << stats;
+  EXPECT_FALSE(fs::exists(db.string() + ".corrupt")) << "inspection moved nothing";
+
+  // Fill the disk and keep it full.
+  DiskFiller filler(disk / "filler");
+  const auto full_since = std::chrono::steady_clock::now();
+  const bool failure_logged =
+      wait_for([&] { return slurp(log).find("storage: write failed") != std::string::npos; }, 30s);
+  ASSERT_TRUE(failure_logged) << "the store never failed with the disk full\n" << slurp(log);
+  const auto first_failure = std::chrono::steady_clock::now();
+  std::optional<bool> failing = storage_failing(base.path());
+  const bool status_wired = failing.has_value();
+  if (status_wired) {
+    EXPECT_TRUE(wait_for([&] { return storage_failing(base.path()) == true; }, 5s))
+        << "status must say storage is failing within 5 s of the first failure";
+    std::string out;
+    EXPECT_EQ(run_fleetgw({"status", "--socket", (base.path() / "status.sock").string()},
+                          base.path(), out),
+              1)
+        << out;
+  } else {
+    std::cerr << "NOTE: `fleetgw status --json` has no storage.failing yet; asserted on the log "
+                 "and the process instead\n";
+  }
+  std::this_thread::sleep_for(2s);  // stay full a while: retries, acks, commands...
+  ASSERT_TRUE(alive(pid)) << "the service exited on a full disk\n" << slurp(log);
+
+  // Space returns.
+  filler.remove();
+  const auto freed = std::chrono::steady_clock::now();
+  if (status_wired) {
+    EXPECT_TRUE(wait_for([&] { return storage_failing(base.path()) == false; }, 5s))
+        << "status must be back to OK within 5 s of space returning";
+  }
+  EXPECT_TRUE(wait_for(
+      [&] { return slurp(log).find("pending records written, storage OK") != std::string::npos; },
+      5s))
+      << "recovery is automatic and logged\n"
+      << slurp(log);
+  const auto recovered = std::chrono::steady_clock::now();
+  ASSERT_TRUE(alive(pid));
+
+  EXPECT_EQ(wait_exit(pid), 0) << slurp(log);
+  const std::string text = slurp(log);
+  // The same error is not logged on every retry.
+  std::size_t lines = 0;
+  std::istringstream in(text);
+  for (std::string line; std::getline(in, line);) {
+    if (line.find("storage") == std::string::npos) continue;
+    if (line.find("storage: write failed") != std::string::npos) ++lines;
+    std::cerr << "  log: " << line.substr(0, 300) << "\n";
+  }
+  // Two messages (the store's and the recorder's), each at most once per 10 s, plus the line
+  // that reports the repetitions.
+  const auto failing_s =
+      std::chrono::duration_cast<std::chrono::seconds>(recovered - first_failure).count();
+  EXPECT_LE(lines, static_cast<std::size_t>(2 * (2 + failing_s / 10)))
+      << "repeated identical errors are rate-limited\n"
+      << text;
+
+  const StoreCounts after = read_store(db, fault_window_us());
+  EXPECT_EQ(after.integrity, "ok");
+  EXPECT_EQ(after.faults, reference.faults) << "no fault event lost to the full disk";
+  std::cerr
+      << "figures: first failure after "
+      << std::chrono::duration_cast<std::chrono::milliseconds>(first_failure - full_since).count()
+      << " ms of full disk; recovered "
+      << std::chrono::duration_cast<std::chrono::milliseconds>(recovered - freed).count()
+      << " ms after space returned; " << lines << " 'write failed' log lines; faults "
+      << after.faults << "/" << reference.faults << "\n";
+}
+
+TEST(DiskFull, UplinkOffServiceSurvivesReportsAndRecovers) {
+  disk_full_round(false);
+}
+
+TEST(DiskFull, UplinkOnServiceSurvivesReportsAndRecovers) {
+  disk_full_round(true);
+}
+
+TEST(DbTool, RefusesATextFileAndLeavesItAlone) {
+  TempDir dir("fleetgw-dbtool");
+  const fs::path text = dir.path() / "ride.log";
+  std::ofstream(text) << "(1700000000.000000) can0 710#55AA0C1010\n";
+  const std::string before = slurp(text);
+  std::string out;
+  const int rc = run_fleetgw({"db", "stats", "--db", text.string()}, dir.path(), out);
+  EXPECT_EQ(rc, 2) << out;
+  EXPECT_NE(out.find("not a fleetgw store"), std::string::npos) << out;
+  EXPECT_EQ(slurp(text), before);
+  std::vector<std::string> names;
+  for (const auto& e : fs::directory_iterator(dir.path())) {
+    names.push_back(e.path().filename().string());
+  }
+  std::sort(names.begin(), names.end());
+  EXPECT_EQ(names, (std::vector<std::string>{"cmd.out", "ride.log"})) << "nothing created or moved";
+  const fs::path missing = dir.path() / "nope.db";
+  EXPECT_EQ(run_fleetgw({"db", "stats", "--db", missing.string()}, dir.path(), out), 2);
+  EXPECT_NE(out.find("no database"), std::string::npos) << out;
+  EXPECT_FALSE(fs::exists(missing));
+}
+
+TEST(Service, RefusesAStorageDirectoryThatDoesNotExist) {
+  TempDir dir("fleetgw-nodir");
+  const fs::path db = dir.path() / "missing" / "fleetgw.db";
+  std::ofstream(dir.path() / "s.toml") << "[scenario]\nname = \"x\"\nduration_s = 10\n"
+                                       << "[[ride]]\nduration_s = 10\nspeed_kmh = 0\n";
+  const auto config = write_config(dir.path(), db, (dir.path() / "s.toml").string(), "");
+  std::string out;
+  EXPECT_NE(run_fleetgw({"run", "--config", config, "--duration", "5"}, dir.path(), out), 0);
+  EXPECT_NE(out.find("storage.path"), std::string::npos) << out;
+  EXPECT_FALSE(fs::exists(dir.path() / "missing")) << "never created";
+}
+
+}  // namespace
