@@ -224,6 +224,8 @@ void Pipeline::settle() {
     if (!more) break;
   }
   settling_ = false;
+  // After the publishes, so a checkpoint's fsync never sits between a result and the broker.
+  recorder_->checkpoint_if_due();
   // The bound was reached (or a flush failed and keeps its records: retried at the deadline).
   if (publish_due_) request_settle();
   arm_timer();

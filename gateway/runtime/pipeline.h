@@ -104,6 +104,7 @@ class Pipeline {
   GatewayCore& core() { return core_; }
   const can::Transport& transport() const { return *bus_.transport; }
   const uplink::Uplink* uplink() const { return uplink_.get(); }
+  uplink::Uplink* uplink() { return uplink_.get(); }
   const Recorder& recorder() const { return *recorder_; }
   const PipelineCounters& counters() const { return counters_; }
   // Bus time covered by the frames delivered so far (0 before the first frame).

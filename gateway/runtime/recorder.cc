@@ -158,11 +158,15 @@ void Recorder::tick(Micros now) {
   last_now_ = std::max(last_now_, now);
   trackers_.tick(last_now_);
   note_pending();
-  if (urgent()) {
+  const auto deadline = flush_deadline();
+  if (urgent() || (deadline && wall() >= *deadline)) {
     flush(last_now_);
-    return;
+    checkpoint_if_due();
   }
-  if (const auto deadline = flush_deadline(); deadline && wall() >= *deadline) flush(last_now_);
+}
+
+void Recorder::checkpoint_if_due() {
+  store_.checkpoint_if_due();
 }
 
 bool Recorder::urgent() const {
@@ -197,7 +201,6 @@ FlushOutcome Recorder::flush(Micros now) {
     if (last_flush_failed_) error_log_.resolved("storage: pending records written, storage OK");
     last_flush_failed_ = false;
     failing_since_us_ = 0;
-    store_.checkpoint_if_due();  // outside the write transaction
     if (after_flush_) after_flush_();
     return out;
   }

@@ -66,6 +66,9 @@ class Recorder final : public MessageListener {
   void on_message(const motinova::DecodedMessage& message, Micros now) override;
   void tick(Micros now) override;
   FlushOutcome flush(Micros now);
+  // Checkpoints the WAL when it is due, outside any write transaction. Kept apart from flush()
+  // so the pipeline can run it after publishing: a checkpoint's fsync never delays a result.
+  void checkpoint_if_due();
 
   bool urgent() const;
   std::optional<std::chrono::steady_clock::time_point> flush_deadline() const;

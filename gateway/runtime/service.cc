@@ -14,6 +14,7 @@
 #include "gateway/sim/scenario.h"
 #include "gateway/sim/sim_transport.h"
 #include "gateway/status/notifier.h"
+#include "gateway/status/status_message.h"
 #include "gateway/status/status_server.h"
 #include "storage/store.h"
 
@@ -163,26 +164,32 @@ int run_service(const config::Config& config, const ServiceOptions& options,
     watchdog.emplace(io, notifier, *timeout);
     watchdog->start();
   }
+  // One status document for the technician (status socket) and the fleet (published Status).
+  const auto status_document = [&] {
+    StatusInputs in{config,
+                    pipeline->core(),
+                    pipeline->transport(),
+                    *store,
+                    pipeline->uplink(),
+                    pipeline->started(),
+                    pipeline->bus_now()};
+    in.storage_health = pipeline->recorder().health();
+    if (const uplink::Uplink* up = pipeline->uplink()) {
+      const auto s = up->stats();
+      in.uplink_failure =
+          UplinkFailure{s.last_connect_error, s.last_connect_error_us, s.tls_failures};
+    }
+    return make_status_json(in);
+  };
+  if (uplink::Uplink* up = pipeline->uplink()) {
+    up->set_status_decorator(
+        [&](v1::Status& status) { status::fill_status_health(status, status_document()); });
+  }
   if (!config.status.socket.empty()) {
     try {
       const std::filesystem::path socket(config.status.socket);
       if (socket.has_parent_path()) std::filesystem::create_directories(socket.parent_path());
-      status_server.emplace(io, socket, [&] {
-        StatusInputs in{config,
-                        pipeline->core(),
-                        pipeline->transport(),
-                        *store,
-                        pipeline->uplink(),
-                        pipeline->started(),
-                        pipeline->bus_now()};
-        in.storage_health = pipeline->recorder().health();
-        if (const uplink::Uplink* up = pipeline->uplink()) {
-          const auto s = up->stats();
-          in.uplink_failure =
-              UplinkFailure{s.last_connect_error, s.last_connect_error_us, s.tls_failures};
-        }
-        return make_status_json(in);
-      });
+      status_server.emplace(io, socket, status_document);
     } catch (const std::exception& e) {
       spdlog::warn("status socket {} disabled: {}", config.status.socket, e.what());
     }

@@ -55,9 +55,10 @@ std::string eviction_payload_from_json(std::string_view text, uint64_t seq) {
   return report.SerializeAsString();
 }
 
-std::vector<uplink::OutboxEntry> StoreOutbox::peek(std::size_t max_entries, std::size_t max_bytes,
-                                                   const std::set<std::uint64_t>& exclude) {
-  std::vector<uplink::OutboxEntry> out;
+std::vector<uplink::OutgoingRecord> StoreOutbox::peek(std::size_t max_entries,
+                                                      std::size_t max_bytes,
+                                                      const std::set<std::uint64_t>& exclude) {
+  std::vector<uplink::OutgoingRecord> out;
   if (max_entries == 0) return out;
   retry_deletes();
   store_.release_all();
@@ -67,7 +68,7 @@ std::vector<uplink::OutboxEntry> StoreOutbox::peek(std::size_t max_entries, std:
   std::size_t bytes = 0;
   for (auto& row : rows) {
     if (exclude.count(row.seq) || undeleted_.count(row.seq)) continue;
-    uplink::OutboxEntry e;
+    uplink::OutgoingRecord e;
     e.seq = row.seq;
     e.priority = row.priority;
     e.kind = uplink_kind(row.kind);

@@ -50,8 +50,6 @@ struct OutgoingRecord {
 
   friend bool operator==(const OutgoingRecord&, const OutgoingRecord&) = default;
 };
-// Old name, kept so that code written against it still compiles; use OutgoingRecord.
-using OutboxEntry = OutgoingRecord;
 
 // Queue figures for the status message and metrics.
 struct OutboxStats {

@@ -386,6 +386,9 @@ void Uplink::set_wakeup(std::function<void()> wakeup) {
 void Uplink::set_bus_state(v1::BusState state) {
   impl_->bus_state = state;
 }
+void Uplink::set_status_decorator(std::function<void(v1::Status&)> decorate) {
+  impl_->status_decorator = std::move(decorate);
+}
 
 void Uplink::start(Micros now) {
   if (impl_->state != UplinkState::kStopped) return;

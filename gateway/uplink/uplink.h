@@ -64,8 +64,6 @@ enum class UplinkState {
   kWaitingToReconnect,  // the last attempt failed or the connection dropped; see next_connect_at
 };
 std::string_view to_string(UplinkState state);
-// Old name, kept so that code written against it still compiles; use UplinkState.
-using LinkState = UplinkState;
 
 struct UplinkStats {
   UplinkState state = UplinkState::kStopped;
@@ -113,6 +111,9 @@ class Uplink {
   void set_wakeup(std::function<void()> wakeup);
   // Reported in Status messages.
   void set_bus_state(fleetgw::v1::BusState state);
+  // Completes every Status the uplink publishes (the retained one and the last will) with what
+  // only the owner knows: storage health, attention findings. Runs on the owner's thread.
+  void set_status_decorator(std::function<void(fleetgw::v1::Status&)> decorate);
 
   // Begins connecting.
   void start(Micros now);

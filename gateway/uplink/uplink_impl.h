@@ -94,6 +94,7 @@ struct Uplink::Impl {
   UplinkState state = UplinkState::kStopped;
   UplinkStats counters;
   v1::BusState bus_state = v1::BUS_STATE_UNSPECIFIED;
+  std::function<void(v1::Status&)> status_decorator;
   std::vector<std::string> commands;  // waiting for take_commands()
   std::uint64_t connect_attempt = 0;
   std::uint64_t publish_id = 0;

@@ -30,6 +30,7 @@ std::string Uplink::Impl::serialize_status(Micros now, v1::OnlineState online,
   s->set_last_publish_ok_at_us(counters.last_publish_ok_us);
   s->set_bus_state(bus_state);
   s->set_firmware_version(config.firmware_version);
+  if (status_decorator) status_decorator(*s);
   return env.SerializeAsString();
 }
 

@@ -31,7 +31,7 @@ struct RefusingSender final : node::FrameSender {
 
 // A bus that is up and carries nothing: the status then depends only on what the test injects.
 struct IdleBus final : can::Transport {
-  IdleBus() { health_.state = can::LinkState::kUp; }
+  IdleBus() { health_.state = can::ControllerState::kUp; }
   void start(FrameHandler, HealthHandler) override {}
   bool send(const motinova::CanFrame&) override { return false; }
   void stop() override {}
