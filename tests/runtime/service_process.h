@@ -25,8 +25,8 @@
 
 #include "fleetgw/v1/command.pb.h"
 #include "fleetgw/v1/envelope.pb.h"
-#include "gateway/command/command_tool.h"
 #include "gateway/command/ed25519.h"
+#include "gateway/command/signing.h"
 #include "gateway/uplink/tcp_nodelay.h"
 
 extern char** environ;

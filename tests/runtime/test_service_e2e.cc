@@ -6,7 +6,7 @@
 #include <fstream>
 
 #include "gateway/runtime/service.h"
-#include "gateway/sim/recorder.h"
+#include "gateway/sim/bus_log_writer.h"
 #include "runtime_test_util.h"
 #include "storage/store.h"
 
