@@ -3,6 +3,7 @@
 // memory is bounded: at most one payload-sized buffer stays (Paho C keeps its receive buffer at
 // the largest packet seen; docs/deployment.md), and further oversized messages add nothing.
 #include <gtest/gtest.h>
+#include <algorithm>
 
 #include "tests/config/cli_test_util.h"
 #include "tests/support/mosquitto_fixture.h"
@@ -119,7 +120,10 @@ TEST(OversizedMqtt, ResidentMemoryStaysBoundedAfterOversizedCommands) {
   const bool bounded = wait_for(
       [&] {
         after = rss_kib(service.pid());
-        return after >= 0 && after <= after_first + 1024;
+        // The uplink gives Paho's buffer back by replacing its client at most once a minute,
+        // so within that minute one buffer of the largest message may stay: bounded, never
+        // one more copy per message.
+        return after >= 0 && after <= std::max(after_first, baseline + 20 * 1024) + 1024;
       },
       std::chrono::seconds(15));
   EXPECT_TRUE(bounded) << "VmRSS " << after_first << " KiB after the first 20 MB message, " << after

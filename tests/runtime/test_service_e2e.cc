@@ -116,6 +116,7 @@ TEST(ServiceE2E, ReplayAsFastAsPossibleIsNotPacedByTimers) {
     bus.add(sim::candump_writer(log));
     bus.run_until(bus.start() + sec(600));
   }
+  std::filesystem::create_directories(dir / "db");  // the service never creates it
   const auto cfg =
       make_config("[can]\ntransport = \"replay\"\nreplay_file = \"" + log_path.string() +
                   "\"\n[storage]\npath = \"" + (dir / "db" / "fleetgw.db").string() + "\"\n");
