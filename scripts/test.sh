@@ -153,7 +153,7 @@ if [ "${SKIP_ASAN:-0}" != 1 ]; then
   # Everything the sanitizer run executes; not the VM test binary (it runs in the VM only).
   asan_targets=$(cmake --build build-asan --target help | sed -n 's/^\.\.\. //p' |
     grep -Ev '^(all|clean|depend|edit_cache|rebuild_cache|install.*|list_install_components|package.*|test|socketcan_vm_tests|.*_autogen)$' |
-    grep -E '_tests$|^fleetgw(-watch)?$' || true)
+    grep -E '_tests$|_smoke$|^fleetgw(-watch)?$' || true)
   # shellcheck disable=SC2086
   cmake --build build-asan -j "$JOBS" --target $asan_targets
   asan_built=$SECONDS
