@@ -1,5 +1,7 @@
 #include "gateway/command/verifier.h"
 
+#include "gateway/command/signing.h"
+
 #include <ctime>
 #include <stdexcept>
 
@@ -31,14 +33,9 @@ std::string quote_untrusted(std::string_view untrusted) {
   return "'" + common::untrusted_excerpt(untrusted, kMaxQuoted) + "'";
 }
 
+// Vehicle ids follow the same rule as the ids the operator tool accepts (signing.h).
 bool valid_vehicle_id(std::string_view id) {
-  if (id.empty() || id.size() > 64) return false;
-  for (const char c : id) {
-    const bool ok = (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') ||
-                    c == '.' || c == '_' || c == '-';
-    if (!ok) return false;
-  }
-  return true;
+  return is_valid_tool_id(id);
 }
 
 }  // namespace
