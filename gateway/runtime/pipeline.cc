@@ -227,6 +227,10 @@ void Pipeline::settle() {
   // After the publishes, so a checkpoint's fsync never sits between a result and the broker.
   recorder_->checkpoint_if_due();
   // The bound was reached (or a flush failed and keeps its records: retried at the deadline).
+  if (options_.stop_when && options_.stop_when()) {
+    stop("stop condition met");
+    return;
+  }
   if (publish_due_) request_settle();
   arm_timer();
 }

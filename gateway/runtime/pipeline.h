@@ -66,6 +66,9 @@ struct PipelineOptions {
   std::ostream* live_out = nullptr;                   // default std::cout
   std::function<void(GatewayCore&)> on_core;          // before the core starts (tests, demo)
   std::function<void(const char* why)> on_stop;       // the owner stops its own handlers
+  // Checked after every settle: stop as soon as it holds (tests and benchmarks wait for an
+  // outcome instead of a fixed run length).
+  std::function<bool()> stop_when;
 };
 
 // A stage could not be built from the configuration; what() names the section.

@@ -141,6 +141,7 @@ int run_service(const config::Config& config, const ServiceOptions& options,
   po.live_view = options.live_view;
   po.live_out = options.live_out;
   po.on_core = options.on_core;
+  po.stop_when = options.stop_when;
   po.on_stop = [&](const char*) {
     notifier.stopping();
     if (watchdog) watchdog->stop();

@@ -31,6 +31,8 @@ struct ServiceOptions {
   std::ostream* live_out = nullptr;  // default std::cout
   // Called once with the core before the loop starts (tests and the demo attach listeners).
   std::function<void(GatewayCore&)> on_core;
+  // Checked after the pipeline handled each burst of work: the run stops once it holds.
+  std::function<bool()> stop_when;
 };
 
 struct ServiceReport {

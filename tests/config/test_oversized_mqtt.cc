@@ -24,6 +24,11 @@ long rss_kib(pid_t pid) {
 }
 
 TEST(OversizedMqtt, ResidentMemoryStaysBoundedAfterOversizedCommands) {
+#if defined(__SANITIZE_ADDRESS__)
+  // The service binary is built with the same flags: AddressSanitizer keeps freed memory in
+  // quarantine, so resident memory says nothing about leaks there (the sanitizer checks those).
+  GTEST_SKIP() << "VmRSS is meaningless under AddressSanitizer";
+#endif
   MosquittoOptions bo;
   // The shipped broker config refuses messages over 256 KiB; this broker must pass 20 MB on so
   // the gateway really receives it.

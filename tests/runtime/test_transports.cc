@@ -170,8 +170,24 @@ TEST(Transports, UdpTunnelCarriesFramesBetweenSimProcessAndService) {
             dir / "sim.out", dir / "sim.err");
 
   Collector collector;
+  // Everything the checks below need, each (CAN ID, function) pair noted once as it arrives.
+  std::set<std::pair<uint16_t, uint8_t>> wanted{
+      {0x710, 0x10}, {0x720, 0x10}, {0x730, 0x15}, {0x760, 0x13}};
+  for (uint16_t id = 0x770; id <= 0x7B0; id += 0x10) {
+    wanted.insert({id, 0x10});
+    wanted.insert({id, 0x12});
+  }
+  std::size_t scanned = 0;
   ServiceOptions opts;
-  opts.duration = std::chrono::milliseconds(4000);
+  // Stops once everything arrived, not after a fixed time: a loaded machine (or a sanitizer
+  // build) starts the simulator process late. The duration only bounds a failing run.
+  opts.duration = std::chrono::seconds(60);
+  opts.stop_when = [&] {
+    for (; scanned < collector.messages.size(); ++scanned) {
+      wanted.erase({collector.messages[scanned].can_id, collector.messages[scanned].function});
+    }
+    return wanted.empty() && collector.messages.size() > 600;
+  };
   opts.on_core = [&](GatewayCore& core) { core.add_listener(collector); };
   ServiceReport report;
   EXPECT_EQ(run_service(cfg, opts, &report), 0);
