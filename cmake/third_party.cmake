@@ -6,7 +6,8 @@
 # time, so a library of which fleetgw uses a small part costs far more RAM than that part.
 #   * protobuf and SQLite are linked from their static archives: only the objects fleetgw
 #     references end up in the binary;
-#   * spdlog (with fmt) and toml++ are used header-only, compiled into fleetgw;
+#   * spdlog (its implementation compiled once, third_party/spdlog_compiled.cc), fmt and toml++
+#     are compiled into fleetgw from their headers;
 #   * sections are garbage-collected at link time and unused shared libraries are not recorded
 #     as needed.
 # Paho and OpenSSL stay shared (Debian ships no static Paho C++). Measured effect:
@@ -36,12 +37,14 @@ if(FLEETGW_STATIC_DEPS)
   else()
     message(WARNING "FLEETGW_STATIC_DEPS: libprotobuf.a or libsqlite3.a not found; linking them shared")
   endif()
-  # spdlog's headers compile its implementation inline unless SPDLOG_COMPILED_LIB is defined;
-  # fmt likewise with FMT_HEADER_ONLY.
+  # spdlog's own implementation is compiled once (third_party/spdlog_compiled.cc) instead of
+  # in every file that logs; fmt stays header-only (Debian ships it shared only).
   get_target_property(_spdlog_inc spdlog::spdlog INTERFACE_INCLUDE_DIRECTORIES)
   target_include_directories(fleetgw_spdlog SYSTEM INTERFACE ${_spdlog_inc})
-  target_compile_definitions(fleetgw_spdlog INTERFACE SPDLOG_FMT_EXTERNAL FMT_HEADER_ONLY=1)
+  target_compile_definitions(fleetgw_spdlog
+    INTERFACE SPDLOG_COMPILED_LIB SPDLOG_FMT_EXTERNAL FMT_HEADER_ONLY=1)
   target_link_libraries(fleetgw_spdlog INTERFACE Threads::Threads)
+  set(_fleetgw_spdlog_compiled ON)
   get_target_property(_toml_inc tomlplusplus::tomlplusplus INTERFACE_INCLUDE_DIRECTORIES)
   target_include_directories(fleetgw_toml SYSTEM INTERFACE ${_toml_inc})
   target_compile_definitions(fleetgw_toml INTERFACE TOML_HEADER_ONLY=1)
@@ -52,4 +55,14 @@ if(FLEETGW_STATIC_DEPS)
 else()
   target_link_libraries(fleetgw_spdlog INTERFACE spdlog::spdlog)
   target_link_libraries(fleetgw_toml INTERFACE tomlplusplus::tomlplusplus)
+endif()
+
+# After the compile options above, so the one copy of spdlog gets the same section flags.
+if(_fleetgw_spdlog_compiled)
+  add_library(fleetgw_spdlog_compiled STATIC ${PROJECT_SOURCE_DIR}/third_party/spdlog_compiled.cc)
+  target_include_directories(fleetgw_spdlog_compiled SYSTEM PRIVATE ${_spdlog_inc})
+  target_compile_definitions(fleetgw_spdlog_compiled
+    PRIVATE SPDLOG_COMPILED_LIB SPDLOG_FMT_EXTERNAL FMT_HEADER_ONLY=1)
+  target_link_libraries(fleetgw_spdlog_compiled PRIVATE Threads::Threads)
+  target_link_libraries(fleetgw_spdlog INTERFACE fleetgw_spdlog_compiled)
 endif()

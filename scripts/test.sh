@@ -2,19 +2,19 @@
 # Runs every fleetgw test on a fresh Debian 12 machine (as root, or with sudo), in timed phases:
 #   deps      installs the Debian packages, the arm64 cross packages included, in one apt run;
 #   build     one configure of build/ (warnings as errors), then the whole tree;
-#   test      the CTest suite without the VM and arm64 tests (unit, integration with a real
-#             mosquitto, real SQLite files, the Debian package installed and purged);
-#   vm        the SocketCAN tests inside a QEMU VM (a stock Debian kernel with vcan);
-#   arm64     cross build of the service and the unit tests that run under qemu-aarch64-static
+#   test      the CTest suite without the arm64 tests (unit, integration with a real mosquitto,
+#             real SQLite files, the Debian package installed and purged) and, alongside it,
+#             the SocketCAN tests inside a QEMU VM (a stock Debian kernel with vcan);
+#   arm64     cross build of the unit tests that run under qemu-aarch64-static, and their run
 #             (tests/deploy/arm64-cross.sh: -O1, no debug info, no benchmarks);
-#   fuzz      every libFuzzer target of FUZZ_TARGETS for FUZZ_SECONDS each (ASan/UBSan);
-#   asan      a Debug build with AddressSanitizer + UndefinedBehaviorSanitizer (no benchmarks, no
-#             VM test binary) and the suite again.
+#   sanitize  one clang build with AddressSanitizer + UndefinedBehaviorSanitizer and libFuzzer
+#             instrumentation (no benchmarks, no VM test binary): the suite again, then every
+#             libFuzzer target of FUZZ_TARGETS for FUZZ_SECONDS each.
 # The summary lists every phase with its elapsed time.
 # Environment: JOBS (default: nproc), FUZZ_SECONDS (default 30), FUZZ_TARGETS (default
 #   "fuzz_reassembler fuzz_command"; a target the tree does not define yet is skipped and said
-#   so), SKIP_ASAN=1, SKIP_FUZZ=1, SKIP_VM=1, SKIP_ARM64=1, ARM64_BENCH=1 (also the emulated
-#   protocol benchmark).
+#   so), SKIP_ASAN=1, SKIP_FUZZ=1, SKIP_VM=1, SKIP_ARM64=1, ARM64_FIGURES=1 (the release arm64
+#   binary with its size, and the emulated protocol benchmark).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 ROOT=$(pwd)
@@ -39,6 +39,18 @@ phase_end() {  # [result]
   PHASES+=("$(printf '%-7s %4d s  %s' "$PHASE_NAME" "$elapsed" "${1:-}")")
 }
 
+# Counts a finished ctest run (its output in `log`, its exit code `rc`) into the summary.
+account_ctest() {  # log rc label
+  local line
+  line=$(grep -E "tests passed, [0-9]+ tests failed out of [0-9]+|No tests were found" "$1" |
+    tail -1 || true)
+  if [[ $line =~ ([0-9]+)\ tests\ failed\ out\ of\ ([0-9]+) ]]; then
+    FAILED=$((FAILED + BASH_REMATCH[1]))
+    PASSED=$((PASSED + BASH_REMATCH[2] - BASH_REMATCH[1]))
+  fi
+  SUMMARY+=("$3: ${line:-no ctest summary} (exit $2)")
+}
+
 run_ctest() {  # build-dir ctest-args...
   local dir=$1 log
   shift
@@ -47,14 +59,7 @@ run_ctest() {  # build-dir ctest-args...
   (cd "$dir" && ctest --output-on-failure -j "$JOBS" --timeout 900 "$@") 2>&1 | tee "$log"
   local rc=${PIPESTATUS[0]}
   set -e
-  local line
-  line=$(grep -E "tests passed, [0-9]+ tests failed out of [0-9]+|No tests were found" "$log" |
-    tail -1 || true)
-  if [[ $line =~ ([0-9]+)\ tests\ failed\ out\ of\ ([0-9]+) ]]; then
-    FAILED=$((FAILED + BASH_REMATCH[1]))
-    PASSED=$((PASSED + BASH_REMATCH[2] - BASH_REMATCH[1]))
-  fi
-  SUMMARY+=("$dir $*: ${line:-no ctest summary} (exit $rc)")
+  account_ctest "$log" "$rc" "$dir $*"
   rm -f "$log"
   return "$rc"
 }
@@ -80,14 +85,23 @@ cmake --build build -j "$JOBS"
 phase_end
 
 phase_start test
-run_ctest build -LE "vm|arm64" || status=1
-phase_end
-
+# The SocketCAN tests boot a VM that mostly waits (≈ 70 s, ≈ 15 s of CPU): they run alongside
+# the suite instead of after it, their output printed once both are done.
+vm_pid=
 if [ "${SKIP_VM:-0}" != 1 ]; then
-  phase_start vm
-  run_ctest build -L vm || status=1
-  phase_end
+  (cd build && exec ctest --output-on-failure --timeout 900 -L vm) >build/vm-tests.log 2>&1 &
+  vm_pid=$!
 fi
+run_ctest build -LE "vm|arm64" || status=1
+if [ -n "$vm_pid" ]; then
+  vm_rc=0
+  wait "$vm_pid" || vm_rc=$?
+  echo "== SocketCAN tests in the VM (ran alongside)"
+  cat build/vm-tests.log
+  account_ctest build/vm-tests.log "$vm_rc" "build -L vm (alongside)"
+  [ "$vm_rc" = 0 ] || status=1
+fi
+phase_end
 
 if [ "${SKIP_ARM64:-0}" != 1 ]; then
   phase_start arm64
@@ -99,30 +113,41 @@ if [ "${SKIP_ARM64:-0}" != 1 ]; then
   phase_end
 fi
 
-if [ "${SKIP_FUZZ:-0}" != 1 ]; then
-  phase_start fuzz
-  # The protocol library alone is enough for fuzzers over the frame path; a fuzzer over code
-  # outside it (e.g. fuzz_command) needs the full tree, configured without tests or benchmarks.
-  fuzz_configure() {  # only-protocol ON|OFF
-    CXX=clang++ cmake -S . -B build-fuzz -DCMAKE_BUILD_TYPE=RelWithDebInfo -DFLEETGW_FUZZ=ON \
-      -DFLEETGW_BUILD_TESTS=OFF -DFLEETGW_BUILD_BENCH=OFF -DFLEETGW_ONLY_PROTOCOL="$1" \
-      "${LAUNCHER[@]}" >/dev/null
-    cmake --build build-fuzz --target help | sed -n 's/^\.\.\. //p'
-  }
-  available=$(fuzz_configure ON)
-  for t in $FUZZ_TARGETS; do
-    if ! grep -qx "$t" <<<"$available" && [ -f "tests/fuzz/$t.cc" ]; then
-      available=$(fuzz_configure OFF)
-      break
-    fi
-  done
-  for t in $FUZZ_TARGETS; do
-    if ! grep -qx "$t" <<<"$available"; then
-      SUMMARY+=("fuzz $t: skipped (no such target in tests/fuzz yet)")
-      continue
-    fi
-    cmake --build build-fuzz --target "$t" -j "$JOBS"
-    corpus=build-fuzz/corpus/$t
+# One clang build serves both the sanitizer suite and the fuzzers: everything is compiled with
+# AddressSanitizer + UndefinedBehaviorSanitizer and libFuzzer's coverage instrumentation
+# (-fsanitize=fuzzer-no-link); the fuzz targets link libFuzzer's main, the tests gtest's.
+# -O1 with line tables: sanitizer reports keep file:line, the suite runs at a useful speed.
+if [ "${SKIP_ASAN:-0}" != 1 ] || [ "${SKIP_FUZZ:-0}" != 1 ]; then
+  phase_start sanitize
+  CXX=clang++ CC=clang cmake -S . -B build-san -DCMAKE_BUILD_TYPE=Debug \
+    "-DCMAKE_CXX_FLAGS_DEBUG=-O1 -gline-tables-only" -DFLEETGW_SANITIZE=ON -DFLEETGW_FUZZ=ON \
+    -DFLEETGW_WERROR=ON -DFLEETGW_BUILD_BENCH=OFF "${LAUNCHER[@]}" >/dev/null
+  san_targets=$(cmake --build build-san --target help | sed -n 's/^\.\.\. //p')
+  build_targets=()
+  if [ "${SKIP_ASAN:-0}" != 1 ]; then
+    # Everything the suite executes; not the VM test binary (it runs in the VM only).
+    mapfile -t build_targets < <(grep -Ev '^(socketcan_vm_tests|.*_autogen)$' <<<"$san_targets" |
+      grep -E '_tests$|_smoke$|^fleetgw(-watch)?$' || true)
+  fi
+  fuzz_targets=()
+  if [ "${SKIP_FUZZ:-0}" != 1 ]; then
+    for t in $FUZZ_TARGETS; do
+      if grep -qx "$t" <<<"$san_targets"; then
+        fuzz_targets+=("$t")
+      else
+        SUMMARY+=("fuzz $t: skipped (no such target in tests/fuzz)")
+      fi
+    done
+  fi
+  cmake --build build-san -j "$JOBS" --target "${build_targets[@]}" "${fuzz_targets[@]}"
+  san_built=$SECONDS
+  if [ "${SKIP_ASAN:-0}" != 1 ]; then
+    ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
+      run_ctest build-san -LE "vm|bench|deploy|arm64" || status=1
+  fi
+  san_tested=$SECONDS
+  for t in "${fuzz_targets[@]}"; do
+    corpus=build-san/corpus/$t
     mkdir -p "$corpus"
     seeds=()
     for s in "tests/fuzz/seeds/$t" "tests/fuzz/seeds"; do
@@ -131,10 +156,11 @@ if [ "${SKIP_FUZZ:-0}" != 1 ]; then
         break
       fi
     done
-    log=build-fuzz/$t.log
-    if "build-fuzz/tests/fuzz/$t" -max_total_time="$FUZZ_SECONDS" -print_final_stats=1 \
+    log=build-san/$t.log
+    if "build-san/tests/fuzz/$t" -max_total_time="$FUZZ_SECONDS" -print_final_stats=1 \
       "$corpus" "${seeds[@]}" >"$log" 2>&1; then
-      SUMMARY+=("fuzz $t: $(grep -E 'stat::number_of_executed_units' "$log" | awk '{print $2}') inputs in ${FUZZ_SECONDS}s, no crash")
+      runs=$(grep -E 'stat::number_of_executed_units' "$log" | awk '{print $2}')
+      SUMMARY+=("fuzz $t: $runs inputs in ${FUZZ_SECONDS}s ($((runs / FUZZ_SECONDS))/s), no crash")
       PASSED=$((PASSED + 1))
     else
       tail -50 "$log"
@@ -143,23 +169,7 @@ if [ "${SKIP_FUZZ:-0}" != 1 ]; then
       status=1
     fi
   done
-  phase_end "$FUZZ_TARGETS"
-fi
-
-if [ "${SKIP_ASAN:-0}" != 1 ]; then
-  phase_start asan
-  cmake -S . -B build-asan -DCMAKE_BUILD_TYPE=Debug -DFLEETGW_SANITIZE=ON -DFLEETGW_WERROR=ON \
-    -DFLEETGW_BUILD_BENCH=OFF "${LAUNCHER[@]}" >/dev/null
-  # Everything the sanitizer run executes; not the VM test binary (it runs in the VM only).
-  asan_targets=$(cmake --build build-asan --target help | sed -n 's/^\.\.\. //p' |
-    grep -Ev '^(all|clean|depend|edit_cache|rebuild_cache|install.*|list_install_components|package.*|test|socketcan_vm_tests|.*_autogen)$' |
-    grep -E '_tests$|_smoke$|^fleetgw(-watch)?$' || true)
-  # shellcheck disable=SC2086
-  cmake --build build-asan -j "$JOBS" --target $asan_targets
-  asan_built=$SECONDS
-  ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
-    run_ctest build-asan -LE "vm|bench|deploy|arm64" || status=1
-  phase_end "build $((asan_built - PHASE_T0)) s, tests $((SECONDS - asan_built)) s"
+  phase_end "build $((san_built - PHASE_T0)) s, tests $((san_tested - san_built)) s, fuzz $((SECONDS - san_tested)) s"
 fi
 
 echo
