@@ -184,6 +184,11 @@ if [[ ${UPLINK:-1} != 0 ]] && command -v mosquitto >/dev/null && command -v open
       END { for (n in rss) if (rss[n] >= 100) { m = n; sub(/.*\//, "", m); printf "%6d KB  %s\n", rss[n], m } }' \
       "/proc/$pid/smaps" | sort -rn >"$WORK/uplink.maps"
     [[ -n $pid ]] && awk '/^VmRSS/ { print $2 }' "/proc/$pid/status" >"$WORK/uplink.vmrss"
+    # Wake-ups by thread (the event loop, Paho's send and receive threads): who costs the CPU.
+    for t in /proc/"$pid"/task/*; do
+      printf '%-16s %s wake-ups\n' "$(cat "$t/comm")" \
+        "$(awk '/^voluntary_ctxt_switches/ { print $2 }' "$t/status")"
+    done >"$WORK/uplink.threads" 2>/dev/null || true
   ) &
   SAMPLER=$!
   measure uplink -- "$FLEETGW" run --config "$WORK/uplink.toml" --duration "$REALTIME_S"
@@ -246,6 +251,8 @@ if [[ $UP_RSS != 0 ]]; then
   printf 'Steady state, sim at speed 1 + TLS uplink, %s s: %.3f %% of one core (target <= 0.25 %%), VmRSS %.1f MB near the end, peak RSS %.1f MB (target <= 10 MB)\n' \
     "$REALTIME_S" "$(echo "$UP_CPU / $UP_WALL * 100" | bc -l)" "$(echo "$UP_VMRSS / 1024" | bc -l)" \
     "$(echo "$UP_RSS / 1024" | bc -l)"
+  echo "  wake-ups (voluntary context switches) by thread, $((REALTIME_S - 5)) s into the run:"
+  sed 's/^/    /' "$WORK/uplink.threads"
   echo "  resident by mapping near the end:"
   sed 's/^/    /' "$WORK/uplink.maps"
 fi

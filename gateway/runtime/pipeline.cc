@@ -200,7 +200,12 @@ void Pipeline::settle() {
     bool more = false;
     const auto due = recorder_->flush_deadline();
     const bool urgent = recorder_->urgent();
-    if (urgent || (due && Clock::now() >= *due)) {
+    // The deadline is "at the latest": pending telemetry rides along with a wake-up that
+    // happens anyway (the node's schedule) instead of costing one of its own. Not in a replay,
+    // whose group commits should stay large.
+    const bool piggyback = woken_by_timer_ && !bus_.replay;
+    woken_by_timer_ = false;
+    if (urgent || (due && (piggyback || Clock::now() >= *due))) {
       if (urgent) ++counters_.urgent_flushes;
       const FlushOutcome out = recorder_->flush(bus_now());
       if (uplink_ && out.records > 0 && !out.failed) publish_due_ = true;
@@ -308,6 +313,7 @@ void Pipeline::on_timer() {
     out << core_.live().line() << std::endl;
     next_live_ = wall + std::chrono::seconds(1);
   }
+  woken_by_timer_ = true;
   settle();  // due flushes and polls; re-arms the timer
 }
 

@@ -12,7 +12,9 @@
 //    and repeat until nothing is left. settle() never runs inside itself.
 //  * Results, faults, alarms, rides and locks are published as soon as they are stored (an
 //    urgent recorder flush, or result_stored, polls the uplink at once); only telemetry waits
-//    for its group commit (storage.flush_ms of wall time) and the uplink's telemetry batch.
+//    for its group commit (storage.flush_ms of wall time at the latest; outside replays it is
+//    written at any earlier timer wake-up, which saves a wake-up of its own) and the uplink's
+//    telemetry batch.
 //  * Deadline scheduling: ONE steady_timer, armed for the earliest real deadline: the node's
 //    next deadline (exact; bus timeline converted to the wall clock; not for replays, whose
 //    clock only moves with their frames), the listeners' idle tick (1 s, only when the bus is
@@ -150,6 +152,7 @@ class Pipeline {
   bool settling_ = false;
   bool publish_due_ = false;  // something was stored that the uplink has not seen
   bool stopping_ = false;
+  bool woken_by_timer_ = false;  // this settle() runs in a timer wake-up (flush piggyback)
   Micros first_ts_{-1};
   Micros last_frame_ts_{0};
   PipelineCounters counters_;
