@@ -10,9 +10,16 @@
 #   3. Saturated bus: the ride log's valid MOTINOVA traffic time-compressed to SAT_FPS frames/s
 #      (default 2200, a 250 kbit/s bus at ~100 % load with 8-byte frames) for SAT_S seconds,
 #      replayed as fast as possible: speed = bus seconds / wall seconds (target >= 100x).
-#   4. Real time with the uplink: the same REALTIME_S seconds with [mqtt] enabled, over TLS to a
-#      local mosquitto (certificates made with openssl for the run), so the figure includes Paho
-#      and OpenSSL; the resident memory of each mapping is listed (UPLINK=0 skips this run).
+#   4. Steady state with the uplink: `fleetgw run` on the simulator (config/scenarios/ride.toml)
+#      at speed 1 for REALTIME_S seconds with [mqtt] enabled, over TLS to a local mosquitto
+#      (certificates made with openssl for the run), so the figure includes Paho and OpenSSL:
+#      CPU % of one core (user + sys / wall) and VmRSS near the end; the resident memory of each
+#      mapping is listed (UPLINK=0 skips this run).
+#   5. Real time against replay of the same traffic (issue 12, target <= 2x): the simulator at
+#      speed 1 for REALTIME_S s, no uplink (bike simulation included, so an upper bound), and
+#      the same scenario recorded for REALTIME_S s and replayed as fast as possible; also the
+#      replay at recorded speed of run 2 against the same log replayed fast. CPU = user + sys of
+#      the whole process (start-up included in both).
 #
 # The store is a temporary SQLite file, MQTT is disabled (but in run 4), log level warn.
 # Environment: BUILD_DIR (default build-bench-runtime, configured like the package:
@@ -44,6 +51,7 @@ WORK=$(mktemp -d /tmp/fleetgw-bench-XXXXXX)
 if [[ -z ${KEEP:-} ]]; then trap 'rm -rf "$WORK"' EXIT; fi
 
 config() {  # file replay_speed
+  mkdir -p "$WORK/db-$(basename "$1" .toml)"  # the service does not create it
   cat >"$1" <<EOF
 [log]
 level = "warn"
@@ -165,9 +173,9 @@ if [[ ${UPLINK:-1} != 0 ]] && command -v mosquitto >/dev/null && command -v open
   BROKER=$!
   sleep 0.5
   config "$WORK/uplink.toml" 1.0
-  sed -i '/^\[mqtt\]/,$d' "$WORK/uplink.toml"
-  printf '[mqtt]\nenabled = true\nuri = "ssl://localhost:%s"\nca_file = "%s"\n[vehicle]\nid = "bench-bike"\n' \
-    "$PORT" "$TLS/ca.crt" >>"$WORK/uplink.toml"
+  sed -i '/^\[mqtt\]/,$d; s/^transport = .*/transport = "sim"/; /^replay_speed/d' "$WORK/uplink.toml"
+  printf '[mqtt]\nenabled = true\nuri = "ssl://localhost:%s"\nca_file = "%s"\n[vehicle]\nid = "bench-bike"\n[sim]\nscenario = "%s"\nspeed = 1.0\n' \
+    "$PORT" "$TLS/ca.crt" "$ROOT/config/scenarios/ride.toml" >>"$WORK/uplink.toml"
   (
     sleep $((REALTIME_S - 5))
     pid=$(pgrep -n -f -- "--config $WORK/uplink.toml" || true)
@@ -175,15 +183,38 @@ if [[ ${UPLINK:-1} != 0 ]] && command -v mosquitto >/dev/null && command -v open
       /^Rss:/ { rss[name] += $2 }
       END { for (n in rss) if (rss[n] >= 100) { m = n; sub(/.*\//, "", m); printf "%6d KB  %s\n", rss[n], m } }' \
       "/proc/$pid/smaps" | sort -rn >"$WORK/uplink.maps"
+    [[ -n $pid ]] && awk '/^VmRSS/ { print $2 }' "/proc/$pid/status" >"$WORK/uplink.vmrss"
+    # Wake-ups by thread (the event loop, Paho's send and receive threads): who costs the CPU.
+    for t in /proc/"$pid"/task/*; do
+      printf '%-16s %s wake-ups\n' "$(cat "$t/comm")" \
+        "$(awk '/^voluntary_ctxt_switches/ { print $2 }' "$t/status")"
+    done >"$WORK/uplink.threads" 2>/dev/null || true
   ) &
   SAMPLER=$!
-  measure uplink -- "$FLEETGW" run --config "$WORK/uplink.toml" --replay "$WORK/realtime.log"
+  measure uplink -- "$FLEETGW" run --config "$WORK/uplink.toml" --duration "$REALTIME_S"
   wait "$SAMPLER" || true
+  UP_VMRSS=$(cat "$WORK/uplink.vmrss" 2>/dev/null || echo 0)
   kill "$BROKER" 2>/dev/null || true
   UP_RSS=$RSS UP_CPU=$CPU UP_WALL=$WALL
   grep -q "connected from .* as bench-bike" "$TLS/mosquitto.log" ||
     echo "bench-runtime: warning: the uplink never connected (see $WORK/tls/mosquitto.log)" >&2
 fi
+
+# 5. Real time against replay of the same traffic.
+sed 's/^transport = .*/transport = "sim"/; /^replay_speed/d' "$WORK/realtime.toml" >"$WORK/sim1.toml"
+sed -i "s|db-realtime|db-sim1|" "$WORK/sim1.toml"
+mkdir -p "$WORK/db-sim1"
+printf '[sim]\nscenario = "%s"\nspeed = 1.0\n' "$ROOT/config/scenarios/ride.toml" >>"$WORK/sim1.toml"
+measure sim1 -- "$FLEETGW" run --config "$WORK/sim1.toml" --duration "$REALTIME_S"
+SIM1_CPU=$CPU SIM1_WALL=$WALL
+"$FLEETGW" sim --scenario config/scenarios/ride.toml --duration "$REALTIME_S" \
+  --record "$WORK/sim1.log" 2>/dev/null
+config "$WORK/sim1fast.toml" 0
+measure sim1fast -- "$FLEETGW" run --config "$WORK/sim1fast.toml" --replay "$WORK/sim1.log"
+SIM1FAST_CPU=$CPU
+config "$WORK/rtfast.toml" 0
+measure rtfast -- "$FLEETGW" run --config "$WORK/rtfast.toml" --replay "$WORK/realtime.log"
+RTFAST_CPU=$CPU
 
 printf '\n%-44s %12s %12s %12s %12s\n' "run" "bus time" "wall" "CPU (u+s)" "max RSS"
 printf '%-44s %10ss %10.2fs %10.2fs %9.1f MB\n' \
@@ -194,7 +225,7 @@ printf '%-44s %10ss %10.2fs %10.2fs %9.1f MB\n' \
   "$(echo "$RT_RSS / 1024" | bc -l)"
 if [[ $UP_RSS != 0 ]]; then
   printf '%-44s %10ss %10.2fs %10.2fs %9.1f MB\n' \
-    "real time + uplink (MQTT over TLS, mosquitto)" "$REALTIME_S" "$UP_WALL" "$UP_CPU" \
+    "sim at speed 1 + uplink (MQTT over TLS)" "$REALTIME_S" "$UP_WALL" "$UP_CPU" \
     "$(echo "$UP_RSS / 1024" | bc -l)"
 fi
 printf '%-44s %10s %10s %10s %9.1f MB\n' \
@@ -212,8 +243,16 @@ printf 'Peak RSS at real-time load:                      %.1f MB (target < 10 MB
 printf 'Saturated 250 kbit/s bus replay speed:           %.0fx real time (target >= 100x)\n' \
   "$SAT_SPEED"
 echo "Saturated log check (fleetgw decode):           $SAT_CHECK"
+printf 'Real time / replay, same traffic (sim at speed 1 / its recording replayed fast): %.2f s / %.2f s CPU = %.1fx (target <= 2x)\n' \
+  "$SIM1_CPU" "$SIM1FAST_CPU" "$(echo "$SIM1_CPU / $SIM1FAST_CPU" | bc -l)"
+printf 'Real time / replay, same log (replay at 1x / as fast as possible):              %.2f s / %.2f s CPU = %.1fx\n' \
+  "$RT_CPU" "$RTFAST_CPU" "$(echo "$RT_CPU / $RTFAST_CPU" | bc -l)"
 if [[ $UP_RSS != 0 ]]; then
-  printf 'Peak RSS at real-time load with the TLS uplink:  %.1f MB; resident by mapping near the end:\n' \
+  printf 'Steady state, sim at speed 1 + TLS uplink, %s s: %.3f %% of one core (target <= 0.25 %%), VmRSS %.1f MB near the end, peak RSS %.1f MB (target <= 10 MB)\n' \
+    "$REALTIME_S" "$(echo "$UP_CPU / $UP_WALL * 100" | bc -l)" "$(echo "$UP_VMRSS / 1024" | bc -l)" \
     "$(echo "$UP_RSS / 1024" | bc -l)"
+  echo "  wake-ups (voluntary context switches) by thread, $((REALTIME_S - 5)) s into the run:"
+  sed 's/^/    /' "$WORK/uplink.threads"
+  echo "  resident by mapping near the end:"
   sed 's/^/    /' "$WORK/uplink.maps"
 fi

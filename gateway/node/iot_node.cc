@@ -1,5 +1,6 @@
 #include "gateway/node/iot_node.h"
 
+#include <algorithm>
 #include <utility>
 
 #include "gateway/node/messages.h"
@@ -59,6 +60,11 @@ void IotNode::tick(Micros now) {
   shutdown_.tick(now);
   poller_.tick(now);
   broadcaster_.tick(now);
+}
+
+Micros IotNode::next_event() const {
+  return std::min({registry_.next_event(), engine_.next_event(), locks_.next_event(),
+                   shutdown_.next_event(), poller_.next_event(), broadcaster_.next_event()});
 }
 
 void IotNode::set_own_fault(uint32_t mask, bool active, Micros now) {

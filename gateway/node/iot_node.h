@@ -4,7 +4,11 @@
 //
 // Contract:
 //  * Clock-free: the runtime calls start(now) once, on_frame() for every received application
-//    frame (after decode()), and tick(now) at least every 20-50 ms; every API call takes `now`.
+//    frame (after decode()), and tick(now) when now >= next_event(); every API call takes `now`.
+//    next_event() is the earliest deadline of every part (request retry/timeout, poll due,
+//    broadcast or event repeat, lock job step, shutdown timeout, node offline, fault word
+//    stale), so the spec's timing is exact without a periodic tick; ticking more often is
+//    harmless. It may move earlier after on_frame() or any call that starts something.
 //    Everything happens synchronously inside these calls on the caller's thread (not
 //    thread-safe; the runtime serialises calls on its io_context).
 //  * Peer SHUTDOWN (OBC 0x730/0x1008, BMS 0x720/0x1308) is answered with READY on 0x760/0x1405
@@ -52,6 +56,10 @@ class IotNode {
   void start(Micros now);
   void on_frame(const motinova::AppFrame& frame, const motinova::DecodedMessage& msg, Micros now);
   void tick(Micros now);
+  // See the contract; Micros::max() when nothing is scheduled (not started).
+  Micros next_event() const;
+  // A lock job or the shutdown procedure is running: its outcome waits for the bus.
+  bool latency_critical() const { return locks_.any_busy() || shutdown_.running(); }
 
   // Own fault word (iot_fault::kUplinkModule, kBle, kGps).
   void set_own_fault(uint32_t mask, bool active, Micros now);

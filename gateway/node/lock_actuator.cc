@@ -115,6 +115,24 @@ void LockActuator::tick(Micros now) {
   }
 }
 
+Micros LockActuator::next_event() const {
+  Micros next = Micros::max();
+  for (const auto& slot : jobs_) {
+    if (!slot) continue;
+    const Job& job = *slot;
+    next = std::min(next, job.deadline);
+    if (!job.reacted && job.commands_sent < command_transmissions_) {
+      next = std::min(next, job.last_command + policy_.command_repeat_interval);
+    }
+    if (job.read_id == 0) next = std::min(next, job.last_read + policy_.status_interval);
+  }
+  return next;
+}
+
+bool LockActuator::any_busy() const {
+  return std::any_of(jobs_.begin(), jobs_.end(), [](const auto& j) { return j.has_value(); });
+}
+
 bool LockActuator::busy(int k) const {
   return k >= 0 && k < motinova::kLockCount && jobs_[static_cast<std::size_t>(k)].has_value();
 }

@@ -18,7 +18,8 @@
 //    (§3.7: events may be lost).
 //  * One job per lock: a second start() on a busy lock is refused (kBusy), as is a lock that is
 //    not fitted. The callback runs after the job was removed, so it may start a new one.
-//  * Time advances only through `now`; tick() must run at least every status_interval.
+//  * Time advances only through `now`; tick() must run at next_event() (or at least every
+//    status_interval).
 #pragma once
 
 #include <array>
@@ -65,8 +66,11 @@ class LockActuator {
 
   void on_frame(const motinova::AppFrame& frame, Micros now);
   void tick(Micros now);
+  // The next deadline, command repeat or status read of a running job (Micros::max(): idle).
+  Micros next_event() const;
 
   bool busy(int lock_index) const;
+  bool any_busy() const;
   // Latest lock-state byte seen from this lock (jobs or not).
   std::optional<uint8_t> last_state(int lock_index) const;
 

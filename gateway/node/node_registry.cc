@@ -99,6 +99,17 @@ void NodeRegistry::tick(Micros now) {
   }
 }
 
+Micros NodeRegistry::next_event() const {
+  Micros next = Micros::max();
+  for (const NodeState& s : nodes_) {
+    if (s.online) next = std::min(next, s.last_heard + config_.offline_timeout);
+    if (s.faults.state != FaultState::kUnknown) {
+      next = std::min(next, s.faults.heard + config_.fault_stale_timeout);
+    }
+  }
+  return next;
+}
+
 FaultWordState NodeRegistry::fault_word(Node n, Micros now) const {
   FaultWordState f = node(n).faults;
   if (f.state != FaultState::kUnknown && now - f.heard >= config_.fault_stale_timeout) {

@@ -97,6 +97,9 @@ class NodeRegistry {
 
   void on_frame(const motinova::AppFrame& frame, const motinova::DecodedMessage& msg, Micros now);
   void tick(Micros now);
+  // When tick() next has something to do: a node going offline or a fault word going stale
+  // (Micros::max(): never).
+  Micros next_event() const;
 
   const NodeState& node(Node n) const { return nodes_[static_cast<std::size_t>(n) & 0xF]; }
   bool online(Node n) const { return node(n).online; }

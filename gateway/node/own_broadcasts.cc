@@ -1,5 +1,7 @@
 #include "gateway/node/own_broadcasts.h"
 
+#include <algorithm>
+
 #include "gateway/node/messages.h"
 
 namespace fleetgw::node {
@@ -66,6 +68,15 @@ void OwnBroadcaster::tick(Micros now) {
     next_model_info_ = now + policy_.model_info_period;
   }
   if (now >= next_faults_) send_faults(now);
+}
+
+Micros OwnBroadcaster::next_event() const {
+  Micros next = Micros::max();
+  for (const EventSchedule& ev : events_) {
+    if (ev.remaining > 0) next = std::min(next, ev.next);
+  }
+  if (started_) next = std::min({next, next_model_info_, next_faults_});
+  return next;
 }
 
 void OwnBroadcaster::set_faults(uint32_t word, Micros now) {

@@ -47,6 +47,8 @@ class OwnBroadcaster {
 
   void start(Micros now);
   void tick(Micros now);
+  // The next periodic broadcast or event repeat (Micros::max(): none).
+  Micros next_event() const;
 
   // Own fault bits. set_faults replaces the word; set_fault sets/clears bits. A change is sent
   // immediately (once started).

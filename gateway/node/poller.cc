@@ -69,6 +69,15 @@ void Poller::tick(Micros now) {
   }
 }
 
+Micros Poller::next_event() const {
+  Micros next = Micros::max();
+  if (!started_) return next;
+  for (const PollEntryStatus& s : status_) {
+    if (!s.in_flight && !s.done) next = std::min(next, s.next_due);
+  }
+  return next;
+}
+
 void Poller::rearm(motinova::Node node, Micros now) {
   last_now_ = now;
   for (std::size_t i = 0; i < table_.size(); ++i) {

@@ -58,6 +58,8 @@ class Poller {
   void start(Micros now);
   void on_frame(const motinova::AppFrame& frame, Micros now);
   void tick(Micros now);
+  // The earliest time an entry is due (Micros::max(): none, or not started).
+  Micros next_event() const;
   void rearm(motinova::Node node, Micros now);
 
   std::span<const PollEntry> table() const { return table_; }

@@ -88,6 +88,17 @@ void RequestEngine::tick(Micros now) {
   fire(done);
 }
 
+Micros RequestEngine::next_event() const {
+  Micros next = Micros::max();
+  for (const auto& [target, ch] : channels_) {
+    if (!ch.active) continue;
+    const Pending& p = *ch.active;
+    next = std::min({next, p.first_sent + p.request.timing.timeout,
+                     p.last_sent + p.request.timing.retry_interval});
+  }
+  return next;
+}
+
 bool RequestEngine::busy(uint16_t target_id) const {
   const auto it = channels_.find(target_id);
   return it != channels_.end() && it->second.active.has_value();

@@ -21,8 +21,8 @@
 //  * Callbacks run after the engine's state is consistent; they may submit() or cancel()
 //    (re-entrancy is safe). cancel() of a queued or outstanding request completes it as
 //    kCancelled without calling its callback.
-//  * Time only advances through the `now` arguments; tick() should run at least every 20-50 ms
-//    (retries are late by at most one tick period).
+//  * Time only advances through the `now` arguments; tick() must run at next_event() (retries
+//    and timeouts are then exact) or at least every 20-50 ms (late by at most one period).
 #pragma once
 
 #include <cstdint>
@@ -88,6 +88,9 @@ class RequestEngine {
 
   void on_frame(const motinova::AppFrame& frame, Micros now);
   void tick(Micros now);
+  // The earliest retry or timeout of an outstanding request (Micros::max(): none). tick() at
+  // that time does the work; queued requests start when the one ahead completes.
+  Micros next_event() const;
 
   // True when a request to `target_id` is on the bus (waiting for its answer).
   bool busy(uint16_t target_id) const;

@@ -39,6 +39,8 @@ class ShutdownProcedure {
   bool start(Micros now, bool await_mc, bool await_obc, AccOff acc_off);
   void on_frame(const motinova::AppFrame& frame, Micros now);
   void tick(Micros now);
+  // The READY wait's timeout while running (Micros::max(): not running).
+  Micros next_event() const { return running_ ? started_ + policy_.ready_timeout : Micros::max(); }
   bool running() const { return running_; }
 
  private:

@@ -2,6 +2,8 @@
 
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
+
 #include "gateway/decode/json_format.h"
 
 namespace fleetgw::runtime {
@@ -68,6 +70,20 @@ void GatewayCore::deliver_echoes() {
   }
   echoes_.clear();
   delivering_echoes_ = false;
+  // Whoever made the node send (or start something) calls this afterwards.
+  node_due_stale_ = true;
+}
+
+Micros GatewayCore::node_deadline() const {
+  if (node_due_stale_) {
+    node_due_ = node_->next_event();
+    node_due_stale_ = false;
+  }
+  return node_due_;
+}
+
+Micros GatewayCore::next_event() const {
+  return std::min(node_deadline(), listeners_due_);
 }
 
 GatewayCore::~GatewayCore() = default;
@@ -76,11 +92,17 @@ void GatewayCore::start(Micros now) {
   now_ = now;
   node_->start(now);
   deliver_echoes();
-  next_tick_ = now + kTickInterval;
+  last_tick_ = now;
+  listeners_due_ = now + kTickInterval;
 }
 
 void GatewayCore::on_can_frame(const motinova::CanFrame& frame, Micros timestamp) {
-  if (timestamp >= next_tick_) tick(timestamp);
+  if (!traffic_since_tick_) {
+    // The bus came back: listeners return to the flowing cadence.
+    traffic_since_tick_ = true;
+    listeners_due_ = std::min(listeners_due_, last_tick_ + kTickInterval);
+  }
+  if (timestamp >= next_event()) tick(timestamp);
   now_ = std::max(now_, timestamp);
   reassembler_.push(frame, timestamp, *this);
   deliver_echoes();
@@ -98,6 +120,7 @@ void GatewayCore::on_frame(const motinova::AppFrame& frame, Micros ts) {
         decode::hex_id(frame.can_id), frame.function, frame.data.size());
   }
   node_->on_frame(frame, decoded_, ts);
+  node_due_stale_ = true;
   live_.update(decoded_, options_);
   for (auto* l : listeners_) l->on_message(decoded_, ts);
   // The gateway's reactions to this frame (answers, lock commands) come after it.
@@ -124,7 +147,10 @@ void GatewayCore::tick(Micros now) {
   deliver_echoes();
   for (auto* l : listeners_) l->tick(now);
   deliver_echoes();
-  next_tick_ = now + kTickInterval;
+  last_tick_ = now;
+  listeners_due_ = now + (traffic_since_tick_ ? kTickInterval : kIdleTickInterval);
+  traffic_since_tick_ = false;
+  node_due_stale_ = true;
 }
 
 }  // namespace fleetgw::runtime

@@ -8,7 +8,11 @@
 //  * Single-threaded; every entry point takes `now`. on_can_frame() and tick() never block.
 //  * tick() must be called when now >= next_event() (the pipeline arms its one timer for it;
 //    on_can_frame() ticks by itself when a frame's timestamp passes it). Partial messages are
-//    expired there too.
+//    expired there too. next_event() is the node's own next deadline (exact: retries, polls,
+//    broadcasts, timeouts; node::IotNode::next_event) or the listeners' next tick, whichever
+//    comes first. Listeners (trackers, commands: timeouts of seconds) are ticked every
+//    kTickInterval of bus time while frames flow and every kIdleTickInterval on a silent bus,
+//    so an idle gateway wakes only for the node's own schedule.
 //  * Echoes: what the node transmits is shown to the listeners too (the bus does not echo a
 //    sender's own frames, and the trackers need the gateway's LOCK/UNLOCK/SHUTDOWN broadcasts),
 //    but never from inside the send: echoes are queued and delivered after the frame or tick
@@ -65,6 +69,7 @@ class GatewayCore final : private motinova::FrameSink {
 
  public:
   static constexpr Micros kTickInterval{50'000};
+  static constexpr Micros kIdleTickInterval{1'000'000};
 
   GatewayCore(const config::Config& config, node::FrameSender& sender, node::NodeHooks hooks = {});
   ~GatewayCore() override;
@@ -74,12 +79,22 @@ class GatewayCore final : private motinova::FrameSink {
   void start(Micros now);
   void on_can_frame(const motinova::CanFrame& frame, Micros timestamp);
   void tick(Micros now);
-  Micros next_event() const { return next_tick_; }
+  Micros next_event() const;
+  // The node's own next deadline, and when a silent bus needs a listener tick.
+  Micros node_deadline() const;
+  Micros idle_deadline() const { return last_tick_ + kIdleTickInterval; }
+  // The node is waiting for the bus on someone's behalf (a lock job, the shutdown procedure):
+  // frames should reach the core without batching delay.
+  bool latency_critical() const { return node_->latency_critical(); }
   // Delivers queued echoes (see the contract); a no-op when called from inside a delivery.
   void deliver_echoes();
   bool echoes_pending() const { return !echoes_.empty(); }
 
-  node::IotNode& node() { return *node_; }
+  // Mutable access may start something with an earlier deadline: next_event() recomputes.
+  node::IotNode& node() {
+    node_due_stale_ = true;
+    return *node_;
+  }
   const node::IotNode& node() const { return *node_; }
   const LiveState& live() const { return live_; }
   const motinova::ReassemblerStats& bus_stats() const { return reassembler_.stats(); }
@@ -104,7 +119,12 @@ class GatewayCore final : private motinova::FrameSink {
   LiveState live_;
   CoreStats stats_;
   std::vector<MessageListener*> listeners_;
-  Micros next_tick_{0};
+  Micros listeners_due_{Micros::max()};  // next listener tick
+  Micros last_tick_{0};
+  bool traffic_since_tick_ = false;
+  // node_->next_event(), cached: recomputed after everything that can move it earlier.
+  mutable Micros node_due_{Micros::max()};
+  mutable bool node_due_stale_ = true;
   Micros last_error_log_{0};
   uint64_t errors_since_log_ = 0;
 };

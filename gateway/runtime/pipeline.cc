@@ -2,6 +2,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <asio/post.hpp>
 #include <iostream>
 
@@ -21,11 +22,12 @@ Micros system_now() {
 constexpr int kMaxSettleRounds = 16;
 // The simulator's clock is converted to the wall clock; never wait less than this for it.
 constexpr auto kMinSimWait = std::chrono::microseconds(200);
-// While frames flow they tick the core themselves (GatewayCore::on_can_frame), so the timer is
-// only a fallback for a bus that falls silent: it may fire this much after the core's next
-// event. A flowing bus then costs no timer wake-up of its own; on a silent bus the first tick
-// comes at most this late, the following ones on time.
-constexpr Micros kFlowingBusSlack{200'000};
+// The simulated bus delivers its traffic in batches at most this often (real time) while no
+// command waits for the bus: frames keep their own timestamps and are flushed before the core
+// acts on any deadline, so only the wall-clock latency of telemetry grows (it waits for its
+// group commit anyway), not the node's timing. Each wake-up of the event loop costs far more
+// than the frames it delivers; this is what makes real time cost about what a replay costs.
+constexpr auto kSimBatchWindow = std::chrono::milliseconds(500);
 
 }  // namespace
 
@@ -70,6 +72,7 @@ Pipeline::Pipeline(asio::io_context& io, const config::Config& config, BusTransp
                                        can::controller_state_name(h.state),
                                        h.detail.empty() ? "" : ": ", h.detail);
                         });
+  if (bus_.sim) bus_.sim->set_batch_window(kSimBatchWindow);
   start_ = bus_.replay ? Micros(0) : bus_now();
   recorder_.emplace(config, store_, start_);
 
@@ -164,7 +167,6 @@ void Pipeline::on_frame(const motinova::CanFrame& frame, Micros ts) {
   if (stopping_) return;
   if (first_ts_.count() < 0) first_ts_ = ts;
   last_frame_ts_ = ts;
-  frame_since_timer_ = true;
   core_.on_can_frame(frame, ts);
   // Measured on the frames actually delivered: a paced simulator's clock can run ahead of a
   // slow machine, the traffic cannot.
@@ -198,7 +200,12 @@ void Pipeline::settle() {
     bool more = false;
     const auto due = recorder_->flush_deadline();
     const bool urgent = recorder_->urgent();
-    if (urgent || (due && Clock::now() >= *due)) {
+    // The deadline is "at the latest": pending telemetry rides along with a wake-up that
+    // happens anyway (the node's schedule) instead of costing one of its own. Not in a replay,
+    // whose group commits should stay large.
+    const bool piggyback = woken_by_timer_ && !bus_.replay;
+    woken_by_timer_ = false;
+    if (urgent || (due && (piggyback || Clock::now() >= *due))) {
       if (urgent) ++counters_.urgent_flushes;
       const FlushOutcome out = recorder_->flush(bus_now());
       if (uplink_ && out.records > 0 && !out.failed) publish_due_ = true;
@@ -211,7 +218,10 @@ void Pipeline::settle() {
         ++counters_.uplink_polls;
         uplink_->poll(system_now());
         // Commands are handled after poll() returned: poll is never re-entered.
-        for (auto& payload : uplink_->take_commands()) {
+        auto payloads = uplink_->take_commands();
+        // A command acts on the bus as it is now, not as of the last batch.
+        if (!payloads.empty() && bus_.sim) bus_.sim->flush();
+        for (auto& payload : payloads) {
           ++counters_.commands;
           const auto d = commands_->on_payload(payload, bus_now());
           spdlog::info("command received: {}", command::disposition_name(d));
@@ -232,18 +242,20 @@ void Pipeline::settle() {
     return;
   }
   if (publish_due_) request_settle();
+  // A command (or shutdown) waiting for the bus gets every frame at once.
+  if (bus_.sim) bus_.sim->set_low_latency(commands_->busy() || core_.latency_critical());
   arm_timer();
 }
 
 std::optional<Clock::time_point> Pipeline::core_deadline() const {
   // A replay's clock only moves with its frames, and on_can_frame() ticks the core by itself.
   if (bus_.replay) return std::nullopt;
-  const bool flowing = frame_since_timer_ || bus_flowing_;
-  const Micros next = core_.next_event() + (flowing ? kFlowingBusSlack : Micros(0));
+  // The node's own deadlines are exact; the listeners (trackers, commands) need the timer only
+  // on a silent bus, at their idle cadence: flowing frames tick them (on_can_frame).
+  const Micros next = std::min(core_.node_deadline(), core_.idle_deadline());
   if (bus_.sim) {
-    // Bus time -> wall time through the acceleration. While frames flow their timestamps are
-    // the clock; a silent simulated bus runs on the simulator's own clock.
-    const Micros now = flowing ? bus_now() : bus_.sim->virtual_now();
+    // Bus time -> wall time through the acceleration, on the simulator's own clock.
+    const Micros now = bus_.sim->virtual_now();
     const auto wait =
         std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double, std::micro>(
             static_cast<double>((next - now).count()) / bus_.sim_speed));
@@ -288,16 +300,20 @@ void Pipeline::on_timer() {
   }
   if (!bus_.replay) {
     Micros t = bus_now();
-    if (bus_.sim && !frame_since_timer_) t = std::max(t, bus_.sim->virtual_now());
+    if (bus_.sim) {
+      // The core acts on its deadline with every frame due by now delivered (batching).
+      bus_.sim->flush();
+      if (stopping_) return;
+      t = std::max(bus_now(), bus_.sim->virtual_now());
+    }
     if (t >= core_.next_event()) core_.tick(t);
   }
-  bus_flowing_ = frame_since_timer_;
-  frame_since_timer_ = false;
   if (next_live_ && wall >= *next_live_) {
     std::ostream& out = options_.live_out ? *options_.live_out : std::cout;
     out << core_.live().line() << std::endl;
     next_live_ = wall + std::chrono::seconds(1);
   }
+  woken_by_timer_ = true;
   settle();  // due flushes and polls; re-arms the timer
 }
 

@@ -12,12 +12,18 @@
 //    and repeat until nothing is left. settle() never runs inside itself.
 //  * Results, faults, alarms, rides and locks are published as soon as they are stored (an
 //    urgent recorder flush, or result_stored, polls the uplink at once); only telemetry waits
-//    for its group commit (storage.flush_ms of wall time) and the uplink's telemetry batch.
-//  * Deadline scheduling: ONE steady_timer, armed for the earliest real deadline: the core's
-//    next event (bus timeline, converted to the wall clock; not for replays, whose clock only
-//    moves with their frames), the recorder's flush deadline, the uplink's next deadline, the
-//    live view, the run's duration. Nothing else wakes the loop: a replay as fast as possible
-//    is paced by its transport alone, and an idle bus costs only the node's own schedule.
+//    for its group commit (storage.flush_ms of wall time at the latest; outside replays it is
+//    written at any earlier timer wake-up, which saves a wake-up of its own) and the uplink's
+//    telemetry batch.
+//  * Deadline scheduling: ONE steady_timer, armed for the earliest real deadline: the node's
+//    next deadline (exact; bus timeline converted to the wall clock; not for replays, whose
+//    clock only moves with their frames), the listeners' idle tick (1 s, only when the bus is
+//    silent), the recorder's flush deadline, the uplink's next deadline, the live view, the
+//    run's duration. Nothing else wakes the loop: a replay as fast as possible is paced by its
+//    transport alone, and an idle bus costs only the node's own schedule.
+//  * The simulated bus is read in batches (SimTransport::set_batch_window, 500 ms) except while
+//    a command or the shutdown waits for the bus; it is flushed before the core acts on a
+//    deadline and before a command is handled, so batching delays telemetry, never decisions.
 //  * Time: the core, trackers and commands run on the transport's timeline (virtual for the
 //    simulator and replays, the system clock otherwise); the network and group commit run on
 //    the wall clock, even when the bus is accelerated.
@@ -146,8 +152,7 @@ class Pipeline {
   bool settling_ = false;
   bool publish_due_ = false;  // something was stored that the uplink has not seen
   bool stopping_ = false;
-  bool frame_since_timer_ = false;  // a frame arrived since the last timer expiry
-  bool bus_flowing_ = false;        // frames arrived between the last two expiries
+  bool woken_by_timer_ = false;  // this settle() runs in a timer wake-up (flush piggyback)
   Micros first_ts_{-1};
   Micros last_frame_ts_{0};
   PipelineCounters counters_;

@@ -33,6 +33,23 @@ void RealtimeDriver::start(Emit emit) {
 void RealtimeDriver::stop() {
   running_ = false;
   timer_.cancel();
+  armed_for_.reset();
+}
+
+void RealtimeDriver::set_batch_window(std::chrono::steady_clock::duration window) {
+  window_ = window;
+  arm();
+}
+
+void RealtimeDriver::set_low_latency(bool on) {
+  if (on == low_latency_) return;
+  low_latency_ = on;
+  arm();
+}
+
+void RealtimeDriver::flush() {
+  if (!running_) return;
+  fire();
 }
 
 Micros RealtimeDriver::virtual_now() const {
@@ -46,7 +63,13 @@ Micros RealtimeDriver::virtual_now() const {
 
 void RealtimeDriver::receive(const motinova::CanFrame& frame) {
   if (!running_) return;
-  bike_.receive(frame, virtual_now());
+  const Micros now = virtual_now();
+  // What the bike sent before this frame reached it goes first (a batch may hold it back):
+  // the bike's timeline never runs backwards. Called from the event loop (SimTransport posts),
+  // so emitting here re-enters nobody.
+  bike_.advance_to(now, bike_emit_);
+  last_delivery_ = std::chrono::steady_clock::now();
+  bike_.receive(frame, now);
   arm();  // the reaction may be due before the event the timer waits for
 }
 
@@ -55,16 +78,25 @@ void RealtimeDriver::arm() {
   const Micros wait_virtual = bike_.next_event() - virtual_now();
   const auto wait_real = std::chrono::microseconds(static_cast<int64_t>(
       std::max<double>(0, static_cast<double>(wait_virtual.count())) / acceleration_));
-  timer_.expires_after(wait_real);
+  auto at = std::chrono::steady_clock::now() + wait_real;
+  // Batching: the next wake-up for the bike's traffic is at least one window after the last
+  // delivery; whatever falls due meanwhile waits and goes out together.
+  if (!low_latency_ && window_.count() > 0) at = std::max(at, last_delivery_ + window_);
+  if (armed_for_ && *armed_for_ == at) return;
+  armed_for_ = at;
+  timer_.expires_at(at);
   timer_.async_wait([this, token = std::weak_ptr<int>(alive_)](const std::error_code& ec) {
     if (ec || token.expired()) return;
+    armed_for_.reset();
     fire();
   });
 }
 
 void RealtimeDriver::fire() {
   if (!running_) return;
+  last_delivery_ = std::chrono::steady_clock::now();
   bike_.advance_to(virtual_now(), bike_emit_);
+  if (!running_) return;  // the handler stopped us
   arm();
 }
 

@@ -11,10 +11,19 @@
 //
 // Contract (both): single-threaded, everything on the io_context's thread; handlers never run
 // after stop() or destruction. The Bike itself stays deterministic; only the pacing is real.
+//
+// Coalescing: every wake-up delivers ALL frames due by then (each with its own bus timestamp).
+// With a batch window (set_batch_window, real time), the driver wakes at most once per window
+// for the bike's traffic, like a CAN controller that interrupts per batch: frames reach the
+// handler up to one window late but in order and correctly stamped. flush() delivers what is
+// due at once (the gateway calls it before acting on its own deadlines, so it never acts on a
+// stale view of the bus) and restarts the window; set_low_latency(true) suspends batching
+// (a command waits for the lock's answer). Window 0 (the default): one wake-up per bike event.
 #pragma once
 
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 
 #include <asio/io_context.hpp>
@@ -38,6 +47,10 @@ class RealtimeDriver {
   // Anchors the bike's current time to "now" and starts emitting.
   void start(Emit emit);
   void stop();
+  void set_batch_window(std::chrono::steady_clock::duration window);
+  void set_low_latency(bool on);
+  // Delivers every frame due by virtual_now() and re-arms.
+  void flush();
   // A frame from the outside bus, delivered to the bike at virtual_now().
   void receive(const motinova::CanFrame& frame);
   Micros virtual_now() const;
@@ -51,6 +64,10 @@ class RealtimeDriver {
   Bike& bike_;
   double acceleration_;
   asio::steady_timer timer_;
+  std::chrono::steady_clock::duration window_{};
+  bool low_latency_ = false;
+  std::chrono::steady_clock::time_point last_delivery_{};
+  std::optional<std::chrono::steady_clock::time_point> armed_for_;
   Emit emit_;
   Bike::Emit bike_emit_;
   std::chrono::steady_clock::time_point real_start_{};
@@ -71,6 +88,10 @@ class SimTransport final : public can::Transport {
   std::string_view name() const override { return name_; }
 
   Micros virtual_now() const { return driver_.virtual_now(); }
+  // See RealtimeDriver (coalescing).
+  void set_batch_window(std::chrono::steady_clock::duration w) { driver_.set_batch_window(w); }
+  void set_low_latency(bool on) { driver_.set_low_latency(on); }
+  void flush() { driver_.flush(); }
   Bike& bike() { return bike_; }
   const Bike& bike() const { return bike_; }
 

@@ -422,7 +422,9 @@ TEST(NodeOnSim, OwnModelInfoAndFaultWordBroadcastPeriods) {
   h.run_until(h.at(12.01));
   node.set_own_fault(0x0004, true, h.bus.now());  // GPS
   const Micros raised = h.bus.now();
-  h.run_until(h.at(15.01));
+  // Off the 200 ms grid of the faulty word (12.01 + n * 0.2 s): the node's deadlines are exact,
+  // so a clear at 15.01 would share its instant with a periodic faulty word.
+  h.run_until(h.at(15.11));
   node.set_own_fault(0x0004, false, h.bus.now());
   const Micros cleared = h.bus.now();
   h.run_until(h.at(30));

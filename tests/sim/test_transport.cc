@@ -71,6 +71,74 @@ TEST(SimTransport, DeliversVirtualTimestampsAndAnswersRequests) {
   EXPECT_FALSE(transport.send(motinova::CanFrame{}));  // stopped
 }
 
+// Coalescing: with a batch window the bike's traffic arrives in few wake-ups, every frame in
+// order with its own timestamp; flush() delivers what is due at once; low latency turns
+// batching off.
+TEST(SimTransport, BatchWindowCoalescesWakeUpsAndFlushDeliversWhatIsDue) {
+  using Clock = std::chrono::steady_clock;
+  asio::io_context io;
+  SimTransport transport(io, bundled("ride"), /*acceleration=*/10.0);
+  transport.set_batch_window(std::chrono::milliseconds(100));
+  Probe probe;
+  Micros last_ts{0};
+  bool monotonic = true;
+  std::vector<Clock::time_point> deliveries;  // one entry per wake-up that delivered frames
+  transport.start(
+      [&](const motinova::CanFrame& f, Micros ts) {
+        monotonic = monotonic && ts >= last_ts;
+        last_ts = ts;
+        probe.push(f, ts);
+        const auto now = Clock::now();
+        if (deliveries.empty() || now - deliveries.back() > std::chrono::milliseconds(20)) {
+          deliveries.push_back(now);
+        }
+      },
+      nullptr);
+  asio::steady_timer check(io);
+  Micros flushed_at{0};
+  Micros last_before_flush{0};
+  check.expires_after(std::chrono::milliseconds(650));
+  check.async_wait([&](const std::error_code&) {
+    last_before_flush = last_ts;
+    flushed_at = transport.virtual_now();
+    transport.flush();
+    transport.stop();
+  });
+  io.run();
+
+  EXPECT_TRUE(monotonic);
+  EXPECT_TRUE(probe.errors.empty());
+  // 6.5 s of a ride at x10 is well over a hundred messages, in about 7 wake-ups.
+  EXPECT_GT(probe.messages.size(), 100u);
+  EXPECT_LE(deliveries.size(), 9u) << "one wake-up per 100 ms window, not per message";
+  EXPECT_GE(deliveries.size(), 3u);
+  // flush() delivered what was due by then: nothing older than the window is left behind.
+  EXPECT_GT(last_ts, last_before_flush);
+  EXPECT_LE(last_ts, flushed_at);
+}
+
+TEST(SimTransport, LowLatencyDeliversEachBikeEventAtOnce) {
+  using Clock = std::chrono::steady_clock;
+  asio::io_context io;
+  SimTransport transport(io, bundled("ride"), /*acceleration=*/10.0);
+  transport.set_batch_window(std::chrono::milliseconds(100));
+  transport.set_low_latency(true);
+  std::vector<Clock::time_point> deliveries;
+  transport.start(
+      [&](const motinova::CanFrame&, Micros) {
+        const auto now = Clock::now();
+        if (deliveries.empty() || now - deliveries.back() > std::chrono::milliseconds(2)) {
+          deliveries.push_back(now);
+        }
+      },
+      nullptr);
+  asio::steady_timer stop(io);
+  stop.expires_after(std::chrono::milliseconds(400));
+  stop.async_wait([&](const std::error_code&) { transport.stop(); });
+  io.run();
+  EXPECT_GT(deliveries.size(), 15u) << "events are not held back for the window";
+}
+
 // Stands in for the UDP/SocketCAN transport in run_sim.
 class FakeBus final : public can::Transport {
  public:
