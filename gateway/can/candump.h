@@ -19,6 +19,9 @@
 //  * LineReader streams records from an std::istream, skipping malformed lines and collecting
 //    their errors, so one bad line in a day-long recording costs one line, not the file. Lines are
 //    bounded (kMaxLineLength); a longer line is reported and skipped without buffering it whole.
+//    It reads in blocks of what the stream has buffered (never waiting for a full block, so a
+//    live pipe is read as data arrives) and parses each line in place: no copy, no allocation
+//    per line.
 #pragma once
 
 #include <cstddef>
@@ -106,13 +109,22 @@ class LineReader {
   std::size_t line_number() const { return line_no_; }  // last line read
 
  private:
-  // Reads one line into line_, returns false at end of input; sets too_long when truncated.
-  bool read_line(bool& too_long);
+  // Next line (without its '\n') as a view into buf_, valid until the next call; false at end of
+  // input. Sets too_long (and an empty line) for a line over kMaxLineLength.
+  bool read_line(std::string_view& line, bool& too_long);
+  // Appends what the stream has available (at least one byte, waiting for it) to buf_; false at
+  // end of input.
+  bool fill();
   void report(ParseError error);
 
   std::istream& in_;
   std::size_t max_errors_kept_;
-  std::string line_;
+  std::vector<char> buf_;  // bytes [begin_, end_) read but not yet consumed
+  std::size_t begin_ = 0;
+  std::size_t end_ = 0;
+  std::size_t scanned_ = 0;  // bytes after begin_ known to hold no '\n'
+  bool skipping_ = false;    // inside an overlong line: its bytes are dropped as they come
+  bool eof_ = false;
   std::size_t line_no_ = 0;
   std::size_t error_count_ = 0;
   std::vector<ParseError> errors_;

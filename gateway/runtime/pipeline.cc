@@ -75,6 +75,7 @@ Pipeline::Pipeline(asio::io_context& io, const config::Config& config, BusTransp
   if (bus_.sim) bus_.sim->set_batch_window(kSimBatchWindow);
   start_ = bus_.replay ? Micros(0) : bus_now();
   recorder_.emplace(config, store_, start_);
+  recorder_->set_flush_on_tick(false);  // settle() flushes: one transaction per burst of frames
 
   // Remote lock commands: verified, journaled in the store, executed through the node.
   command::CommandContext context{

@@ -158,6 +158,7 @@ void Recorder::tick(Micros now) {
   last_now_ = std::max(last_now_, now);
   trackers_.tick(last_now_);
   note_pending();
+  if (!flush_on_tick_) return;
   const auto deadline = flush_deadline();
   if (urgent() || (deadline && wall() >= *deadline)) {
     flush(last_now_);

@@ -76,6 +76,12 @@ class Recorder final : public MessageListener {
 
   // Called after every successful write (the uplink polls then: new records to send).
   void set_after_flush(std::function<void()> hook) { after_flush_ = std::move(hook); }
+  // A caller that schedules flush() itself (the Pipeline: urgent() -> flush after the frames
+  // at hand, flush_deadline() -> its timer) turns this off: tick() then only runs the trackers,
+  // so records met while one burst of frames is handled go out in one transaction, not one
+  // transaction per fault or lock event (a replay of the worst-case log: ~40 k commits per
+  // bus-hour down to a few thousand). Default on, for callers that only tick.
+  void set_flush_on_tick(bool on) { flush_on_tick_ = on; }
   // Test hook: a smaller retry-memory bound.
   void set_retry_memory_bytes(std::size_t bytes) { retry_memory_bytes_ = bytes; }
 
@@ -98,6 +104,7 @@ class Recorder final : public MessageListener {
   WallClock wall_clock_;
   std::chrono::steady_clock::duration flush_interval_;
   std::optional<std::chrono::steady_clock::time_point> first_pending_;
+  bool flush_on_tick_ = true;
   std::optional<std::chrono::steady_clock::time_point> next_retry_;
   std::size_t retry_memory_bytes_ = kRetryMemoryBytes;
   Micros last_now_{0};

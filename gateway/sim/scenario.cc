@@ -538,7 +538,22 @@ Scenario parse_scenario(std::string_view toml_text, std::string_view source_name
                             "expected a table ([[event]]), got " + TableReader::type_of(n));
       }
       TableReader r(*n.as_table(), path, file);
-      s.events.push_back(read_event(r, s));
+      // repeat_every_s / repeat_count: the same event again and again (worst-case.toml changes
+      // a lock's state every second for an hour) without thousands of [[event]] tables.
+      const auto every = r.number("repeat_every_s", 0.01, 24 * 3600.0);
+      const auto count = r.integer("repeat_count", 1, 1'000'000);
+      if (every.has_value() != count.has_value()) {
+        r.fail(nullptr, every ? "repeat_count" : "repeat_every_s",
+               "missing key (repeat_every_s and repeat_count go together)");
+      }
+      const ScenarioEvent ev = read_event(r, s);
+      s.events.push_back(ev);
+      for (int64_t k = 1; k < count.value_or(1); ++k) {
+        ScenarioEvent copy = ev;
+        copy.at +=
+            Micros(static_cast<int64_t>(std::llround(*every * 1e6 * static_cast<double>(k))));
+        s.events.push_back(copy);
+      }
     }
   }
   top.finish();

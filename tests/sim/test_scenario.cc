@@ -84,6 +84,21 @@ TEST(Scenario, KeyNotUsedByActionIsRejected) {
                "not used by action 'power_off'");
 }
 
+TEST(Scenario, RepeatedEventExpandsIntoCopies) {
+  const auto s = parse_scenario(
+      "[[event]]\nat_s = 1\naction = \"lock\"\nnode = \"lock1\"\nrepeat_every_s = 2\n"
+      "repeat_count = 3\n[[event]]\nat_s = 2\naction = \"unlock\"\nnode = \"lock1\"\n",
+      "rep.toml");
+  ASSERT_EQ(s.events.size(), 4u);
+  EXPECT_EQ(s.events[0].at, Micros(1'000'000));
+  EXPECT_EQ(s.events[1].action, Action::kUnlock);
+  EXPECT_EQ(s.events[2].at, Micros(3'000'000));
+  EXPECT_EQ(s.events[3].at, Micros(5'000'000));
+  EXPECT_EQ(s.events[3].action, Action::kLock);
+  expect_error("[[event]]\nat_s = 1\naction = \"power_off\"\nrepeat_every_s = 2\n", 1,
+               "event[0].repeat_count", "repeat_every_s and repeat_count go together");
+}
+
 TEST(Scenario, WrongTypeIsRejected) {
   expect_error("[bike]\nsoc_pct = \"full\"\n", 2, "bike.soc_pct", "expected a number");
   expect_error("[bike]\nseed = 1.5\n", 2, "bike.seed", "expected an integer");
