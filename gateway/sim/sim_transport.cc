@@ -9,7 +9,7 @@
 namespace fleetgw::sim {
 
 RealtimeDriver::RealtimeDriver(asio::io_context& io, Bike& bike, double acceleration)
-    : io_(io), bike_(bike), acceleration_(acceleration), timer_(io) {
+    : bike_(bike), acceleration_(acceleration), timer_(io) {
   if (!(acceleration > 0) || !std::isfinite(acceleration)) {
     throw std::invalid_argument("sim: acceleration must be a positive number");
   }

@@ -60,7 +60,6 @@ class RealtimeDriver {
   void arm();
   void fire();
 
-  asio::io_context& io_;
   Bike& bike_;
   double acceleration_;
   asio::steady_timer timer_;
