@@ -2,6 +2,8 @@
 
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
+
 namespace fleetgw::storage {
 
 RateLimitedLog::RateLimitedLog(std::shared_ptr<spdlog::logger> logger,
@@ -14,39 +16,60 @@ std::chrono::steady_clock::time_point RateLimitedLog::now() const {
   return clock_ ? clock_() : std::chrono::steady_clock::now();
 }
 
+std::uint64_t RateLimitedLog::suppressed() const {
+  std::uint64_t n = 0;
+  for (const auto& t : tracked_) n += t.suppressed;
+  return n;
+}
+
 bool RateLimitedLog::report(std::string_view message) {
   const auto t = now();
-  const bool same = active_ && message == last_message_;
-  if (same && t - last_logged_ < window_) {
-    ++suppressed_;
+  active_ = true;
+  auto it = std::find_if(tracked_.begin(), tracked_.end(),
+                         [&](const Tracked& x) { return x.message == message; });
+  if (it != tracked_.end() && t - it->last_logged < window_) {
+    ++it->suppressed;
     return false;
   }
-  if (same && suppressed_ > 0) {
-    const auto secs = std::chrono::duration_cast<std::chrono::seconds>(t - last_logged_).count();
-    log_->error("{} (repeated {} times in the last {} s)", message, suppressed_ + 1, secs);
-  } else {
-    if (active_ && suppressed_ > 0) {
-      log_->error("{} (repeated {} more times)", last_message_, suppressed_);
+  if (it != tracked_.end()) {
+    if (it->suppressed > 0) {
+      const auto secs =
+          std::chrono::duration_cast<std::chrono::seconds>(t - it->last_logged).count();
+      log_->error("{} (repeated {} times in the last {} s)", message, it->suppressed + 1, secs);
+    } else {
+      log_->error("{}", message);
     }
-    log_->error("{}", message);
+    it->last_logged = t;
+    it->suppressed = 0;
+    return true;
   }
-  last_message_ = std::string(message);
-  last_logged_ = t;
-  suppressed_ = 0;
-  active_ = true;
+  if (tracked_.size() >= kMaxTracked) {
+    // Forget the least recently logged message, saying what was still uncounted.
+    auto oldest = std::min_element(
+        tracked_.begin(), tracked_.end(),
+        [](const Tracked& a, const Tracked& b) { return a.last_logged < b.last_logged; });
+    if (oldest->suppressed > 0) {
+      log_->error("{} (repeated {} more times)", oldest->message, oldest->suppressed);
+    }
+    tracked_.erase(oldest);
+  }
+  log_->error("{}", message);
+  tracked_.push_back({std::string(message), t, 0});
   return true;
 }
 
 void RateLimitedLog::resolved(std::string_view text) {
   if (!active_) return;
-  if (suppressed_ > 0) {
-    log_->info("{} (after '{}', repeated {} more times)", text, last_message_, suppressed_);
-  } else {
-    log_->info("{}", text);
+  std::string counts;
+  for (const auto& t : tracked_) {
+    if (t.suppressed == 0) continue;
+    counts += counts.empty() ? " (after " : "; ";
+    counts += "'" + t.message + "', repeated " + std::to_string(t.suppressed) + " more times";
   }
+  if (!counts.empty()) counts += ")";
+  log_->info("{}{}", text, counts);
   active_ = false;
-  suppressed_ = 0;
-  last_message_.clear();
+  tracked_.clear();
 }
 
 }  // namespace fleetgw::storage

@@ -2,21 +2,25 @@
 // every attempt (a full disk retried at 100x replay speed must not write hundreds of lines/s).
 //
 // Contract:
-// - report(message) logs `message` at once when it differs from the previous one or when the
-//   window has passed since it was last logged; otherwise it only counts. The next line that
-//   is logged for the same message says how many repetitions were suppressed, e.g.
+// - report(message) logs `message` at once when it was not logged within the last window;
+//   otherwise it only counts. Each distinct message has its own window and count (up to
+//   kMaxTracked of them, the least recently logged forgotten first), so errors that alternate
+//   ("write failed", "ack failed", ...) are limited as well as a single repeated one. The next
+//   line logged for a message says how many repetitions were suppressed, e.g.
 //   "storage write failed: disk full (SQLITE_FULL) (repeated 312 times in the last 10 s)".
 // - resolved(text) ends a stretch of errors: if anything was reported since the last
-//   resolved(), one line at info level says so (with the count of suppressed repetitions).
+//   resolved(), one line at info level says so (with the counts of suppressed repetitions).
 // - Single-threaded; the clock is injected (default steady_clock) so tests need no sleeps.
 #pragma once
 
 #include <chrono>
+#include <cstddef>
 #include <cstdint>
 #include <functional>
 #include <memory>
 #include <string>
 #include <string_view>
+#include <vector>
 
 namespace spdlog {
 class logger;
@@ -27,6 +31,7 @@ namespace fleetgw::storage {
 class RateLimitedLog {
  public:
   using Clock = std::function<std::chrono::steady_clock::time_point()>;
+  static constexpr std::size_t kMaxTracked = 16;
 
   explicit RateLimitedLog(std::shared_ptr<spdlog::logger> logger,
                           std::chrono::steady_clock::duration window = std::chrono::seconds(10),
@@ -35,17 +40,21 @@ class RateLimitedLog {
   // Returns true when the line was written (false: counted only).
   bool report(std::string_view message);
   void resolved(std::string_view text);
-  std::uint64_t suppressed() const { return suppressed_; }
+  // Repetitions counted but not yet reported in a line, over all messages.
+  std::uint64_t suppressed() const;
 
  private:
+  struct Tracked {
+    std::string message;
+    std::chrono::steady_clock::time_point last_logged;
+    std::uint64_t suppressed = 0;
+  };
   std::chrono::steady_clock::time_point now() const;
 
   std::shared_ptr<spdlog::logger> log_;
   std::chrono::steady_clock::duration window_;
   Clock clock_;
-  std::string last_message_;
-  std::chrono::steady_clock::time_point last_logged_{};
-  std::uint64_t suppressed_ = 0;
+  std::vector<Tracked> tracked_;  // at most kMaxTracked; small, so a linear search
   bool active_ = false;
 };
 

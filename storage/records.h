@@ -130,6 +130,9 @@ struct CommandJournalEntry {
   std::int64_t received_us = 0;
   std::string state;  // e.g. "received", "executing", "done"
   std::int64_t expires_at_us = 0;
+  // SHA-256 of the signed command bytes (32 raw bytes); empty when unknown (a row journaled by
+  // a version before schema v3). An update with an empty digest keeps the stored one.
+  std::string command_sha256{};
   friend bool operator==(const CommandJournalEntry&, const CommandJournalEntry&) = default;
 };
 

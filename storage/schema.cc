@@ -130,7 +130,13 @@ CREATE INDEX outbox_by_priority ON outbox (priority, seq);
 CREATE INDEX outbox_by_source ON outbox (kind, source_id) WHERE source_id IS NOT NULL;
 )sql";
 
-constexpr std::array<std::string_view, kSchemaVersion> kSteps = {kV1, kV2};
+// v3: the journal keeps the SHA-256 of the signed command bytes (nullable: rows of older
+// versions have none), so recovery after a restart answers bound to the command.
+constexpr std::string_view kV3 = R"sql(
+ALTER TABLE commands ADD COLUMN command_sha256 BLOB;
+)sql";
+
+constexpr std::array<std::string_view, kSchemaVersion> kSteps = {kV1, kV2, kV3};
 
 }  // namespace
 

@@ -16,6 +16,9 @@
 //   v1  base tables: rides, fault_events, pack_snapshots, telemetry, lock_events,
 //       command_results, commands, seen_command_ids, meta, outbox
 //   v2  eviction_counters table; outbox indexes (priority order, source lookup for eviction)
+//   v3  commands.command_sha256 (nullable BLOB): the digest of the signed command bytes, so a
+//       result re-published after a restart is bound to its command like a live one; NULL in
+//       rows journaled before v3
 #pragma once
 
 #include <stdexcept>
@@ -25,7 +28,7 @@
 
 namespace fleetgw::storage {
 
-inline constexpr int kSchemaVersion = 2;
+inline constexpr int kSchemaVersion = 3;
 
 class SchemaTooNewError : public std::runtime_error {
  public:

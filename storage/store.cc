@@ -204,11 +204,13 @@ std::optional<Ride> Store::ride(std::string_view ride_id) {
 
 std::optional<CommandJournalEntry> Store::command(std::string_view command_id) {
   auto st = impl_->db.cached(
-      "SELECT command_id, received_us, state, expires_at_us FROM commands WHERE command_id = ?");
+      "SELECT command_id, received_us, state, expires_at_us, command_sha256 FROM commands "
+      "WHERE command_id = ?");
   st->bind(1, command_id);
   if (!st->step()) return std::nullopt;
+  const std::vector<std::uint8_t> sha = st->column_blob(4);  // empty for NULL (pre-v3 rows)
   return CommandJournalEntry{st->column_text(0), st->column_int64(1), st->column_text(2),
-                             st->column_int64(3)};
+                             st->column_int64(3), std::string(sha.begin(), sha.end())};
 }
 
 bool Store::command_seen(std::string_view command_id, std::int64_t now_us) {

@@ -46,9 +46,11 @@ constexpr std::string_view kInsertCommandResult =
     "INSERT INTO command_results (command_id, ts_us, result, reason, final_state, duration_ms) "
     "VALUES (?, ?, ?, ?, ?, ?)";
 constexpr std::string_view kUpsertCommand =
-    "INSERT INTO commands (command_id, received_us, state, expires_at_us) VALUES (?, ?, ?, ?) "
+    "INSERT INTO commands (command_id, received_us, state, expires_at_us, command_sha256) "
+    "VALUES (?, ?, ?, ?, ?) "
     "ON CONFLICT (command_id) DO UPDATE SET received_us = excluded.received_us, "
-    "state = excluded.state, expires_at_us = excluded.expires_at_us";
+    "state = excluded.state, expires_at_us = excluded.expires_at_us, "
+    "command_sha256 = coalesce(excluded.command_sha256, commands.command_sha256)";
 constexpr std::string_view kUpsertSeen =
     "INSERT INTO seen_command_ids (command_id, expires_at_us) VALUES (?, ?) "
     "ON CONFLICT (command_id) DO UPDATE SET "
@@ -292,6 +294,12 @@ WriteResult Store::Impl::write_once(const Batch& b) {
     auto seen = db.cached(kUpsertSeen);
     for (const auto& c : b.commands) {
       journal->bind_all(c.command_id, c.received_us, c.state, c.expires_at_us);
+      if (c.command_sha256.empty()) {
+        journal->bind(5, nullptr);
+      } else {
+        journal->bind(5, std::span(reinterpret_cast<const std::uint8_t*>(c.command_sha256.data()),
+                                   c.command_sha256.size()));
+      }
       journal->run();
       journal->reset();
       seen->bind_all(c.command_id, c.expires_at_us);

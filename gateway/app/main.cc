@@ -1,6 +1,7 @@
 #include <malloc.h>
 
 #include "gateway/app/cli.h"
+#include "gateway/app/protobuf_log.h"
 
 namespace {
 
@@ -28,5 +29,7 @@ void bound_retained_heap() {
 
 int main(int argc, char** argv) {
   bound_retained_heap();
+  // Hostile payloads must not write one stderr line each through protobuf (issue 11).
+  const fleetgw::app::ProtobufLogRoute protobuf_log;
   return fleetgw::app::run_cli(argc, argv);
 }

@@ -47,8 +47,8 @@ Disposition CommandService::Impl::start(VerifiedCommand cmd, Micros now) {
   // here on, recover() knows this command may have acted and never acts on it again.
   storage::Batch b;
   b.now_us = now.count();
-  b.commands.push_back(
-      {cmd.command_id, now.count(), std::string(kExecuting), cmd.expires_at.count()});
+  b.commands.push_back({cmd.command_id, now.count(), std::string(kExecuting),
+                        cmd.expires_at.count(), cmd.command_sha256});
   if (const auto error = write_batch(context.store, b)) {
     ++stats.storage_errors;
     spdlog::error("command {}: journal write failed: {}", cmd.command_id, *error);

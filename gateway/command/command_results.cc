@@ -45,7 +45,7 @@ storage::CommandResult row_of(const v1::CommandResult& r, Micros at) {
 storage::CommandJournalEntry journal_of(const v1::CommandResult& r, Micros received,
                                         Micros expires) {
   return {r.command_id(), received.count(), std::string(command_result_name(r.result())),
-          expires.count()};
+          expires.count(), r.command_sha256()};
 }
 
 }  // namespace
@@ -287,7 +287,7 @@ void CommandService::Impl::finish_interrupted(const storage::CommandJournalEntry
                                               const std::string& sha) {
   v1::CommandResult r;
   r.set_command_id(entry.command_id);
-  r.set_command_sha256(sha);
+  r.set_command_sha256(sha.empty() ? entry.command_sha256 : sha);
   r.set_result(v1::COMMAND_RESULT_CODE_TIMEOUT);
   r.set_reason(
       "interrupted_by_restart: the gateway stopped before the lock confirmed; not actuated "

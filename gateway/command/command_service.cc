@@ -135,11 +135,14 @@ CommandService::~CommandService() = default;
 std::size_t CommandService::recover(Micros now) {
   std::vector<storage::CommandJournalEntry> stuck;
   try {
+    std::vector<std::string> ids;
     impl_->context.store.export_table("commands", 0, [&](const nlohmann::json& row) {
-      if (row.value("state", "") != kExecuting) return;
-      stuck.push_back({row.value("command_id", ""), row.value("received_us", std::int64_t{0}),
-                       std::string(kExecuting), row.value("expires_at_us", std::int64_t{0})});
+      if (row.value("state", "") == kExecuting) ids.push_back(row.value("command_id", ""));
     });
+    // The whole entry, digest included (the export shows blobs as hex text).
+    for (const auto& id : ids) {
+      if (auto entry = impl_->context.store.command(id)) stuck.push_back(std::move(*entry));
+    }
   } catch (const std::exception& e) {
     spdlog::error("command: reading the journal at start-up failed: {}", e.what());
   }

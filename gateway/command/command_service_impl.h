@@ -112,6 +112,8 @@ struct CommandService::Impl : std::enable_shared_from_this<CommandService::Impl>
   Disposition duplicate(const storage::CommandJournalEntry& entry, const std::string& sha,
                         Micros now);
   Disposition duplicate_unjournaled(const Unjournaled& u, Micros now);
+  // Answers a command a previous run left "executing"; bound to `sha` (the digest of the bytes
+  // just received again) or, when empty, to the digest the journal kept.
   void finish_interrupted(const storage::CommandJournalEntry& entry, Micros now,
                           const std::string& sha = {});
   void count(const v1::CommandResult& r);

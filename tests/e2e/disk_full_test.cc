@@ -3,7 +3,10 @@
 // free byte of the tmpfs (and keeps taking what is freed) until the store cannot write, then is
 // deleted. The process must never exit, storage must be reported failing and then OK again by
 // itself, inspection (`fleetgw db`) must work meanwhile, and no fault event may be lost
-// compared with the same ride on a roomy disk. Runs with the uplink off and on (real mosquitto).
+// compared with the same ride on a roomy disk. Runs with the uplink off and on (real mosquitto);
+// with the uplink on, an operator sends a signed command with the real `fleetgw command` while
+// the disk is full: it gets exactly one definite result on the broker (published directly,
+// stored=false, bound to the command's SHA-256), and no fault or ride record is lost.
 // Needs root for mount(2) (CI runs as root); skipped otherwise.
 #include <gtest/gtest.h>
 #include <signal.h>
@@ -18,11 +21,18 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <sstream>
 #include <thread>
 #include <vector>
 
+#include <mqtt/async_client.h>
+
+#include <mutex>
+#include <optional>
+
+#include "fleetgw/v1/envelope.pb.h"
 #include "tests/support/mosquitto_fixture.h"
 
 namespace {
@@ -69,7 +79,7 @@ std::string write_scenario(const fs::path& dir) {
 }
 
 std::string write_config(const fs::path& dir, const fs::path& db, const std::string& scenario,
-                         const std::string& broker_uri) {
+                         const std::string& broker_uri, const std::string& trusted_key_line = "") {
   std::ostringstream c;
   c << "[vehicle]\nid = \"disk-full-bike\"\n[log]\nlevel = \"info\"\n"
     << "[can]\ntransport = \"sim\"\n[sim]\nscenario = \"" << scenario << "\"\nspeed = " << kSpeed
@@ -79,6 +89,7 @@ std::string write_config(const fs::path& dir, const fs::path& db, const std::str
     c << "[mqtt]\nenabled = true\nuri = \"" << broker_uri << "\"\ntelemetry_qos = 1\n"
       << "reconnect_min_ms = 100\nreconnect_max_ms = 500\n";
   }
+  if (!trusted_key_line.empty()) c << "[command.trusted_keys]\n" << trusted_key_line << "\n";
   const auto path = dir / "fleetgw.toml";
   std::ofstream(path) << c.str();
   return path.string();
@@ -122,7 +133,7 @@ int run_fleetgw(const std::vector<std::string>& args, const fs::path& scratch, s
 }
 
 struct StoreCounts {
-  std::int64_t faults = -1, telemetry = -1;
+  std::int64_t faults = -1, telemetry = -1, rides = -1;
   std::string integrity;
 };
 
@@ -145,6 +156,7 @@ StoreCounts read_store(const fs::path& db, std::int64_t window_us) {
       "<= " +
       std::to_string(window_us));
   c.telemetry = scalar("SELECT count(*) FROM telemetry");
+  c.rides = scalar("SELECT count(*) FROM rides");
   sqlite3_stmt* st = nullptr;
   if (sqlite3_prepare_v2(h, "PRAGMA integrity_check", -1, &st, nullptr) == SQLITE_OK &&
       sqlite3_step(st) == SQLITE_ROW) {
@@ -214,18 +226,86 @@ class Tmpfs {
 nlohmann::json status_json(const fs::path& dir) {
   std::string out;
   run_fleetgw({"status", "--json", "--socket", (dir / "status.sock").string()}, dir, out);
+  // The document, then (exit 1) an "ATTENTION: ..." line on stderr, both in `out`.
   const auto brace = out.find('{');
-  if (brace == std::string::npos) return nullptr;
-  return nlohmann::json::parse(out.substr(brace), nullptr, false);
+  const auto last = out.rfind('}');
+  if (brace == std::string::npos || last == std::string::npos || last < brace) return nullptr;
+  return nlohmann::json::parse(out.substr(brace, last - brace + 1), nullptr, false);
 }
 
-// storage.failing from `fleetgw status --json`; nullopt when the service does not report it.
+// storage.failing from `fleetgw status --json`; nullopt when the socket does not answer.
 std::optional<bool> storage_failing(const fs::path& dir) {
   const auto j = status_json(dir);
   if (!j.is_object() || !j.contains("storage") || !j["storage"].contains("failing")) {
     return std::nullopt;
   }
   return j["storage"]["failing"].get<bool>();
+}
+
+// storage.failed_writes from `fleetgw status --json`; -1 when the socket does not answer.
+std::int64_t failed_writes(const fs::path& dir) {
+  const auto j = status_json(dir);
+  if (!j.is_object() || !j.contains("storage")) return -1;
+  return j["storage"].value("failed_writes", std::int64_t{-1});
+}
+
+// Every CommandResult published on the vehicle's result topic, as the backend sees them.
+class ResultWatcher {
+ public:
+  ResultWatcher(const std::string& uri, const std::string& vehicle)
+      : client_(uri, "disk-full-backend", mqtt::create_options(MQTTVERSION_3_1_1)) {
+    client_.set_message_callback([this](mqtt::const_message_ptr m) {
+      fleetgw::v1::Envelope env;
+      if (!env.ParseFromString(m->to_string()) || !env.has_command_result()) return;
+      std::lock_guard lock(mu_);
+      results_.push_back(env.command_result());
+    });
+    mqtt::connect_options co;
+    co.set_clean_session(true);
+    client_.connect(co)->wait();
+    client_.subscribe("fleet/v1/" + vehicle + "/cmd/result", 1)->wait();
+  }
+  ~ResultWatcher() {
+    try {
+      client_.disconnect()->wait_for(std::chrono::seconds(1));
+    } catch (...) {
+    }
+  }
+  std::vector<fleetgw::v1::CommandResult> for_id(const std::string& id) {
+    std::lock_guard lock(mu_);
+    std::vector<fleetgw::v1::CommandResult> out;
+    for (const auto& r : results_) {
+      if (r.command_id() == id) out.push_back(r);
+    }
+    return out;
+  }
+
+ private:
+  mqtt::async_client client_;
+  std::mutex mu_;
+  std::vector<fleetgw::v1::CommandResult> results_;
+};
+
+std::string to_hex(const std::string& bytes) {
+  static constexpr char kDigits[] = "0123456789abcdef";
+  std::string out;
+  for (const unsigned char b : bytes) {
+    out += kDigits[b >> 4];
+    out += kDigits[b & 15];
+  }
+  return out;
+}
+
+// `fleetgw keygen`: the operator key (outside the full disk) and its trusted-keys line.
+std::string make_operator_key(const fs::path& dir) {
+  std::string out;
+  EXPECT_EQ(run_fleetgw({"keygen", (dir / "operator").string()}, dir, out), 0) << out;
+  std::istringstream lines(out);
+  for (std::string line; std::getline(lines, line);) {
+    if (line.rfind("operator = \"", 0) == 0) return line;
+  }
+  ADD_FAILURE() << "keygen printed no trusted-keys line\n" << out;
+  return {};
 }
 
 // Fault events raised in the first (kBusSeconds - 2 periods) of the ride, counted from the ride's
@@ -252,17 +332,21 @@ void disk_full_round(bool uplink) {
   Tmpfs tmpfs(disk, "8m");
   if (!tmpfs.mounted()) GTEST_SKIP() << "cannot mount a tmpfs here (needs root)";
   std::optional<MosquittoBroker> broker;
+  std::optional<ResultWatcher> backend;
   if (uplink) {
     broker.emplace();
     broker->start();
+    backend.emplace(broker->uri(), "disk-full-bike");
   }
   const std::string scenario = write_scenario(base.path());
   const StoreCounts reference = reference_run(base.path(), scenario);
   ASSERT_GT(reference.faults, 10) << "the scenario raises and clears faults";
+  ASSERT_GT(reference.rides, 0);
+  const std::string trusted_key = uplink ? make_operator_key(base.path()) : std::string();
 
   const fs::path db = disk / "fleetgw.db";
   const auto config =
-      write_config(base.path(), db, scenario, uplink ? broker->uri() : std::string());
+      write_config(base.path(), db, scenario, uplink ? broker->uri() : std::string(), trusted_key);
   const fs::path log = base.path() / "fleetgw.log";
   const pid_t pid = spawn({"run", "--config", config, "--bus-duration", std::to_string(kBusSeconds),
                            "--duration", "120"},
@@ -282,6 +366,7 @@ void disk_full_round(bool uplink) {
       10s))
       << stats;
   EXPECT_FALSE(fs::exists(db.string() + ".corrupt")) << "inspection moved nothing";
+  EXPECT_EQ(storage_failing(base.path()), false) << "storage OK before the disk fills";
 
   // Fill the disk and keep it full.
   DiskFiller filler(disk / "filler");
@@ -290,30 +375,74 @@ void disk_full_round(bool uplink) {
       wait_for([&] { return slurp(log).find("storage: write failed") != std::string::npos; }, 30s);
   ASSERT_TRUE(failure_logged) << "the store never failed with the disk full\n" << slurp(log);
   const auto first_failure = std::chrono::steady_clock::now();
-  std::optional<bool> failing = storage_failing(base.path());
-  const bool status_wired = failing.has_value();
-  if (status_wired) {
-    EXPECT_TRUE(wait_for([&] { return storage_failing(base.path()) == true; }, 5s))
-        << "status must say storage is failing within 5 s of the first failure";
+  ASSERT_TRUE(wait_for([&] { return storage_failing(base.path()) == true; }, 5s))
+      << "status must say storage is failing within 5 s of the first failure\n"
+      << status_json(base.path()).dump() << "\n"
+      << slurp(log);
+  const auto attention = std::chrono::steady_clock::now();
+  {
     std::string out;
     EXPECT_EQ(run_fleetgw({"status", "--socket", (base.path() / "status.sock").string()},
                           base.path(), out),
               1)
+        << "needs attention\n"
         << out;
-  } else {
-    std::cerr << "NOTE: `fleetgw status --json` has no storage.failing yet; asserted on the log "
-                 "and the process instead\n";
+    EXPECT_NE(out.find("storage"), std::string::npos) << out;
   }
-  std::this_thread::sleep_for(2s);  // stay full a while: retries, acks, commands...
+
+  // Stay full while the store keeps retrying (status counts the failed writes).
+  const std::int64_t failed_at_attention = failed_writes(base.path());
+  ASSERT_GT(failed_at_attention, 0);
+  EXPECT_TRUE(wait_for([&] { return failed_writes(base.path()) >= failed_at_attention + 3; }, 10s))
+      << "the store retries while the disk is full";
+
+  std::string command_id;
+  if (uplink) {
+    // An operator sends a signed command while the disk is full: exactly one definite result on
+    // the broker, published directly (not stored), bound to the signed bytes.
+    const fs::path tool_out = base.path() / "command.out";
+    const pid_t tool =
+        spawn({"command", "--vehicle", "disk-full-bike", "--lock", "seat", "--action", "unlock",
+               "--key", (base.path() / "operator.pem").string(), "--key-id", "operator", "--broker",
+               broker->uri(), "--timeout-s", "10"},
+              tool_out);
+    const int tool_rc = wait_exit(tool);
+    const std::string text = slurp(tool_out);
+    ASSERT_TRUE(tool_rc == 0 || tool_rc == 1) << "a definite result, not silence\n" << text;
+    const auto brace = text.find('{');
+    ASSERT_NE(brace, std::string::npos) << text;
+    const auto answer =
+        nlohmann::json::parse(text.substr(brace, text.find('\n', brace) - brace), nullptr, false);
+    ASSERT_TRUE(answer.is_object()) << text;
+    const std::string id = answer.value("command_id", "");
+    ASSERT_FALSE(id.empty()) << text;
+    EXPECT_EQ(answer.value("stored", true), false) << "published directly\n" << text;
+    EXPECT_EQ(answer.value("command_sha256", "").size(), 64u) << text;
+    // What the broker carried for that id: one result, the same one. Wait a little past the
+    // first so that a second (duplicate) result would be seen.
+    ASSERT_TRUE(wait_for([&] { return !backend->for_id(id).empty(); }, 5s));
+    const auto seen_one = std::chrono::steady_clock::now();
+    wait_for([&] { return backend->for_id(id).size() > 1; }, 2s);
+    const auto on_broker = backend->for_id(id);
+    ASSERT_EQ(on_broker.size(), 1u) << "exactly one result for " << id;
+    EXPECT_FALSE(on_broker[0].stored());
+    EXPECT_EQ(to_hex(on_broker[0].command_sha256()), answer.value("command_sha256", ""));
+    EXPECT_NE(on_broker[0].result(), fleetgw::v1::COMMAND_RESULT_CODE_UNSPECIFIED);
+    std::cerr << "command while full: " << answer.dump() << " (on the broker "
+              << std::chrono::duration_cast<std::chrono::milliseconds>(
+                     std::chrono::steady_clock::now() - seen_one)
+                     .count()
+              << " ms after the first)\n";
+    command_id = id;
+  }
   ASSERT_TRUE(alive(pid)) << "the service exited on a full disk\n" << slurp(log);
 
   // Space returns.
   filler.remove();
   const auto freed = std::chrono::steady_clock::now();
-  if (status_wired) {
-    EXPECT_TRUE(wait_for([&] { return storage_failing(base.path()) == false; }, 5s))
-        << "status must be back to OK within 5 s of space returning";
-  }
+  EXPECT_TRUE(wait_for([&] { return storage_failing(base.path()) == false; }, 5s))
+      << "status must be back to OK within 5 s of space returning";
+  const auto status_ok = std::chrono::steady_clock::now();
   EXPECT_TRUE(wait_for(
       [&] { return slurp(log).find("pending records written, storage OK") != std::string::npos; },
       5s))
@@ -321,7 +450,11 @@ void disk_full_round(bool uplink) {
       << slurp(log);
   const auto recovered = std::chrono::steady_clock::now();
   ASSERT_TRUE(alive(pid));
-
+  if (!command_id.empty()) {
+    // Once the store accepts writes the result is journaled, not published a second time.
+    wait_for([&] { return backend->for_id(command_id).size() > 1; }, 2s);
+    EXPECT_EQ(backend->for_id(command_id).size(), 1u) << "recovery answers no command twice";
+  }
   EXPECT_EQ(wait_exit(pid), 0) << slurp(log);
   const std::string text = slurp(log);
   // The same error is not logged on every retry.
@@ -343,13 +476,16 @@ void disk_full_round(bool uplink) {
   const StoreCounts after = read_store(db, fault_window_us());
   EXPECT_EQ(after.integrity, "ok");
   EXPECT_EQ(after.faults, reference.faults) << "no fault event lost to the full disk";
-  std::cerr
-      << "figures: first failure after "
-      << std::chrono::duration_cast<std::chrono::milliseconds>(first_failure - full_since).count()
-      << " ms of full disk; recovered "
-      << std::chrono::duration_cast<std::chrono::milliseconds>(recovered - freed).count()
-      << " ms after space returned; " << lines << " 'write failed' log lines; faults "
-      << after.faults << "/" << reference.faults << "\n";
+  EXPECT_EQ(after.rides, reference.rides) << "no ride lost to the full disk";
+  const auto ms = [](auto d) {
+    return std::chrono::duration_cast<std::chrono::milliseconds>(d).count();
+  };
+  std::cerr << "figures: first failure after " << ms(first_failure - full_since)
+            << " ms of full disk; status attention " << ms(attention - first_failure)
+            << " ms after it; status OK " << ms(status_ok - freed)
+            << " ms after space returned; recovered " << ms(recovered - freed) << " ms; " << lines
+            << " 'write failed' log lines; faults " << after.faults << "/" << reference.faults
+            << ", rides " << after.rides << "/" << reference.rides << "\n";
 }
 
 TEST(DiskFull, UplinkOffServiceSurvivesReportsAndRecovers) {

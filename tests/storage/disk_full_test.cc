@@ -240,5 +240,36 @@ TEST(DiskBudget, BudgetLargerThanTheFileSystemIsClampedWithAWarning) {
   EXPECT_EQ(quiet.str().find("clamped"), std::string::npos);
 }
 
+// Errors that alternate (a full disk fails writes and acks in turn) are limited per message:
+// each distinct message once per window, then one line with its count.
+TEST(RateLimitedLog, AlternatingMessagesAreEachLimitedWithACount) {
+  std::ostringstream out;
+  auto logger = std::make_shared<spdlog::logger>(
+      "rl-test", std::make_shared<spdlog::sinks::ostream_sink_st>(out));
+  logger->set_pattern("%v");
+  auto t = std::chrono::steady_clock::time_point{};
+  RateLimitedLog log(logger, std::chrono::seconds(10), [&] { return t; });
+  int written = 0;
+  for (int i = 0; i < 100; ++i) {
+    written += log.report("write failed") ? 1 : 0;
+    written += log.report("ack failed") ? 1 : 0;
+    t += std::chrono::milliseconds(20);  // 4 s in all: inside one window
+  }
+  EXPECT_EQ(written, 2) << out.str();
+  EXPECT_EQ(log.suppressed(), 198u);
+  t += std::chrono::seconds(10);
+  EXPECT_TRUE(log.report("write failed"));
+  EXPECT_NE(out.str().find("write failed (repeated 100 times in the last"), std::string::npos)
+      << out.str();
+  log.resolved("works again");
+  EXPECT_NE(out.str().find("works again (after 'ack failed', repeated 99 more times)"),
+            std::string::npos)
+      << out.str();
+  EXPECT_EQ(log.suppressed(), 0u);
+  std::size_t lines = 0;
+  for (const char c : out.str()) lines += c == '\n' ? 1 : 0;
+  EXPECT_EQ(lines, 4u) << out.str();
+}
+
 }  // namespace
 }  // namespace fleetgw::storage

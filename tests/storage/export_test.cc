@@ -4,6 +4,7 @@
 
 #include <sstream>
 
+#include "storage/schema.h"
 #include "storage/store.h"
 #include "storage_test_util.h"
 
@@ -138,7 +139,7 @@ TEST(Stats, ReportsCountsDepthFileAndCounters) {
   fill(store);
   store.peek_outbox(2, 1 << 20);
   auto s = store.stats();
-  EXPECT_EQ(s.schema_version, 2);
+  EXPECT_EQ(s.schema_version, kSchemaVersion);
   std::map<std::string, std::uint64_t> rows(s.table_rows.begin(), s.table_rows.end());
   EXPECT_EQ(rows["telemetry"], 2u);
   EXPECT_EQ(rows["outbox"], 12u);

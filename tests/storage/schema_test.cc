@@ -137,6 +137,41 @@ TEST(Schema, NewerDatabaseIsRefusedWithPathAndVersions) {
   }
 }
 
+// v3: the command journal keeps the digest of the signed command bytes. A v2 journal row
+// survives the migration with no digest; new rows keep theirs, and a state update that carries
+// no digest does not erase the stored one.
+TEST(Schema, V2JournalRowsOpenWithoutDigestAndNewRowsKeepTheirs) {
+  TempDir dir;
+  const std::string path = dir.file("v2.db");
+  {
+    Database db(path);
+    migrate(db, 2);
+    db.exec(
+        "INSERT INTO commands (command_id, received_us, state, expires_at_us) "
+        "VALUES ('old-cmd', 10, 'executing', 1000)");
+  }
+  Store store(StoreOptions{.path = path});
+  const auto old = store.command("old-cmd");
+  ASSERT_TRUE(old.has_value());
+  EXPECT_EQ(old->state, "executing");
+  EXPECT_TRUE(old->command_sha256.empty());
+
+  const std::string digest(32, '\xA5');
+  Batch b;
+  b.now_us = 20;
+  b.commands.push_back({"new-cmd", 20, "executing", 2000, digest});
+  ASSERT_FALSE(store.write(b).error);
+  EXPECT_EQ(store.command("new-cmd")->command_sha256, digest);
+
+  Batch update;
+  update.now_us = 30;
+  update.commands.push_back({"new-cmd", 20, "succeeded", 2000, {}});
+  ASSERT_FALSE(store.write(update).error);
+  const auto updated = store.command("new-cmd");
+  EXPECT_EQ(updated->state, "succeeded");
+  EXPECT_EQ(updated->command_sha256, digest) << "an update without a digest keeps it";
+}
+
 TEST(Schema, MigrateRejectsBadTarget) {
   TempDir dir;
   Database db(dir.file("x.db"));

@@ -1,6 +1,6 @@
 // TLS and ACL tests against a real mosquitto with a throw-away PKI: mutual TLS, host-name
-// verification, untrusted CA, and the per-vehicle ACL of deploy/mosquitto/ (each vehicle may
-// write only below its own topic prefix).
+// verification, untrusted CA, an expired server certificate, and the per-vehicle ACL of
+// deploy/mosquitto/ (each vehicle may write only below its own topic prefix).
 #include <gtest/gtest.h>
 
 #include <spdlog/sinks/ringbuffer_sink.h>
@@ -15,6 +15,7 @@
 #include "gateway/uplink/memory_outbox.h"
 #include "gateway/uplink/uplink.h"
 #include "tests/support/mosquitto_fixture.h"
+#include "tests/uplink/expired_pki.h"
 #include "tests/uplink/uplink_test_util.h"
 
 namespace fleetgw::uplink {
@@ -138,6 +139,49 @@ TEST_F(UplinkTls, RefusesAServerFromAnUntrustedCa) {
   EXPECT_EQ(reason.find("host name"), std::string::npos) << reason;
   EXPECT_GE(up.stats().tls_failures, 1u);
   EXPECT_GT(up.stats().last_connect_error_us, 0);
+}
+
+// A server whose certificate expired (chain and name are right): the reason says "expired",
+// in the uplink's stats (what `fleetgw status` shows) and in the log.
+TEST_F(UplinkTls, NamesAnExpiredServerCertificate) {
+  testing::TempDir dir("fleetgw-expired");
+  const testing::ExpiredPki pki = testing::make_expired_pki(dir.path());
+  auto log = std::make_shared<spdlog::sinks::ringbuffer_sink_mt>(256);
+  spdlog::default_logger()->sinks().push_back(log);
+  MosquittoOptions o;
+  o.tls = true;
+  o.ca_cert = pki.ca_cert;
+  o.server = pki.server;
+  o.require_client_cert = false;
+  MosquittoBroker broker(o);
+  broker.start();
+  MemoryOutbox box;
+  box.push(1, kind::kFault, wall_now().count(), testing::fault_payload(3));
+  auto cfg = testing::plain_config(broker.uri(), "bike-expired");
+  cfg.tls = TlsConfig{pki.ca_cert.string(), "", "", true};
+  {
+    Uplink up(cfg, box);
+    up.start(wall_now());
+    ASSERT_TRUE(drive(
+        up,
+        [&] { return up.stats().connect_failures >= 2 && !up.stats().last_connect_error.empty(); },
+        15s));
+    EXPECT_EQ(up.stats().connects, 0u);
+    EXPECT_EQ(box.stats().depth, 1u);
+    EXPECT_EQ(up.stats().last_connect_error,
+              "TLS: certificate verify failed (certificate has expired)");
+    EXPECT_GE(up.stats().tls_failures, 1u);
+  }
+  int expired_lines = 0;
+  for (const auto& line : log->last_formatted()) {
+    if (line.find("cannot connect") != std::string::npos &&
+        line.find("certificate has expired") != std::string::npos) {
+      ++expired_lines;
+    }
+  }
+  auto& sinks = spdlog::default_logger()->sinks();
+  sinks.erase(std::remove(sinks.begin(), sinks.end(), log), sinks.end());
+  EXPECT_EQ(expired_lines, 1) << "logged once, with the reason";
 }
 
 TEST_F(UplinkTls, ReasonIsLoggedOncePerDistinctCauseAndClearedOnConnect) {
