@@ -7,12 +7,8 @@
 // count, and none in protobuf's own raw format.
 #include <gtest/gtest.h>
 #include <mqtt/async_client.h>
-#include <signal.h>
-#include <sys/wait.h>
-#include <unistd.h>
 
 #include <chrono>
-#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <regex>
@@ -21,6 +17,7 @@
 #include <vector>
 
 #include "tests/support/mosquitto_fixture.h"
+#include "tests/support/process.h"
 
 namespace {
 
@@ -28,35 +25,17 @@ using fleetgw::testing::MosquittoBroker;
 using fleetgw::testing::TempDir;
 namespace fs = std::filesystem;
 
+using fleetgw::testing::ChildProcess;
+using fleetgw::testing::run_for_exit_code;
+
 std::string slurp(const fs::path& path) {
-  std::ifstream in(path);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
+  return fleetgw::testing::read_text_file(path);
 }
 
-pid_t spawn(const std::vector<std::string>& args, const fs::path& output) {
-  const pid_t pid = fork();
-  if (pid == 0) {
-    std::FILE* f = std::fopen(output.c_str(), "w");
-    if (f != nullptr) {
-      dup2(fileno(f), 1);
-      dup2(fileno(f), 2);
-    }
-    std::vector<char*> argv;
-    argv.push_back(const_cast<char*>(FLEETGW_BINARY));
-    for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
-    argv.push_back(nullptr);
-    execv(FLEETGW_BINARY, argv.data());
-    _exit(127);
-  }
-  return pid;
-}
-
-int wait_exit(pid_t pid) {
-  int status = 0;
-  waitpid(pid, &status, 0);
-  return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+// `fleetgw ARGS...` to the end, its output in `output`; its exit code.
+int run_fleetgw(std::vector<std::string> args, const fs::path& output) {
+  args.insert(args.begin(), FLEETGW_BINARY);
+  return run_for_exit_code(args, output);
 }
 
 // A serialized fleetgw.v1.SignedCommand (command = 1, signature = 2: bytes; key_id = 3: string)
@@ -82,7 +61,7 @@ TEST(ProtobufLog, InvalidUtf8FloodGivesBoundedLinesWithACount) {
   MosquittoBroker broker;
   broker.start();
   const fs::path keygen_out = dir.path() / "keygen.out";
-  ASSERT_EQ(wait_exit(spawn({"keygen", (dir.path() / "operator").string()}, keygen_out)), 0);
+  ASSERT_EQ(run_fleetgw({"keygen", (dir.path() / "operator").string()}, keygen_out), 0);
   std::string trusted;
   {
     std::istringstream lines(slurp(keygen_out));
@@ -103,7 +82,8 @@ TEST(ProtobufLog, InvalidUtf8FloodGivesBoundedLinesWithACount) {
                         << "[command.trusted_keys]\n"
                         << trusted << "\n";
   const fs::path log = dir.path() / "fleetgw.log";
-  const pid_t gateway = spawn({"run", "--config", config.string(), "--duration", "120"}, log);
+  ChildProcess gateway({FLEETGW_BINARY, "run", "--config", config.string(), "--duration", "120"},
+                       log);
 
   mqtt::async_client attacker(broker.uri(), "attacker", mqtt::create_options(MQTTVERSION_3_1_1));
   mqtt::connect_options co;
@@ -114,10 +94,10 @@ TEST(ProtobufLog, InvalidUtf8FloodGivesBoundedLinesWithACount) {
   const auto send_genuine = [&](const std::string& name) {
     const fs::path out = dir.path() / (name + ".out");
     const int rc =
-        wait_exit(spawn({"command", "--vehicle", "pblog-bike", "--lock", "seat", "--action",
-                         "unlock", "--key", (dir.path() / "operator.pem").string(), "--key-id",
-                         "operator", "--broker", broker.uri(), "--timeout-s", "20"},
-                        out));
+        run_fleetgw({"command", "--vehicle", "pblog-bike", "--lock", "seat", "--action", "unlock",
+                     "--key", (dir.path() / "operator.pem").string(), "--key-id", "operator",
+                     "--broker", broker.uri(), "--timeout-s", "20"},
+                    out);
     return std::make_pair(rc, slurp(out));
   };
   const auto first = send_genuine("first");
@@ -130,8 +110,7 @@ TEST(ProtobufLog, InvalidUtf8FloodGivesBoundedLinesWithACount) {
   const auto sentinel = send_genuine("sentinel");
   ASSERT_TRUE(sentinel.first == 0 || sentinel.first == 1) << sentinel.second << slurp(log);
   attacker.disconnect()->wait();
-  ::kill(gateway, SIGTERM);
-  EXPECT_EQ(wait_exit(gateway), 0) << slurp(log);
+  EXPECT_EQ(gateway.stop(), 0) << slurp(log);
 
   const std::string text = slurp(log);
   std::size_t protobuf_lines = 0, raw_lines = 0;
