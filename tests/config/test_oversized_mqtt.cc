@@ -24,7 +24,7 @@ long rss_kib(pid_t pid) {
 }
 
 TEST(OversizedMqtt, ResidentMemoryStaysBoundedAfterOversizedCommands) {
-#if defined(__SANITIZE_ADDRESS__)
+#if defined(FLEETGW_ASAN)
   // The service binary is built with the same flags: AddressSanitizer keeps freed memory in
   // quarantine, so resident memory says nothing about leaks there (the sanitizer checks those).
   GTEST_SKIP() << "VmRSS is meaningless under AddressSanitizer";
