@@ -48,7 +48,6 @@ class Pipeline::CommandFeed final : public MessageListener {
 Pipeline::Pipeline(asio::io_context& io, const config::Config& config, BusTransport bus,
                    storage::Store& store, PipelineOptions options)
     : io_(io),
-      config_(config),
       options_(std::move(options)),
       bus_(std::move(bus)),
       store_(store),

@@ -130,7 +130,6 @@ class Pipeline {
   std::optional<std::chrono::steady_clock::time_point> core_deadline() const;
 
   asio::io_context& io_;
-  const config::Config& config_;
   PipelineOptions options_;
   BusTransport bus_;
   storage::Store& store_;
