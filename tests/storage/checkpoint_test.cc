@@ -5,10 +5,12 @@
 // cleanly with a request pending. Real SQLite files; waits poll with a deadline.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <chrono>
 #include <filesystem>
 #include <functional>
 #include <thread>
+#include <vector>
 
 #include "storage/sqlite.h"
 #include "storage/store.h"
@@ -96,16 +98,18 @@ TEST(Checkpointer, AReaderHoldingOldFramesBlocksNeitherWritesNorRequests) {
   reader.exec("BEGIN");
   EXPECT_EQ(reader.query_int64("SELECT count(*) FROM telemetry"), 40);
 
-  auto slowest = std::chrono::steady_clock::duration::zero();
+  std::vector<std::chrono::steady_clock::duration> request_times;
   for (int batch = 0; batch < 60; ++batch) {
     ASSERT_TRUE(store.write(telemetry_batch(t, 40)).ok()) << "batch " << batch;
     const auto start = std::chrono::steady_clock::now();
     store.checkpoint_if_due();
-    slowest = std::max(slowest, std::chrono::steady_clock::now() - start);
+    request_times.push_back(std::chrono::steady_clock::now() - start);
   }
   EXPECT_GT(wal_size(path), allowance) << "the reader kept the WAL from restarting";
-  // The request only signals the worker (an inline checkpoint would fsync: 5-28 ms).
-  EXPECT_LT(slowest, 20ms);
+  // A request only signals the worker: microseconds, where a checkpoint's fsyncs take 5-28 ms
+  // (the median, so that a preempted call on a loaded CI box does not count).
+  std::sort(request_times.begin(), request_times.end());
+  EXPECT_LT(request_times[request_times.size() / 2], 1ms);
   ASSERT_TRUE(wait_until([&] { return store.checkpoint_counters().partial > 0; }))
       << "the worker tried and was cut short by the reader";
   EXPECT_EQ(store.checkpoint_counters().failed, 0u);
