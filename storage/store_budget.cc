@@ -255,6 +255,9 @@ bool Store::checkpoint_if_due() {
     // file space rather than truncating and growing it again), and journal_size_limit (= that
     // allowance, set at open) still cuts a WAL that one big commit made larger.
     impl_->checkpointer->request();
+    // Asked once per commit: until the next commit reports the WAL's size again (wal hook),
+    // repeated calls (one per settle of the event loop) do not queue redundant checkpoints.
+    impl_->wal_frames = 0;
     return true;
   }
   return impl_->checkpoint(SQLITE_CHECKPOINT_RESTART);  // read-only or in-memory
