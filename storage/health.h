@@ -19,4 +19,12 @@ struct StorageHealth {
   std::uint64_t pending_records = 0;         // records held in memory waiting for a (re)try (Recorder::health)
 };
 
+// What the store's background WAL checkpointer did since open (storage/checkpointer.h).
+struct CheckpointCounters {
+  std::uint64_t requested = 0;  // checkpoint requests (coalesced while one is pending)
+  std::uint64_t completed = 0;  // checkpoints that copied every WAL frame
+  std::uint64_t partial = 0;    // checkpoints a reader (or a concurrent checkpoint) cut short
+  std::uint64_t failed = 0;     // SQLite errors (logged, rate-limited)
+};
+
 }  // namespace fleetgw::storage

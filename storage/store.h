@@ -45,8 +45,10 @@
 //   counted per table (persisted), logged, queued as an eviction_report outbox entry (JSON)
 //   and returned from write().
 // - WAL checkpoints run outside the write transaction: checkpoint_if_due() (the recorder calls
-//   it after a flush; a caller may call it when idle) checkpoints once the WAL holds half its
-//   allowance; write() itself checkpoints only when the WAL reached the whole allowance.
+//   it after a flush; a caller may call it when idle) asks the background checkpointer (its own
+//   thread and connection, PASSIVE checkpoints) once the WAL holds half its allowance, and
+//   returns at once; write() itself checkpoints (PASSIVE, inline) only when the WAL reached the
+//   whole allowance.
 // - Read-only (StoreOptions::read_only, the `fleetgw db` tools): opened with
 //   SQLITE_OPEN_READONLY, no lock file, no migration, no move-aside, never creates, moves or
 //   renames a file; works while the service writes (WAL). A missing file, a file that is not
@@ -235,9 +237,13 @@ class Store {
 
   // Health as `fleetgw status` reports it (storage/health.h).
   StorageHealth health() const;
-  // Checkpoints the WAL when it holds half its allowance or more; cheap otherwise (no syscall).
-  // Returns true when a checkpoint ran. Never throws.
+  // Asks for a WAL checkpoint when the WAL holds half its allowance or more; cheap otherwise
+  // (no syscall). The checkpoint runs on the store's background checkpointer
+  // (storage/checkpointer.h) and this call never waits for it. Returns true when a checkpoint
+  // was requested. Never throws.
   bool checkpoint_if_due();
+  // What the background checkpointer did so far (all zero when read-only).
+  CheckpointCounters checkpoint_counters() const;
   // The budget actually enforced (clamped to the file system at open), 0 = unlimited.
   std::uint64_t effective_budget() const;
   bool read_only() const;

@@ -230,6 +230,9 @@ std::uint64_t Store::Impl::evict_for_space(std::int64_t now_us, int attempt) {
 
 bool Store::Impl::checkpoint(int mode) {
   if (options.read_only) return false;
+  // One connection checkpoints at a time: let the background one finish (this thread appends
+  // no frames meanwhile), so that this checkpoint can copy what is left.
+  if (checkpointer) checkpointer->wait_until_idle();
   // Never wait for a reader (a technician's `fleetgw db` may hold an old snapshot): a busy
   // checkpoint copies what it can and is retried later.
   sqlite3_busy_timeout(db.handle(), 0);
@@ -245,12 +248,23 @@ bool Store::Impl::checkpoint(int mode) {
 
 bool Store::checkpoint_if_due() {
   if (impl_->wal_frames < std::max<std::uint64_t>(impl_->budget.wal_pages / 2, 1)) return false;
-  // RESTART, not TRUNCATE: the next commits overwrite the WAL from its start instead of
-  // growing a freshly truncated file again (ftruncate and block allocation were ~20 % of the
-  // worst-case replay's CPU). The WAL's allowance is part of the disk budget, and
-  // journal_size_limit (= that allowance, set at open) still cuts a WAL that one big commit
-  // made larger.
-  return impl_->checkpoint(SQLITE_CHECKPOINT_RESTART);
+  if (impl_->checkpointer) {
+    // The checkpoint (and its fsyncs) runs on the checkpointer's thread, PASSIVE: the caller
+    // (the event loop) never waits for it. The WAL's allowance is part of the disk budget;
+    // once every frame is copied the next commit restarts the WAL from its start (reusing its
+    // file space rather than truncating and growing it again), and journal_size_limit (= that
+    // allowance, set at open) still cuts a WAL that one big commit made larger.
+    impl_->checkpointer->request();
+    // Asked once per commit: until the next commit reports the WAL's size again (wal hook),
+    // repeated calls (one per settle of the event loop) do not queue redundant checkpoints.
+    impl_->wal_frames = 0;
+    return true;
+  }
+  return impl_->checkpoint(SQLITE_CHECKPOINT_RESTART);  // read-only or in-memory
+}
+
+CheckpointCounters Store::checkpoint_counters() const {
+  return impl_->checkpointer ? impl_->checkpointer->counters() : CheckpointCounters{};
 }
 
 }  // namespace fleetgw::storage

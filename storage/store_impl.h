@@ -3,12 +3,14 @@
 //   store_open.cc    opening: lock file, header check, move-aside, read-only open, pragmas
 //   store_write.cc   batch validation and the one-transaction write, SQLITE_FULL retry
 //   store_budget.cc  disk budget (WAL and reserve included), eviction, clamp, checkpoints
+//   checkpointer.cc  the background thread that runs checkpoint_if_due()'s checkpoints
 //   outbox.cc        outbox queue (peek/ack/release) and the start-up restore queries
 //   store_export.cc  technician tools: stats and table export
 //   store.cc         Store's lifecycle, health and small accessors
 //
-// Contract: Impl is used from one thread. Members marked "health" are updated by every write
-// attempt (write(), ack(), purge...) through record_success()/record_failure().
+// Contract: Impl is used from one thread (the checkpointer's thread shares none of its state).
+// Members marked "health" are updated by every write attempt (write(), ack(), purge...) through
+// record_success()/record_failure().
 #pragma once
 
 #include <chrono>
@@ -18,6 +20,7 @@
 #include <string>
 #include <unordered_set>
 
+#include "storage/checkpointer.h"
 #include "storage/health.h"
 #include "storage/rate_limited_log.h"
 #include "storage/sqlite.h"
@@ -90,6 +93,9 @@ struct Store::Impl {
   StorageHealth health;
   RateLimitedLog error_log;
   std::optional<std::chrono::steady_clock::time_point> last_recovery_logged;
+  // Background checkpoints (absent when read-only or in memory). Declared after `db` so it
+  // stops and closes its connection before the store's own connection closes.
+  std::optional<Checkpointer> checkpointer;
 
   explicit Impl(StoreOptions opts);
 

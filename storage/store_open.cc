@@ -22,6 +22,12 @@ namespace fleetgw::storage {
 namespace fs = std::filesystem;
 namespace {
 
+// ":memory:" or a "file:" URI with mode=memory: no file, so no second connection to it.
+bool is_in_memory(std::string_view path) {
+  return path == ":memory:" ||
+         (path.starts_with("file:") && path.find("mode=memory") != std::string_view::npos);
+}
+
 std::string utc_stamp(std::int64_t us) {
   std::time_t secs = static_cast<std::time_t>(us / 1'000'000);
   std::tm tm{};
@@ -168,6 +174,7 @@ Store::Impl::Impl(StoreOptions opts)
   }
   load_next_seq();
   plan_disk_budget();
+  if (!is_in_memory(options.path)) checkpointer.emplace(options.path, log);
 }
 
 Database Store::Impl::open_database() {
