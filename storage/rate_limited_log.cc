@@ -69,7 +69,9 @@ void RateLimitedLog::resolved(std::string_view text) {
   if (!counts.empty()) counts += ")";
   log_->info("{}{}", text, counts);
   active_ = false;
-  tracked_.clear();
+  // The windows run on: a disk that flips between full and working at every retry must not
+  // log its failure again at every flip.
+  for (auto& t : tracked_) t.suppressed = 0;
 }
 
 }  // namespace fleetgw::storage

@@ -10,6 +10,7 @@
 //   "storage write failed: disk full (SQLITE_FULL) (repeated 312 times in the last 10 s)".
 // - resolved(text) ends a stretch of errors: if anything was reported since the last
 //   resolved(), one line at info level says so (with the counts of suppressed repetitions).
+//   The windows are kept: a message that comes back within its window is counted, not logged.
 // - Single-threaded; the clock is injected (default steady_clock) so tests need no sleeps.
 #pragma once
 

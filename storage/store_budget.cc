@@ -215,8 +215,21 @@ std::uint64_t Store::Impl::evict_for_space(std::int64_t now_us, int attempt) {
           "WHERE table_name = ?");
       st->bind_all(static_cast<std::int64_t>(evicted), now_us, table);
       st->run();
-      log->warn("storage: disk full on '{}': evicted {} {} rows ({} unsent) to make room",
-                options.path, evicted, table, outbox_rows);
+      auto& summary = disk_full_evictions;
+      summary.rows += evicted;
+      ++summary.passes;
+      const auto wall = std::chrono::steady_clock::now();
+      if (!summary.last_logged) {
+        log->warn("storage: disk full on '{}': evicted {} {} rows ({} unsent) to make room",
+                  options.path, evicted, table, outbox_rows);
+        summary = {wall, 0, 0};
+      } else if (wall - *summary.last_logged >= std::chrono::seconds(10)) {
+        log->warn(
+            "storage: disk full on '{}': evicted {} more rows in {} passes over the last {} s",
+            options.path, summary.rows, summary.passes,
+            std::chrono::duration_cast<std::chrono::seconds>(wall - *summary.last_logged).count());
+        summary = {wall, 0, 0};
+      }
       break;  // one table per attempt: telemetry first, pack snapshots once it is empty
     }
     if (evicted == 0) return 0;

@@ -93,6 +93,13 @@ struct Store::Impl {
   StorageHealth health;
   RateLimitedLog error_log;
   std::optional<std::chrono::steady_clock::time_point> last_recovery_logged;
+  // Evictions forced by a full disk happen at every retry: the first is logged, later ones are
+  // summed into one line per 10 s.
+  struct {
+    std::optional<std::chrono::steady_clock::time_point> last_logged;
+    std::uint64_t rows = 0;
+    std::uint64_t passes = 0;
+  } disk_full_evictions;
   // Background checkpoints (absent when read-only or in memory). Declared after `db` so it
   // stops and closes its connection before the store's own connection closes.
   std::optional<Checkpointer> checkpointer;

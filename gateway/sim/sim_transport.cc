@@ -26,6 +26,7 @@ void RealtimeDriver::start(Emit emit) {
   emit_ = std::move(emit);
   real_start_ = std::chrono::steady_clock::now();
   virtual_start_ = bike_.current_time();
+  delivered_to_ = virtual_start_;
   running_ = true;
   arm();
 }
@@ -63,13 +64,17 @@ Micros RealtimeDriver::virtual_now() const {
 
 void RealtimeDriver::receive(const motinova::CanFrame& frame) {
   if (!running_) return;
-  const Micros now = virtual_now();
   // What the bike sent before this frame reached it goes first (a batch may hold it back):
-  // the bike's timeline never runs backwards. Called from the event loop (SimTransport posts),
-  // so emitting here re-enters nobody.
-  bike_.advance_to(now, bike_emit_);
-  last_delivery_ = std::chrono::steady_clock::now();
-  bike_.receive(frame, now);
+  // the bike's timeline never runs backwards. More than a step of it is fire()'s work, within
+  // its budget; while that leaves the bike behind (until the timer's next turn), frames reach
+  // the bike at the time it has reached, so a burst of frames costs no more bus time than one.
+  // Called from the event loop (SimTransport posts), so emitting here re-enters nobody.
+  if (!behind_ && virtual_now() - delivered_to_ > step()) fire();
+  if (!running_) return;
+  const Micros at = behind_ ? delivered_to_ : std::max(delivered_to_, virtual_now());
+  delivered_to_ = at;
+  bike_.advance_to(at, bike_emit_);
+  bike_.receive(frame, at);
   arm();  // the reaction may be due before the event the timer waits for
 }
 
@@ -80,8 +85,11 @@ void RealtimeDriver::arm() {
       std::max<double>(0, static_cast<double>(wait_virtual.count())) / acceleration_));
   auto at = std::chrono::steady_clock::now() + wait_real;
   // Batching: the next wake-up for the bike's traffic is at least one window after the last
-  // delivery; whatever falls due meanwhile waits and goes out together.
-  if (!low_latency_ && window_.count() > 0) at = std::max(at, last_delivery_ + window_);
+  // delivery; whatever falls due meanwhile waits and goes out together. Not while behind:
+  // the next bounded step follows at once (after what the loop has queued meanwhile).
+  if (!low_latency_ && !behind_ && window_.count() > 0) {
+    at = std::max(at, last_delivery_ + window_);
+  }
   if (armed_for_ && *armed_for_ == at) return;
   armed_for_ = at;
   timer_.expires_at(at);
@@ -92,11 +100,35 @@ void RealtimeDriver::arm() {
   });
 }
 
+Micros RealtimeDriver::step() const {
+  return Micros(std::max<int64_t>(
+      1'000, static_cast<int64_t>(static_cast<double>(Micros(kStep).count()) * acceleration_)));
+}
+
 void RealtimeDriver::fire() {
   if (!running_) return;
-  last_delivery_ = std::chrono::steady_clock::now();
-  bike_.advance_to(virtual_now(), bike_emit_);
-  if (!running_) return;  // the handler stopped us
+  const auto started = std::chrono::steady_clock::now();
+  last_delivery_ = started;
+  // Everything due, in steps, but at most kWorkBudget of real time per wake-up: a machine
+  // slower than the acceleration (a sanitizer build at 2000x) falls behind in bounded turns and
+  // the event loop runs between them. One unbounded step grew with every turn and starved it.
+  const Micros target = virtual_now();
+  while (delivered_to_ < target) {
+    delivered_to_ = std::min(target, delivered_to_ + step());
+    bike_.advance_to(delivered_to_, bike_emit_);
+    if (!running_) return;  // the handler stopped us
+    if (std::chrono::steady_clock::now() - started >= kWorkBudget) break;
+  }
+  behind_ = delivered_to_ < target;
+  if (behind_) {
+    // The simulation slips: its clock restarts from where the bike has got to, so the gateway
+    // (which reads virtual_now() for its own deadlines) and the bike share one timeline and the
+    // gap cannot grow. The acceleration is a ceiling, not a promise, on a machine too slow for it.
+    const auto behind_by = std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+        std::chrono::duration<double, std::micro>(
+            static_cast<double>((delivered_to_ - virtual_start_).count()) / acceleration_));
+    real_start_ = std::chrono::steady_clock::now() - behind_by;
+  }
   arm();
 }
 
@@ -133,9 +165,19 @@ bool SimTransport::send(const motinova::CanFrame& frame) {
   ++health_.tx_frames;
   // Delivered from the event loop, like a real transmit, so a handler that sends while it is
   // being called never re-enters the bike.
-  asio::post(io_, [this, frame, token = std::weak_ptr<int>(alive_)] {
+  outgoing_.push_back(frame);
+  if (delivery_posted_) return true;
+  delivery_posted_ = true;
+  asio::post(io_, [this, token = std::weak_ptr<int>(alive_)] {
     if (token.expired() || stopped_) return;
-    driver_.receive(frame);
+    delivery_posted_ = false;
+    // What the bike's answers make the gateway send meanwhile waits for the next turn.
+    std::vector<motinova::CanFrame> frames;
+    frames.swap(outgoing_);
+    for (const auto& f : frames) {
+      if (stopped_) return;
+      driver_.receive(f);
+    }
   });
   return true;
 }

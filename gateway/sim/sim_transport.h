@@ -25,6 +25,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include <asio/io_context.hpp>
 #include <asio/steady_timer.hpp>
@@ -49,7 +50,7 @@ class RealtimeDriver {
   void stop();
   void set_batch_window(std::chrono::steady_clock::duration window);
   void set_low_latency(bool on);
-  // Delivers every frame due by virtual_now() and re-arms.
+  // Delivers the frames due by virtual_now() (within one work budget) and re-arms.
   void flush();
   // A frame from the outside bus, delivered to the bike at virtual_now().
   void receive(const motinova::CanFrame& frame);
@@ -57,14 +58,22 @@ class RealtimeDriver {
   bool running() const { return running_; }
 
  private:
+  // One wake-up delivers what is due in steps of kStep of real time's worth of bus time, and
+  // yields to the event loop once it has worked kWorkBudget.
+  static constexpr std::chrono::milliseconds kStep{10};
+  static constexpr std::chrono::milliseconds kWorkBudget{20};
+
   void arm();
   void fire();
+  Micros step() const;  // kStep of real time, in bus time
 
   Bike& bike_;
   double acceleration_;
   asio::steady_timer timer_;
   std::chrono::steady_clock::duration window_{};
   bool low_latency_ = false;
+  bool behind_ = false;     // the last wake-up stopped short of virtual_now()
+  Micros delivered_to_{0};  // bus time up to which the bike has run
   std::chrono::steady_clock::time_point last_delivery_{};
   std::optional<std::chrono::steady_clock::time_point> armed_for_;
   Emit emit_;
@@ -104,6 +113,11 @@ class SimTransport final : public can::Transport {
   HealthHandler on_health_;
   bool started_ = false;
   bool stopped_ = false;
+  // Frames sent to the bike, delivered by one posted handler per turn of the event loop: one
+  // handler per frame let a bike that answers every frame grow the loop's queue without bound
+  // (a machine slower than the acceleration never got back to its timers).
+  std::vector<motinova::CanFrame> outgoing_;
+  bool delivery_posted_ = false;
   std::shared_ptr<int> alive_ = std::make_shared<int>(0);
 };
 

@@ -266,6 +266,11 @@ TEST(RateLimitedLog, AlternatingMessagesAreEachLimitedWithACount) {
             std::string::npos)
       << out.str();
   EXPECT_EQ(log.suppressed(), 0u);
+  // A failure right after the recovery (a disk flipping between full and working) is counted:
+  // the window of its message runs on.
+  t += std::chrono::seconds(1);
+  EXPECT_FALSE(log.report("write failed"));
+  EXPECT_EQ(log.suppressed(), 1u);
   std::size_t lines = 0;
   for (const char c : out.str()) lines += c == '\n' ? 1 : 0;
   EXPECT_EQ(lines, 4u) << out.str();
