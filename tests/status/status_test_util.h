@@ -2,6 +2,8 @@
 // plays systemd's NOTIFY_SOCKET so notifications can be observed without systemd.
 #pragma once
 
+#include "tests/support/temp_dir.h"
+
 #include <poll.h>
 #include <stdlib.h>
 #include <sys/socket.h>
@@ -17,25 +19,8 @@
 
 namespace fleetgw::status::test {
 
-// mkdtemp() directory, removed with its contents on destruction.
-class TempDir {
- public:
-  TempDir() {
-    std::string tmpl = (std::filesystem::temp_directory_path() / "fleetgw-status-XXXXXX").string();
-    if (!::mkdtemp(tmpl.data())) throw std::runtime_error("mkdtemp failed");
-    path_ = tmpl;
-  }
-  ~TempDir() {
-    std::error_code ec;
-    std::filesystem::remove_all(path_, ec);
-  }
-  TempDir(const TempDir&) = delete;
-  TempDir& operator=(const TempDir&) = delete;
-  const std::filesystem::path& path() const { return path_; }
-
- private:
-  std::filesystem::path path_;
-};
+// The suites' one temporary directory (tests/support).
+using TempDir = ::fleetgw::testing::TempDir;
 
 // An AF_UNIX datagram socket bound at `path` ("@name" = abstract namespace), like systemd's
 // notification socket.

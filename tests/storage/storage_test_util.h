@@ -2,6 +2,8 @@
 // plausible records. Contract: every test works on real SQLite files under its own TempDir.
 #pragma once
 
+#include "tests/support/temp_dir.h"
+
 #include <gtest/gtest.h>
 
 #include <cstdint>
@@ -13,25 +15,8 @@
 
 namespace fleetgw::storage::testing {
 
-class TempDir {
- public:
-  TempDir() {
-    std::string pattern = (std::filesystem::temp_directory_path() / "fleetgw-storage-XXXXXX");
-    if (mkdtemp(pattern.data()) == nullptr) throw std::runtime_error("mkdtemp failed");
-    path_ = pattern;
-  }
-  TempDir(const TempDir&) = delete;
-  TempDir& operator=(const TempDir&) = delete;
-  ~TempDir() {
-    std::error_code ec;
-    std::filesystem::remove_all(path_, ec);
-  }
-  const std::filesystem::path& path() const { return path_; }
-  std::string file(const std::string& name) const { return (path_ / name).string(); }
-
- private:
-  std::filesystem::path path_;
-};
+// The suites' one temporary directory (tests/support).
+using TempDir = ::fleetgw::testing::TempDir;
 
 inline Bytes payload_of(const std::string& text) {
   return Bytes(text.begin(), text.end());
