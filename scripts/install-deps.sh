@@ -18,7 +18,7 @@ PACKAGES=(
   libsystemd-dev
   clang libclang-rt-14-dev
   qemu-system-x86 busybox-static cpio xz-utils kmod
-  dpkg-dev file systemd adduser
+  dpkg-dev file systemd adduser lintian help2man
   "$@"
 )
 

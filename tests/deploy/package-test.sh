@@ -47,7 +47,9 @@ echo "== package contents"
 contents=$(dpkg-deb -c "$deb")
 for f in ./usr/bin/fleetgw ./usr/bin/fleetgw-watch ./etc/fleetgw/fleetgw.toml ./lib/systemd/system/fleetgw.service \
          ./usr/libexec/fleetgw/fleetgw-can-setup ./usr/share/doc/fleetgw/deployment.md \
-         ./usr/share/doc/fleetgw/examples/80-can.network; do
+         ./usr/share/doc/fleetgw/examples/80-can.network ./usr/share/doc/fleetgw/copyright \
+         ./usr/share/doc/fleetgw/changelog.Debian.gz ./usr/share/man/man1/fleetgw.1.gz \
+         ./usr/share/man/man1/fleetgw-run.1.gz ./usr/share/man/man1/fleetgw-watch.1.gz; do
   grep -q " $f\$" <<<"$contents" && ok "contains $f" || fail "package lacks $f"
 done
 conffiles=$(dpkg-deb --ctrl-tarfile "$deb" | tar -xO ./conffiles)
@@ -77,6 +79,19 @@ kind=$(file -b "$unpacked/usr/bin/fleetgw")
 rm -rf "$unpacked"
 [[ $kind == *", stripped"* ]] && ok "binary is stripped" || fail "binary: $kind"
 
+echo "== lintian"
+# Debian's own package checker: no error may remain (warnings are printed for the record).
+if command -v lintian >/dev/null; then
+  if report=$(lintian --fail-on error "$deb" 2>&1); then
+    ok "lintian: no errors"
+  else
+    fail "lintian reports errors"
+  fi
+  [ -n "$report" ] && sed 's/^/  lintian: /' <<<"$report"
+else
+  fail "lintian is not installed (scripts/install-deps.sh installs it)"
+fi
+
 echo "== install"
 dpkg -i "$deb" || { fail "dpkg -i failed"; exit 1; }
 installed && ok "installed" || fail "dpkg does not list fleetgw as installed"
@@ -96,6 +111,8 @@ out=$(/usr/bin/fleetgw watch --broker tcp://127.0.0.1:1 --duration 1 2>&1 || tru
 [[ $out == *"cannot subscribe"* ]] && ok "fleetgw watch runs /usr/bin/fleetgw-watch" ||
   fail "fleetgw watch: $out"
 
+[ -f /usr/share/man/man1/fleetgw-run.1.gz ] && ok "manual page fleetgw-run(1) installed" ||
+  fail "no /usr/share/man/man1/fleetgw-run.1.gz"
 version=$(/usr/bin/fleetgw --version)
 pkg_version=$(dpkg-query -W -f='${Version}' fleetgw)
 [ "$version" = "fleetgw ${pkg_version%-*}" ] && ok "--version: $version" ||
