@@ -175,7 +175,8 @@ void Pipeline::on_frame(const motinova::CanFrame& frame, Micros ts) {
   if (first_ts_.count() < 0) first_ts_ = ts;
   last_frame_ts_ = ts;
   core_.on_can_frame(frame, ts);
-  if (device_info_.due()) queue_device_info();
+  // Model blocks heard in one burst of frames become one DeviceInfo (queued in settle()).
+  if (device_info_.due()) request_settle();
   // Measured on the frames actually delivered: a paced simulator's clock can run ahead of a
   // slow machine, the traffic cannot.
   if (options_.bus_duration && ts - first_ts_ >= *options_.bus_duration) {
@@ -206,6 +207,7 @@ void Pipeline::settle() {
   ++counters_.settles;
   for (int round = 0; round < kMaxSettleRounds; ++round) {
     bool more = false;
+    if (device_info_.due()) queue_device_info();
     const auto due = recorder_->flush_deadline();
     const bool urgent = recorder_->urgent();
     // The deadline is "at the latest": pending telemetry rides along with a wake-up that
