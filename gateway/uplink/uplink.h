@@ -21,6 +21,7 @@
 //    Records whose payload does not decode as their kind's message, or of unknown kind, are
 //    logged, counted (rejected_records) and removed, so one bad record cannot block the queue.
 //    Telemetry samples are spliced into the batch as stored, never parsed (envelope_writer.h).
+//    Every record's Envelope carries config.store_id: (vehicle_id, store_id, sequence) is its key.
 //  * Session: client id = vehicle id, persistent session (clean_session = false), retained
 //    online Status on connect (and again when the bus state changes), retained offline Status
 //    on stop(). The last will is an offline Status marked last_will that carries only what is
