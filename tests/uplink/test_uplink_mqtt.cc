@@ -471,6 +471,39 @@ TEST(UplinkMqtt, StopPublishesRetainedOfflineStatus) {
   EXPECT_EQ(last_status(late).connection(), v1::CONNECTION_STATE_DISCONNECTED);
 }
 
+// Schema v1.1: the retained status follows the bus state at once (not at the next 60 s refresh),
+// so a consumer arriving later reads the current one.
+TEST(UplinkMqtt, BusStateChangeRepublishesTheRetainedStatus) {
+  MosquittoBroker broker;
+  broker.start();
+  MemoryOutbox box;
+  UplinkConfig config = plain_config(broker.uri(), "bike-bus");
+  config.status_interval = std::chrono::minutes(10);
+  Uplink up(config, box);
+  up.set_bus_state(v1::BUS_STATE_ACTIVE);
+  up.start(wall_now());
+  ASSERT_TRUE(drive(
+      up, [&] { return up.stats().acked_messages >= 1; }, 10s));
+  const auto status_with = [&](v1::BusState want) {
+    Subscriber late(broker.uri(), "fleet/v1/bike-bus/status", "backend-bus");
+    const bool got = late.wait_until([](auto& m) { return !m.empty(); }, 5s);
+    return got && last_status(late).bus_state() == want &&
+           last_status(late).state() == v1::ONLINE_STATE_ONLINE;
+  };
+  EXPECT_TRUE(status_with(v1::BUS_STATE_ACTIVE));
+  up.set_bus_state(v1::BUS_STATE_SILENT);
+  EXPECT_TRUE(up.next_poll_due(wall_now()) <= wall_now()) << "the change makes a poll due now";
+  const auto acked = up.stats().acked_messages;
+  ASSERT_TRUE(drive(
+      up, [&] { return up.stats().acked_messages > acked; }, 10s));
+  EXPECT_TRUE(status_with(v1::BUS_STATE_SILENT));
+  up.set_bus_state(v1::BUS_STATE_SILENT);  // no change: nothing new to publish
+  const auto published = up.stats().published_messages;
+  up.poll(wall_now());
+  EXPECT_EQ(up.stats().published_messages, published);
+  up.stop(wall_now());
+}
+
 constexpr const char* kChildEnv = "FLEETGW_UPLINK_TEST_CHILD_URI";
 
 TEST(UplinkMqtt, LastWillSetsOfflineWhenTheProcessDies) {
