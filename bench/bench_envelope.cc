@@ -39,7 +39,8 @@ std::vector<std::string> stored_samples() {
   return out;
 }
 
-const uplink::EnvelopeHeader kHeader{"bike-0001", 1000, 1'700'000'000'000'000, "0.1.0"};
+const uplink::EnvelopeHeader kHeader{"bike-0001", 1000, 1'700'000'000'000'000, "0.1.0",
+                                     "6f1c0a5e-2b7d-4e3a-9c1f-0d8e7b6a5c4d"};
 
 void BM_TelemetryEnvelope_generated(benchmark::State& state) {
   const auto samples = stored_samples();

@@ -138,6 +138,10 @@ std::uint64_t Store::next_seq() const {
   return impl_->next_seq;
 }
 
+const std::string& Store::store_id() const {
+  return impl_->store_id;
+}
+
 StorageHealth Store::health() const {
   return impl_->health;
 }

@@ -234,6 +234,10 @@ class Store {
   std::vector<OutboxDepth> outbox_depth();
   std::optional<std::int64_t> oldest_unsent_us();
   std::uint64_t next_seq() const;
+  // Random identifier (a UUID) created with the store and kept in its meta table
+  // ('storage.store_id'): sequences are unique per store_id. Empty only for a read-only open of
+  // a store that never had one.
+  const std::string& store_id() const;
 
   // Health as `fleetgw status` reports it (storage/health.h).
   StorageHealth health() const;

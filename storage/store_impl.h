@@ -34,6 +34,8 @@ namespace fleetgw::storage {
 
 // Reserved meta key of the persisted sequence counter (the next number to hand out).
 inline constexpr std::string_view kNextSeqKey = "storage.next_seq";
+// Reserved meta key of the store's random identifier (Store::store_id()).
+inline constexpr std::string_view kStoreIdKey = "storage.store_id";
 inline constexpr int kEvictionReportPriority = static_cast<int>(OutboxPriority::kFault);
 
 // flock()-based exclusive lock on "<db>.lock": one writer per database, across processes.
@@ -84,6 +86,7 @@ struct Store::Impl {
   std::optional<std::string> moved_aside;
   Database db;
   std::uint64_t next_seq = 1;
+  std::string store_id;
   std::unordered_set<std::uint64_t> in_flight;
   bool budget_exhausted_logged = false;
   BudgetPlan budget;
@@ -112,6 +115,7 @@ struct Store::Impl {
   void move_aside(const std::string& problem);
   void configure();
   void load_next_seq();
+  void load_store_id(bool create);
   void plan_disk_budget();
   static int on_wal_commit(void* impl, sqlite3* db, const char* name, int frames);
 

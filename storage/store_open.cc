@@ -13,6 +13,8 @@
 #include <ctime>
 #include <filesystem>
 #include <fstream>
+#include <random>
+#include <string>
 #include <system_error>
 
 #include "storage/schema.h"
@@ -160,6 +162,7 @@ Store::Impl::Impl(StoreOptions opts)
     health.configured_budget_bytes = budget.configured;
     health.effective_budget_bytes = budget.effective;
     load_next_seq();
+    load_store_id(false);
     return;
   }
   configure();
@@ -173,6 +176,7 @@ Store::Impl::Impl(StoreOptions opts)
         options.path);
   }
   load_next_seq();
+  load_store_id(true);
   plan_disk_budget();
   if (!is_in_memory(options.path)) checkpointer.emplace(options.path, log);
 }
@@ -337,6 +341,48 @@ void Store::Impl::load_next_seq() {
                options.path, from_meta, from_outbox - 1);
   }
   next_seq = std::max<std::uint64_t>({from_meta, from_outbox, 1});
+}
+
+namespace {
+
+// A random version-4 UUID: unique per store without any coordination (122 random bits from the
+// operating system's entropy source).
+std::string random_store_id() {
+  std::random_device entropy;
+  std::array<std::uint8_t, 16> b{};
+  for (std::size_t i = 0; i < b.size(); i += 4) {
+    const std::uint32_t word = entropy();
+    for (std::size_t k = 0; k < 4; ++k) b[i + k] = static_cast<std::uint8_t>(word >> (8 * k));
+  }
+  b[6] = static_cast<std::uint8_t>((b[6] & 0x0F) | 0x40);  // version 4
+  b[8] = static_cast<std::uint8_t>((b[8] & 0x3F) | 0x80);  // RFC 4122 variant
+  static constexpr char kHex[] = "0123456789abcdef";
+  std::string out;
+  for (std::size_t i = 0; i < b.size(); ++i) {
+    if (i == 4 || i == 6 || i == 8 || i == 10) out.push_back('-');
+    out.push_back(kHex[b[i] >> 4]);
+    out.push_back(kHex[b[i] & 0x0F]);
+  }
+  return out;
+}
+
+}  // namespace
+
+void Store::Impl::load_store_id(bool create) {
+  {
+    auto st = db.cached("SELECT value FROM meta WHERE key = ?");
+    st->bind(1, kStoreIdKey);
+    if (st->step()) store_id = st->column_text(0);
+  }
+  if (!store_id.empty() || !create) return;
+  // Created with the store (or on the first open of a store older than the key) and never
+  // changed: sequences restart only with a new store, and then with a new id.
+  store_id = random_store_id();
+  auto st = db.cached("INSERT INTO meta (key, value) VALUES (?, ?)");
+  st->bind(1, kStoreIdKey);
+  st->bind(2, store_id);
+  st->run();
+  log->info("storage: '{}' has the new store id {}", options.path, store_id);
 }
 
 }  // namespace fleetgw::storage

@@ -42,6 +42,10 @@ std::string_view state_name(v1::LockState s) {
       return "unlocked";
     case v1::LOCK_STATE_FAULT:
       return "fault";
+    case v1::LOCK_STATE_LOCKING:
+      return "locking";
+    case v1::LOCK_STATE_UNLOCKING:
+      return "unlocking";
     default:
       return "unspecified";
   }

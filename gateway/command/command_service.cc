@@ -38,6 +38,10 @@ v1::LockState proto_state(std::optional<std::uint8_t> raw) {
       return v1::LOCK_STATE_UNLOCKED;
     case node::lock_state::kLocked:
       return v1::LOCK_STATE_LOCKED;
+    case node::lock_state::kUnlocking:
+      return v1::LOCK_STATE_UNLOCKING;
+    case node::lock_state::kLocking:
+      return v1::LOCK_STATE_LOCKING;
     case node::lock_state::kUnlockFailed:
     case node::lock_state::kLockFailed:
       return v1::LOCK_STATE_FAULT;

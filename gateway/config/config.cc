@@ -3,9 +3,9 @@
 #include <fmt/format.h>
 
 #include <toml++/toml.h>
-#include <cmath>
 #include <algorithm>
 #include <charconv>
+#include <cmath>
 #include <fstream>
 #include <set>
 #include <sstream>
@@ -352,7 +352,10 @@ Config parse_root(const toml::table& root, const std::string& name) {
       s.integer("keepalive_s", c.mqtt.keepalive_s, 5, 3600);
       s.boolean("tcp_nodelay", c.mqtt.tcp_nodelay);
       s.integer("max_inflight", c.mqtt.max_inflight, 1, 10'000);
+      s.integer("qos", c.mqtt.qos, 0, 1);
       s.integer("telemetry_qos", c.mqtt.telemetry_qos, 0, 1);
+      s.integer("live_telemetry_max_age_ms", c.mqtt.live_telemetry_max_age_ms, 0, 86'400'000);
+      s.integer("status_interval_ms", c.mqtt.status_interval_ms, 0, 86'400'000);
       s.integer("batch_max_samples", c.mqtt.batch_max_samples, 1, 10'000);
       s.integer("batch_max_ms", c.mqtt.batch_max_ms, 0, 3'600'000);
       s.integer("reconnect_min_ms", c.mqtt.reconnect_min_ms, 10, 3'600'000);

@@ -96,7 +96,10 @@ struct MqttConfig {
   int keepalive_s = 30;
   bool tcp_nodelay = true;
   int max_inflight = 64;
-  int telemetry_qos = 0;
+  int qos = 1;            // every record but live telemetry, and the status
+  int telemetry_qos = 0;  // live telemetry (newest sample younger than live_telemetry_max_age_ms)
+  int live_telemetry_max_age_ms = 10'000;
+  int status_interval_ms = 60'000;  // retained online status refresh; 0 = only on connect
   int batch_max_samples = 200;
   int batch_max_ms = 5000;
   int reconnect_min_ms = 1000;

@@ -10,6 +10,7 @@
 #include "fleetgw/v1/pack.pb.h"
 #include "fleetgw/v1/ride.pb.h"
 #include "fleetgw/v1/telemetry.pb.h"
+#include "motinova/can.h"
 
 namespace fleetgw::domain {
 namespace {
@@ -45,14 +46,18 @@ v1::FaultSeverity severity_of(std::string_view name) {
   return v1::FAULT_SEVERITY_UNSPECIFIED;
 }
 
-// The protobuf LockState has no intermediate or failure states of its own (U19 codes 3..6):
-// moving states are UNSPECIFIED, failures FAULT. The storage row keeps the exact names.
+// U19 codes to the protobuf LockState (lock.proto documents the table). The two failure codes
+// share FAULT; LockEvent.state_name keeps the exact name.
 v1::LockState lock_state_of(int raw) {
   switch (raw) {
     case 1:
       return v1::LOCK_STATE_UNLOCKED;
     case 2:
       return v1::LOCK_STATE_LOCKED;
+    case 3:
+      return v1::LOCK_STATE_UNLOCKING;
+    case 4:
+      return v1::LOCK_STATE_LOCKING;
     case 5:
     case 6:
       return v1::LOCK_STATE_FAULT;
@@ -125,7 +130,15 @@ storage::Bytes pack_payload(const PackReading& p) {
   m.set_pack_serial(p.serial);
   m.set_measured_at_us(s.ts_us);
   if (s.voltage_v) m.set_voltage_mv(u32(*s.voltage_v * 1000.0));
-  if (s.current_a) m.set_current_ma(s32(*s.current_a * 1000.0));
+  if (s.current_a) {
+    // current_a is charge positive (the BMS's sign); discharge_current_ma is the wire-wide sign.
+    // The deprecated field is still sent for consumers older than v1.1.
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wdeprecated-declarations"
+    m.set_current_ma(s32(*s.current_a * 1000.0));
+#pragma GCC diagnostic pop
+    m.set_discharge_current_ma(s32(-*s.current_a * 1000.0));
+  }
   if (s.soc_pct) m.set_soc_pct(u32(*s.soc_pct));
   if (s.soh_pct) m.set_soh_pct(u32(*s.soh_pct));
   if (p.remaining_mah) m.set_remaining_mah(u32(*p.remaining_mah));
@@ -184,6 +197,9 @@ storage::Bytes lock_payload(const storage::LockEvent& e, int old_raw, int new_ra
   m.set_previous_state(lock_state_of(old_raw));
   m.set_state(lock_state_of(new_raw));
   m.set_at_us(e.ts_us);
+  m.set_previous_state_name(e.old_state);
+  m.set_state_name(e.new_state);
+  m.set_node(std::string(motinova::node_name(static_cast<motinova::Node>(e.lock_node))));
   constexpr std::string_view kCommand = "command:";
   if (e.cause.starts_with(kCommand)) {
     m.set_source(v1::LOCK_EVENT_SOURCE_REMOTE);

@@ -64,6 +64,7 @@ Pipeline::Pipeline(asio::io_context& io, const config::Config& config, BusTransp
                   [](const node::ShutdownOutcome&) { spdlog::info("shutdown complete: ACC off"); },
           }),
       outbox_(store),
+      device_info_(core_.node().config().identity),
       timer_(io) {
   bus_.transport->start([this](const motinova::CanFrame& frame, Micros ts) { on_frame(frame, ts); },
                         [this](const can::BusHealth& h) {
@@ -110,7 +111,9 @@ Pipeline::Pipeline(asio::io_context& io, const config::Config& config, BusTransp
 
   if (config.mqtt.enabled) {
     try {
-      uplink_ = std::make_unique<uplink::Uplink>(make_uplink_config(config), outbox_);
+      uplink::UplinkConfig uplink_config = make_uplink_config(config);
+      uplink_config.store_id = store_.store_id();
+      uplink_ = std::make_unique<uplink::Uplink>(std::move(uplink_config), outbox_);
     } catch (const std::exception& e) {
       throw PipelineError(std::string("invalid [mqtt] configuration: ") + e.what());
     }
@@ -123,6 +126,9 @@ Pipeline::Pipeline(asio::io_context& io, const config::Config& config, BusTransp
     });
   }
   core_.add_listener(*recorder_);
+  // Node identities go to the backend at start (our own) and whenever one is heard or changes.
+  core_.node().registry().add_observer(device_info_);
+  queue_device_info();
   if (options_.on_core) options_.on_core(core_);
   core_.start(start_);
 
@@ -144,6 +150,7 @@ Pipeline::Pipeline(asio::io_context& io, const config::Config& config, BusTransp
 }
 
 Pipeline::~Pipeline() {
+  core_.node().registry().remove_observer(device_info_);
   alive_.reset();
   // First: Paho's threads may call the wake-up (which touches this object) until the client
   // is gone.
@@ -168,6 +175,8 @@ void Pipeline::on_frame(const motinova::CanFrame& frame, Micros ts) {
   if (first_ts_.count() < 0) first_ts_ = ts;
   last_frame_ts_ = ts;
   core_.on_can_frame(frame, ts);
+  // Model blocks heard in one burst of frames become one DeviceInfo (queued in settle()).
+  if (device_info_.due()) request_settle();
   // Measured on the frames actually delivered: a paced simulator's clock can run ahead of a
   // slow machine, the traffic cannot.
   if (options_.bus_duration && ts - first_ts_ >= *options_.bus_duration) {
@@ -198,6 +207,7 @@ void Pipeline::settle() {
   ++counters_.settles;
   for (int round = 0; round < kMaxSettleRounds; ++round) {
     bool more = false;
+    if (device_info_.due()) queue_device_info();
     const auto due = recorder_->flush_deadline();
     const bool urgent = recorder_->urgent();
     // The deadline is "at the latest": pending telemetry rides along with a wake-up that
@@ -211,6 +221,7 @@ void Pipeline::settle() {
       if (uplink_ && out.records > 0 && !out.failed) publish_due_ = true;
     }
     if (uplink_) {
+      uplink_->set_bus_state(bus_state());
       const auto poll_at = uplink_->next_deadline();
       const bool woken = uplink_woken_.exchange(false);
       if (publish_due_ || woken || (poll_at && Clock::now() >= *poll_at)) {
@@ -327,10 +338,42 @@ void Pipeline::stop(const char* why) {
   if (options_.on_stop) options_.on_stop(why);
 }
 
+void Pipeline::queue_device_info() {
+  if (auto payload = device_info_.take(core_.node().registry())) {
+    recorder_->queue_message(storage::UplinkMessage{
+        storage::OutboxKind::kInfo, static_cast<int>(storage::OutboxPriority::kPack),
+        storage::Bytes(payload->begin(), payload->end())});
+  }
+}
+
+fleetgw::v1::BusState Pipeline::bus_state() const {
+  switch (bus_.transport->health().state) {
+    case can::ControllerState::kBusOff:
+      return fleetgw::v1::BUS_STATE_BUS_OFF;
+    case can::ControllerState::kErrorPassive:
+      return fleetgw::v1::BUS_STATE_ERROR_PASSIVE;
+    case can::ControllerState::kDown:
+      return fleetgw::v1::BUS_STATE_SILENT;
+    case can::ControllerState::kUp:
+    case can::ControllerState::kErrorWarning:
+      break;
+  }
+  // Frames flowing: heard within the time after which a node counts as offline.
+  if (first_ts_.count() < 0) return fleetgw::v1::BUS_STATE_SILENT;
+  const Micros now = bus_.sim ? std::max(bus_now(), bus_.sim->virtual_now()) : bus_now();
+  return now - last_frame_ts_ > core_.node().registry().config().offline_timeout
+             ? fleetgw::v1::BUS_STATE_SILENT
+             : fleetgw::v1::BUS_STATE_ACTIVE;
+}
+
 void Pipeline::finish() {
+  // Everything the trackers hold goes to the store, and a clean stop then drains the outbox
+  // (the last telemetry batch included: it no longer waits for its batch delay) within the
+  // grace, before the retained offline status.
+  if (device_info_.due()) queue_device_info();
   recorder_->flush(bus_.replay ? last_frame_ts_ : bus_now());
   if (!uplink_) return;
-  // Give the last records a moment to leave, then publish the retained offline status.
+  uplink_->drain_for_stop();
   const auto deadline = Clock::now() + std::chrono::seconds(5);
   while (Clock::now() < deadline && outbox_.stats().depth > 0 &&
          uplink_->state() == uplink::UplinkState::kConnected) {

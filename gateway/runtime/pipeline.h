@@ -47,6 +47,7 @@
 #include "gateway/command/command_service.h"
 #include "gateway/config/config.h"
 #include "gateway/node/transport_sender.h"
+#include "gateway/runtime/device_info_reporter.h"
 #include "gateway/runtime/gateway_core.h"
 #include "gateway/runtime/recorder.h"
 #include "gateway/runtime/store_outbox.h"
@@ -128,6 +129,8 @@ class Pipeline {
   void on_timer();
   void arm_timer();
   std::optional<std::chrono::steady_clock::time_point> core_deadline() const;
+  void queue_device_info();
+  fleetgw::v1::BusState bus_state() const;
 
   asio::io_context& io_;
   PipelineOptions options_;
@@ -141,6 +144,7 @@ class Pipeline {
   std::unique_ptr<CommandFeed> command_feed_;
   StoreOutbox outbox_;
   std::unique_ptr<uplink::Uplink> uplink_;
+  DeviceInfoReporter device_info_;
 
   asio::steady_timer timer_;
   std::optional<std::chrono::steady_clock::time_point> armed_for_;

@@ -170,6 +170,11 @@ void Recorder::checkpoint_if_due() {
   store_.checkpoint_if_due();
 }
 
+void Recorder::queue_message(storage::UplinkMessage message) {
+  sink_.batch().messages.push_back(std::move(message));
+  note_pending();
+}
+
 bool Recorder::urgent() const {
   if (pending_records() == 0) return false;
   if (next_retry_ && !retry_due()) return false;  // failing: wait for the retry interval

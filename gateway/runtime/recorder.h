@@ -74,6 +74,9 @@ class Recorder final : public MessageListener {
   std::optional<std::chrono::steady_clock::time_point> flush_deadline() const;
   storage::StorageHealth health() const;
 
+  // Queues an outbox message without a table row (device info); written by the next flush,
+  // which it makes urgent.
+  void queue_message(storage::UplinkMessage message);
   // Called after every successful write (the uplink polls then: new records to send).
   void set_after_flush(std::function<void()> hook) { after_flush_ = std::move(hook); }
   // A caller that schedules flush() itself (the Pipeline: urgent() -> flush after the frames

@@ -94,7 +94,10 @@ uplink::UplinkConfig make_uplink_config(const config::Config& c) {
   u.reconnect_min = std::chrono::milliseconds(c.mqtt.reconnect_min_ms);
   u.reconnect_max = std::chrono::milliseconds(c.mqtt.reconnect_max_ms);
   u.max_in_flight = static_cast<std::size_t>(c.mqtt.max_inflight);
+  u.qos = c.mqtt.qos;
   u.live_telemetry_qos = c.mqtt.telemetry_qos;
+  u.live_telemetry_max_age = std::chrono::milliseconds(c.mqtt.live_telemetry_max_age_ms);
+  u.status_interval = std::chrono::milliseconds(c.mqtt.status_interval_ms);
   u.telemetry_batch_max_samples = static_cast<std::size_t>(c.mqtt.batch_max_samples);
   u.telemetry_batch_max_delay = std::chrono::milliseconds(c.mqtt.batch_max_ms);
   return u;

@@ -99,6 +99,7 @@ void fill_header(v1::Envelope& env, const EnvelopeHeader& h) {
   env.set_sequence(h.sequence);
   env.set_created_at_us(h.created_us);
   env.set_gateway_fw_version(std::string(h.firmware_version));
+  env.set_store_id(std::string(h.store_id));
 }
 
 std::optional<std::string> serialize_record(const KindRoute& route, const EnvelopeHeader& header,

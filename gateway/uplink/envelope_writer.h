@@ -39,6 +39,7 @@ struct EnvelopeHeader {
   std::uint64_t sequence = 0;  // 0 for messages that are not outbox records
   std::int64_t created_us = 0;
   std::string_view firmware_version;
+  std::string_view store_id;  // empty: not set (the last will)
 };
 
 struct KindRoute {

@@ -135,14 +135,14 @@ mqtt::connect_options Uplink::Impl::make_connect_options(Micros now) const {
   // Our window is the real bound; Paho's only needs room for it plus status messages.
   s.max_inflight = static_cast<int>(config.max_in_flight + 8);
   mqtt::connect_options opts = uplink::make_connect_options(s);
-  const std::string will =
-      serialize_status(now, v1::ONLINE_STATE_OFFLINE, v1::CONNECTION_STATE_LOST);
+  const std::string will = serialize_will(now);
   opts.set_will_message(mqtt::message(topics.status, will, config.qos, true));
   return opts;
 }
 
 void Uplink::Impl::connect(Micros now) {
   state = UplinkState::kConnecting;
+  connect_started = now;
   const std::uint64_t attempt = ++connect_attempt;
   spdlog::debug("uplink: connecting to {} as {}", redact_uri(config.broker_uri), config.vehicle_id);
   if (config.tls && !config.tls->verify_server_name) {
@@ -274,8 +274,8 @@ void Uplink::Impl::poll(Micros now) {
   }
   if (state == UplinkState::kConnected) {
     resend_stale(now);
-    if (config.status_interval.count() > 0 &&
-        now - last_status >= duration_cast<Micros>(config.status_interval)) {
+    if (status_changed || (config.status_interval.count() > 0 &&
+                           now - last_status >= duration_cast<Micros>(config.status_interval))) {
       publish_status(now);
     }
     drain(now);
@@ -355,6 +355,8 @@ Micros Uplink::Impl::next_due(Micros now) const {
   if (state == UplinkState::kConnected && config.status_interval.count() > 0) {
     due = std::min(due, last_status + duration_cast<Micros>(config.status_interval));
   }
+  if (state == UplinkState::kConnected && status_changed) due = now;
+  if (draining && !batch.empty()) due = now;
   if (state == UplinkState::kConnected) {
     const bool stale_possible = std::any_of(in_flight.begin(), in_flight.end(), [&](auto& f) {
       return f.second.connection != counters.connects;
@@ -384,7 +386,12 @@ void Uplink::set_wakeup(std::function<void()> wakeup) {
   impl_->events.wakeup_ = std::move(wakeup);
 }
 void Uplink::set_bus_state(v1::BusState state) {
+  if (impl_->bus_state == state) return;
   impl_->bus_state = state;
+  impl_->status_changed = true;  // the retained status follows at the next poll
+}
+void Uplink::drain_for_stop() {
+  impl_->draining = true;
 }
 void Uplink::set_status_decorator(std::function<void(v1::Status&)> decorate) {
   impl_->status_decorator = std::move(decorate);

@@ -21,8 +21,11 @@
 //    Records whose payload does not decode as their kind's message, or of unknown kind, are
 //    logged, counted (rejected_records) and removed, so one bad record cannot block the queue.
 //    Telemetry samples are spliced into the batch as stored, never parsed (envelope_writer.h).
+//    Every record's Envelope carries config.store_id: (vehicle_id, store_id, sequence) is its key.
 //  * Session: client id = vehicle id, persistent session (clean_session = false), retained
-//    online Status on connect, retained offline Status as last will and on stop().
+//    online Status on connect (and again when the bus state changes), retained offline Status
+//    on stop(). The last will is an offline Status marked last_will that carries only what is
+//    known at connect (no outbox figures, created_at_us 0).
 //  * Connect failures: each is diagnosed (connect_diagnosis.h) off the owner's thread; the reason
 //    lands in UplinkStats::last_connect_error and is logged once per distinct reason, not per
 //    retry.
@@ -109,7 +112,7 @@ class Uplink {
 
   // Set before start(). The wake-up hook is called on Paho threads: thread-safe, non-blocking.
   void set_wakeup(std::function<void()> wakeup);
-  // Reported in Status messages.
+  // Reported in Status messages; a change republishes the retained status at the next poll.
   void set_bus_state(fleetgw::v1::BusState state);
   // Completes every Status the uplink publishes (the retained one and the last will) with what
   // only the owner knows: storage health, attention findings. Runs on the owner's thread.
@@ -134,6 +137,9 @@ class Uplink {
   // The same as a steady_clock deadline (reconnect due, telemetry batch due, status refresh,
   // stale resend); nullopt = poll only on a wake-up.
   std::optional<std::chrono::steady_clock::time_point> next_deadline() const;
+  // A clean stop is coming: from now on a telemetry batch leaves at the next poll instead of
+  // waiting for telemetry_batch_max_delay, so the owner can drain the outbox before stop().
+  void drain_for_stop();
   // Publishes the retained offline status (when connected), disconnects and waits at most
   // `timeout` for each step. Records still in flight stay in the outbox.
   void stop(Micros now, std::chrono::milliseconds timeout = std::chrono::seconds(5));

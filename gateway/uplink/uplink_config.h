@@ -36,6 +36,9 @@ struct UplinkConfig {
   std::string topic_prefix = "fleet/v1";
   // Reported in every Envelope.
   std::string firmware_version;
+  // Identifier of the store the outbox belongs to (storage::Store::store_id()), reported in every
+  // Envelope except the last will; empty = not reported.
+  std::string store_id;
 
   std::optional<TlsConfig> tls;  // required for ssl:// URIs
   std::string username;          // optional

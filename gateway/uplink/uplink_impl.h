@@ -72,6 +72,7 @@ struct Uplink::Impl {
   // ---- owner's thread: publishing (uplink_publish.cc) ----
   EnvelopeHeader header(std::uint64_t seq, std::int64_t created_us) const;
   std::string serialize_status(Micros now, v1::OnlineState online, v1::ConnectionState conn) const;
+  std::string serialize_will(Micros connecting_at) const;
   void publish_status(Micros now);
   bool publish(const std::string& topic, std::string payload, int qos, bool retained,
                std::vector<std::uint64_t> seqs);
@@ -94,6 +95,8 @@ struct Uplink::Impl {
   UplinkState state = UplinkState::kStopped;
   UplinkStats counters;
   v1::BusState bus_state = v1::BUS_STATE_UNSPECIFIED;
+  bool status_changed = false;  // bus_state changed since the last status publish
+  bool draining = false;        // drain_for_stop(): telemetry batches leave without waiting
   std::function<void(v1::Status&)> status_decorator;
   std::vector<std::string> commands;  // waiting for take_commands()
   std::uint64_t connect_attempt = 0;
@@ -104,6 +107,7 @@ struct Uplink::Impl {
   bool head_is_telemetry = true;  // the last outbox read ended in telemetry records
   Micros last_status{0};
   Micros connected_at{0};
+  Micros connect_started{0};  // `now` of the attempt that made (or makes) the connection
   Micros last_now{0};  // the latest `now` we were given (for the destructor's offline status)
   std::string logged_connect_error;  // the reason last logged (each distinct one logged once)
   bool last_failure_was_tls = false;

@@ -14,7 +14,8 @@ namespace fleetgw::uplink {
 using std::chrono::duration_cast;
 
 EnvelopeHeader Uplink::Impl::header(std::uint64_t seq, std::int64_t created_us) const {
-  return EnvelopeHeader{config.vehicle_id, seq, created_us, config.firmware_version};
+  return EnvelopeHeader{config.vehicle_id, seq, created_us, config.firmware_version,
+                        config.store_id};
 }
 
 std::string Uplink::Impl::serialize_status(Micros now, v1::OnlineState online,
@@ -30,7 +31,24 @@ std::string Uplink::Impl::serialize_status(Micros now, v1::OnlineState online,
   s->set_last_publish_ok_at_us(counters.last_publish_ok_us);
   s->set_bus_state(bus_state);
   s->set_firmware_version(config.firmware_version);
+  s->set_connected_at_us(connect_started.count());
   if (status_decorator) status_decorator(*s);
+  return env.SerializeAsString();
+}
+
+// The last will is registered at connect and published by the broker at some later moment of
+// loss, so it carries only what stays true until then: no outbox, storage or attention figures,
+// no creation time (the broker's receive time is the time of loss) and no store id (it is not a
+// record).
+std::string Uplink::Impl::serialize_will(Micros connecting_at) const {
+  v1::Envelope env;
+  fill_header(env, EnvelopeHeader{config.vehicle_id, 0, 0, config.firmware_version, {}});
+  auto* s = env.mutable_status();
+  s->set_state(v1::ONLINE_STATE_OFFLINE);
+  s->set_connection(v1::CONNECTION_STATE_LOST);
+  s->set_firmware_version(config.firmware_version);
+  s->set_last_will(true);
+  s->set_connected_at_us(connecting_at.count());
   return env.SerializeAsString();
 }
 
@@ -39,6 +57,7 @@ void Uplink::Impl::publish_status(Micros now) {
           serialize_status(now, v1::ONLINE_STATE_ONLINE, v1::CONNECTION_STATE_CONNECTED),
           config.qos, true, {});
   last_status = now;
+  status_changed = false;
 }
 
 // Safety net for the persistent session: Paho normally re-sends QoS 1 publishes interrupted by a
@@ -163,7 +182,8 @@ void Uplink::Impl::flush_batch(Micros now) {
 
 bool Uplink::Impl::batch_due(Micros now) const {
   return !batch.empty() &&
-         batch.oldest_created_us + config.telemetry_batch_max_delay.count() * 1000 <= now.count();
+         (draining ||
+          batch.oldest_created_us + config.telemetry_batch_max_delay.count() * 1000 <= now.count());
 }
 
 // Adds a telemetry record to the batch; false if the window is full and it was not taken.

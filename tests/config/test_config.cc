@@ -37,6 +37,13 @@ TEST(Config, ShippedDefaultFileLoadsAndMatchesTheDefaults) {
   EXPECT_EQ(file.storage.max_mb, defaults.storage.max_mb);
   EXPECT_EQ(file.mqtt.keepalive_s, defaults.mqtt.keepalive_s);
   EXPECT_EQ(file.mqtt.tcp_nodelay, defaults.mqtt.tcp_nodelay);
+  EXPECT_EQ(file.mqtt.qos, defaults.mqtt.qos);
+  EXPECT_EQ(file.mqtt.telemetry_qos, defaults.mqtt.telemetry_qos);
+  EXPECT_EQ(file.mqtt.live_telemetry_max_age_ms, defaults.mqtt.live_telemetry_max_age_ms);
+  EXPECT_EQ(file.mqtt.status_interval_ms, defaults.mqtt.status_interval_ms);
+  EXPECT_EQ(file.mqtt.batch_max_samples, defaults.mqtt.batch_max_samples);
+  EXPECT_EQ(file.mqtt.batch_max_ms, defaults.mqtt.batch_max_ms);
+  EXPECT_EQ(file.mqtt.reconnect_max_ms, defaults.mqtt.reconnect_max_ms);
 }
 
 TEST(Config, UnknownKeyNamesFileLineAndKey) {

@@ -2,6 +2,9 @@
 // lifetime-counter changes) and telemetry sampling rates (riding vs parked, discrete changes).
 
 #include <gtest/gtest.h>
+
+#include <cmath>
+#include <map>
 #include <nlohmann/json.hpp>
 
 #include "domain_test_util.h"
@@ -64,6 +67,22 @@ TEST(Locks, EveryStateChangeWithIntermediateStatesAndCauses) {
   EXPECT_EQ(m.command_id(), "c-42");
   EXPECT_EQ(m.state(), v1::LOCK_STATE_UNLOCKED);
   EXPECT_EQ(m.lock_kind(), "frame");
+  // Schema v1.1: every event's states are on the wire (no UNSPECIFIED between two events of one
+  // lock action), with the exact names and the node named as in fault events.
+  const std::map<std::string, v1::LockState> wire = {{"locked", v1::LOCK_STATE_LOCKED},
+                                                     {"unlocked", v1::LOCK_STATE_UNLOCKED},
+                                                     {"locking", v1::LOCK_STATE_LOCKING},
+                                                     {"unlocking", v1::LOCK_STATE_UNLOCKING}};
+  for (std::size_t i = 0; i < want.size(); ++i) {
+    v1::LockEvent e;
+    ASSERT_TRUE(e.ParseFromArray(h.out.locks[i].uplink->data(),
+                                 static_cast<int>(h.out.locks[i].uplink->size())));
+    EXPECT_EQ(e.previous_state(), wire.at(want[i][1])) << i;
+    EXPECT_EQ(e.state(), wire.at(want[i][2])) << i;
+    EXPECT_EQ(e.previous_state_name(), want[i][1]) << i;
+    EXPECT_EQ(e.state_name(), want[i][2]) << i;
+    EXPECT_EQ(e.node(), i < 4 ? "lock2" : "lock4") << i;
+  }
 }
 
 TEST(Locks, JammedLockReportsTheFailureState) {
@@ -74,6 +93,12 @@ TEST(Locks, JammedLockReportsTheFailureState) {
   EXPECT_EQ(h.out.locks[1].record.old_state, "unlocking");
   EXPECT_EQ(h.out.locks[1].record.new_state, "unlock_failed");
   EXPECT_EQ(h.out.locks[1].record.kind, "seat");
+  v1::LockEvent e;
+  ASSERT_TRUE(e.ParseFromArray(h.out.locks[1].uplink->data(),
+                               static_cast<int>(h.out.locks[1].uplink->size())));
+  EXPECT_EQ(e.previous_state(), v1::LOCK_STATE_UNLOCKING);
+  EXPECT_EQ(e.state(), v1::LOCK_STATE_FAULT);
+  EXPECT_EQ(e.state_name(), "unlock_failed");
 }
 
 TEST(Packs, PeriodicSnapshotsWithCellStatistics) {
@@ -97,6 +122,17 @@ TEST(Packs, PeriodicSnapshotsWithCellStatistics) {
     ASSERT_TRUE(m.ParseFromArray(p.uplink->data(), static_cast<int>(p.uplink->size())));
     EXPECT_EQ(m.cells_mv_size(), 13);
     EXPECT_EQ(m.pack_serial(), "BP24050300456");
+    // Schema v1.1: one current sign on the wire (discharge positive, as in telemetry); the old
+    // charge-positive field is still sent for older consumers.
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wdeprecated-declarations"  // reading the deprecated field
+    ASSERT_EQ(m.has_current_ma(), s.current_a.has_value());
+    if (s.current_a) {
+      EXPECT_TRUE(m.has_discharge_current_ma());
+      EXPECT_EQ(m.discharge_current_ma(), -m.current_ma());
+      EXPECT_EQ(m.discharge_current_ma(), static_cast<int>(std::lround(-*s.current_a * 1000.0)));
+    }
+#pragma GCC diagnostic pop
   }
 }
 

@@ -47,7 +47,7 @@ TEST(Export, EveryTableExportsTypedRows) {
     if (table == "eviction_counters") {
       EXPECT_EQ(rows.size(), 3u);
     } else if (table == "meta") {
-      EXPECT_EQ(rows.size(), 3u) << "two vins and the sequence counter";
+      EXPECT_EQ(rows.size(), 4u) << "two vins, the sequence counter and the store id";
     } else if (table == "outbox") {
       EXPECT_EQ(rows.size(), 12u);
     } else {
@@ -98,7 +98,7 @@ TEST(Export, SinceFiltersByTimeColumn) {
     auto rows = export_rows(store, table, 1'500);
     EXPECT_EQ(rows.size(), table == "outbox" ? 6u : 1u) << table;
   }
-  EXPECT_EQ(export_rows(store, "meta", 1'500).size(), 3u) << "no time column: since ignored";
+  EXPECT_EQ(export_rows(store, "meta", 1'500).size(), 4u) << "no time column: since ignored";
 }
 
 TEST(Export, JsonLinesToStream) {

@@ -55,7 +55,8 @@ v1::TelemetrySample random_sample(std::mt19937_64& rng) {
 
 TEST(EnvelopeWriter, SplicedTelemetryBatchIsByteIdenticalToTheGeneratedPath) {
   std::mt19937_64 rng(7);
-  const EnvelopeHeader header{"bike-0042", 0, 1'700'000'000'123'456, "1.2.3"};
+  const EnvelopeHeader header{"bike-0042", 0, 1'700'000'000'123'456, "1.2.3",
+                              "6f1c0a5e-2b7d-4e3a-9c1f-0d8e7b6a5c4d"};
   for (int round = 0; round < 200; ++round) {
     std::vector<Stored> samples;
     const int n = 1 + static_cast<int>(rng() % 40);
@@ -80,7 +81,7 @@ TEST(EnvelopeWriter, EmptySampleAndSizeAccountingMatchTheGeneratedSizes) {
   TelemetryBatchWriter writer;
   const std::string empty;  // a sample with nothing measured is zero bytes on the wire
   ASSERT_TRUE(writer.add(empty, 300));
-  const EnvelopeHeader h{"b", 300, 5, ""};
+  const EnvelopeHeader h{"b", 300, 5, "", ""};
   EXPECT_EQ(writer.take_envelope(h), reference_envelope({{empty, 300}}, h));
 
   std::mt19937_64 rng(3);
@@ -116,7 +117,7 @@ TEST(EnvelopeWriter, OtherKindsAreValidatedAndRoutedByKind) {
   v1::FaultEvent f;
   f.set_node("mc");
   f.set_bit(3);
-  const EnvelopeHeader h{"bike-1", 9, 11, "fw"};
+  const EnvelopeHeader h{"bike-1", 9, 11, "fw", "store-1"};
   const auto* route = find_route(kind::kFault);
   ASSERT_NE(route, nullptr);
   const auto bytes = serialize_record(*route, h, f.SerializeAsString());

@@ -471,6 +471,39 @@ TEST(UplinkMqtt, StopPublishesRetainedOfflineStatus) {
   EXPECT_EQ(last_status(late).connection(), v1::CONNECTION_STATE_DISCONNECTED);
 }
 
+// Schema v1.1: the retained status follows the bus state at once (not at the next 60 s refresh),
+// so a consumer arriving later reads the current one.
+TEST(UplinkMqtt, BusStateChangeRepublishesTheRetainedStatus) {
+  MosquittoBroker broker;
+  broker.start();
+  MemoryOutbox box;
+  UplinkConfig config = plain_config(broker.uri(), "bike-bus");
+  config.status_interval = std::chrono::minutes(10);
+  Uplink up(config, box);
+  up.set_bus_state(v1::BUS_STATE_ACTIVE);
+  up.start(wall_now());
+  ASSERT_TRUE(drive(
+      up, [&] { return up.stats().acked_messages >= 1; }, 10s));
+  const auto status_with = [&](v1::BusState want) {
+    Subscriber late(broker.uri(), "fleet/v1/bike-bus/status", "backend-bus");
+    const bool got = late.wait_until([](auto& m) { return !m.empty(); }, 5s);
+    return got && last_status(late).bus_state() == want &&
+           last_status(late).state() == v1::ONLINE_STATE_ONLINE;
+  };
+  EXPECT_TRUE(status_with(v1::BUS_STATE_ACTIVE));
+  up.set_bus_state(v1::BUS_STATE_SILENT);
+  EXPECT_TRUE(up.next_poll_due(wall_now()) <= wall_now()) << "the change makes a poll due now";
+  const auto acked = up.stats().acked_messages;
+  ASSERT_TRUE(drive(
+      up, [&] { return up.stats().acked_messages > acked; }, 10s));
+  EXPECT_TRUE(status_with(v1::BUS_STATE_SILENT));
+  up.set_bus_state(v1::BUS_STATE_SILENT);  // no change: nothing new to publish
+  const auto published = up.stats().published_messages;
+  up.poll(wall_now());
+  EXPECT_EQ(up.stats().published_messages, published);
+  up.stop(wall_now());
+}
+
 constexpr const char* kChildEnv = "FLEETGW_UPLINK_TEST_CHILD_URI";
 
 TEST(UplinkMqtt, LastWillSetsOfflineWhenTheProcessDies) {
@@ -511,6 +544,32 @@ TEST(UplinkMqtt, LastWillSetsOfflineWhenTheProcessDies) {
       << broker.log();
   EXPECT_EQ(last_status(sub).connection(), v1::CONNECTION_STATE_LOST);
   EXPECT_EQ(last_status(sub).firmware_version(), "test-1.2.3");
+  // Schema v1.1: the will says it is one and carries nothing it could not know at the moment
+  // of loss (the child connected with 3 records queued and a decorator flagging attention).
+  v1::Envelope will;
+  ASSERT_TRUE(will.ParseFromString(sub.messages().back().payload));
+  EXPECT_TRUE(will.status().last_will());
+  EXPECT_EQ(will.created_at_us(), 0) << "the broker's receive time is the time of loss";
+  EXPECT_EQ(will.sequence(), 0u);
+  EXPECT_EQ(will.store_id(), "") << "the will is not a record";
+  EXPECT_EQ(will.status().outbox_depth(), 0u);
+  EXPECT_EQ(will.status().oldest_unsent_created_at_us(), 0);
+  EXPECT_FALSE(will.status().attention_needed());
+  EXPECT_GT(will.status().connected_at_us(), 0);
+  // The online status of the same connection is complete and not marked as a will.
+  bool online_seen = false;
+  for (const auto& m : sub.messages()) {
+    v1::Envelope env;
+    if (!env.ParseFromString(m.payload) || env.status().state() != v1::ONLINE_STATE_ONLINE) {
+      continue;
+    }
+    online_seen = true;
+    EXPECT_FALSE(env.status().last_will());
+    EXPECT_TRUE(env.status().attention_needed());
+    EXPECT_EQ(env.store_id(), "store-will");
+    EXPECT_EQ(env.status().connected_at_us(), will.status().connected_at_us());
+  }
+  EXPECT_TRUE(online_seen);
 }
 
 }  // namespace
@@ -518,7 +577,13 @@ TEST(UplinkMqtt, LastWillSetsOfflineWhenTheProcessDies) {
 // Child mode for the last-will test: connect, then wait to be killed.
 int run_will_child(const char* uri) {
   MemoryOutbox box;
-  Uplink up(plain_config(uri, "bike-will"), box);
+  v1::FaultEvent fault;
+  fault.set_node("mc");
+  for (int i = 0; i < 3; ++i) box.push(1, "fault", wall_now().count(), fault.SerializeAsString());
+  UplinkConfig config = plain_config(uri, "bike-will");
+  config.store_id = "store-will";
+  Uplink up(config, box);
+  up.set_status_decorator([](v1::Status& s) { s.set_attention_needed(true); });
   up.start(wall_now());
   for (;;) {
     up.poll(wall_now());
