@@ -96,6 +96,14 @@ domain::DomainConfig make_domain_config(const config::Config& c) {
   d.faults.stale = ms(c.node.fault_stale_ms);
   d.telemetry.riding_interval = ms(c.telemetry.riding_interval_ms);
   d.telemetry.parked_interval = ms(c.telemetry.parked_interval_ms);
+  d.alarms.enabled = c.alarms.enabled;
+  d.alarms.movement_speed_kmh = c.alarms.movement_speed_kmh;
+  d.alarms.movement_rpm = c.alarms.movement_rpm;
+  d.alarms.movement_debounce = ms(c.alarms.movement_debounce_ms);
+  d.alarms.movement_clear = Micros(int64_t{c.alarms.movement_clear_s} * 1'000'000);
+  d.alarms.low_battery_pct = c.alarms.low_battery_pct;
+  d.alarms.low_battery_hysteresis_pct = c.alarms.low_battery_hysteresis_pct;
+  d.alarms.battery_silent = ms(c.alarms.battery_silent_ms);
   d.apply(c.protocol);
   return d;
 }
