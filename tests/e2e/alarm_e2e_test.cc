@@ -89,6 +89,7 @@ TEST(AlarmEndToEnd, TheftYieldsExactlyOneMovementAlarmOnTheBrokerAndTelemetryFlo
   c << "[vehicle]\nid = \"" << kVehicle << "\"\n[log]\nlevel = \"warn\"\n"
     << "[can]\ntransport = \"sim\"\n[sim]\nscenario = \"" << FLEETGW_SOURCE_DIR
     << "/config/scenarios/theft.toml\"\nspeed = 10\n"
+    << "start_now = false\n"  // bus time on the scenario's own epoch
     << "[storage]\npath = \"" << (dir.path() / "fleetgw.db").string() << "\"\n"
     << "[mqtt]\nenabled = true\nuri = \"" << broker.uri() << "\"\ntelemetry_qos = 1\n"
     << "reconnect_min_ms = 100\nreconnect_max_ms = 500\n";
