@@ -8,7 +8,7 @@
 namespace fleetgw::storage {
 namespace {
 
-constexpr std::array<std::pair<OutboxKind, std::string_view>, 9> kKindNames = {{
+constexpr std::array<std::pair<OutboxKind, std::string_view>, 10> kKindNames = {{
     {OutboxKind::kTelemetry, "telemetry"},
     {OutboxKind::kRide, "ride"},
     {OutboxKind::kFault, "fault"},
@@ -18,6 +18,7 @@ constexpr std::array<std::pair<OutboxKind, std::string_view>, 9> kKindNames = {{
     {OutboxKind::kStatus, "status"},
     {OutboxKind::kCommandResult, "command_result"},
     {OutboxKind::kEvictionReport, "eviction_report"},
+    {OutboxKind::kAlarm, "alarm"},
 }};
 
 }  // namespace
@@ -44,6 +45,16 @@ std::string_view to_string(FaultEventKind kind) {
       return "cleared";
     case FaultEventKind::kUnknown:
       return "unknown";
+  }
+  return "invalid";
+}
+
+std::string_view to_string(AlarmTransition transition) {
+  switch (transition) {
+    case AlarmTransition::kRaised:
+      return "raised";
+    case AlarmTransition::kCleared:
+      return "cleared";
   }
   return "invalid";
 }

@@ -111,6 +111,30 @@ struct LockEvent {
   friend bool operator==(const LockEvent&, const LockEvent&) = default;
 };
 
+enum class AlarmTransition : std::uint8_t { kRaised = 0, kCleared = 1 };
+
+// One operator alarm transition (schema v4). `kind` is the snake_case alarm name
+// ("unauthorised_movement", "lock_forced", "lock_tamper", "low_battery", "battery_removed",
+// "battery_swapped"); evidence fields that do not apply to the kind stay empty.
+struct AlarmRecord {
+  std::int64_t id = 0;
+  std::int64_t ts_us = 0;              // when the transition was decided
+  std::int64_t first_evidence_us = 0;  // first evidence of the episode
+  std::string kind;
+  AlarmTransition transition = AlarmTransition::kRaised;
+  std::optional<int> lock_node;
+  std::optional<double> speed_kmh;
+  std::optional<double> max_speed_kmh;
+  std::optional<double> motor_rpm;
+  std::optional<double> soc_pct;
+  std::optional<int> threshold_pct;
+  std::optional<std::int64_t> lock_fault_bits;
+  std::string old_bms_serial;
+  std::string new_bms_serial;
+  std::string detail;
+  friend bool operator==(const AlarmRecord&, const AlarmRecord&) = default;
+};
+
 struct CommandResult {
   std::int64_t id = 0;
   std::string command_id;
@@ -146,10 +170,13 @@ enum class OutboxKind : std::uint8_t {
   kStatus,
   kCommandResult,
   kEvictionReport,
+  kAlarm,
 };
 
-// Lower value = more urgent.
+// Lower value = more urgent. Alarms share the top priority with command results (both are
+// what an operator waits for; within a priority the sequence number orders them).
 enum class OutboxPriority : std::uint8_t {
+  kAlarm = 0,
   kCommandResult = 0,
   kFault = 1,
   kRide = 2,
@@ -162,6 +189,7 @@ inline constexpr int kLowestPriority = 5;
 std::string_view to_string(OutboxKind kind);
 std::optional<OutboxKind> outbox_kind_from_string(std::string_view text);
 std::string_view to_string(FaultEventKind kind);
+std::string_view to_string(AlarmTransition transition);
 std::string_view to_string(RideState state);
 
 struct OutboxEntry {

@@ -136,7 +136,29 @@ constexpr std::string_view kV3 = R"sql(
 ALTER TABLE commands ADD COLUMN command_sha256 BLOB;
 )sql";
 
-constexpr std::array<std::string_view, kSchemaVersion> kSteps = {kV1, kV2, kV3};
+// v4: operator alarms (gateway/domain/alarm_tracker.h), never evicted.
+constexpr std::string_view kV4 = R"sql(
+CREATE TABLE alarms (
+  id INTEGER PRIMARY KEY,
+  ts_us INTEGER NOT NULL,
+  first_evidence_us INTEGER NOT NULL,
+  kind TEXT NOT NULL,
+  transition TEXT NOT NULL CHECK (transition IN ('raised', 'cleared')),
+  lock_node INTEGER,
+  speed_kmh REAL,
+  max_speed_kmh REAL,
+  motor_rpm REAL,
+  soc_pct REAL,
+  threshold_pct INTEGER,
+  lock_fault_bits INTEGER,
+  old_bms_serial TEXT NOT NULL DEFAULT '',
+  new_bms_serial TEXT NOT NULL DEFAULT '',
+  detail TEXT NOT NULL DEFAULT ''
+);
+CREATE INDEX alarms_by_time ON alarms (ts_us);
+)sql";
+
+constexpr std::array<std::string_view, kSchemaVersion> kSteps = {kV1, kV2, kV3, kV4};
 
 }  // namespace
 

@@ -19,6 +19,9 @@
 //   v3  commands.command_sha256 (nullable BLOB): the digest of the signed command bytes, so a
 //       result re-published after a restart is bound to its command like a live one; NULL in
 //       rows journaled before v3
+//   v4  alarms table: operator alarms (unauthorised movement, lock forced/tamper, low battery,
+//       battery removed/swapped), raised/cleared with their evidence; queued as outbox kind
+//       "alarm" at priority 0
 #pragma once
 
 #include <stdexcept>
@@ -28,7 +31,7 @@
 
 namespace fleetgw::storage {
 
-inline constexpr int kSchemaVersion = 3;
+inline constexpr int kSchemaVersion = 4;
 
 class SchemaTooNewError : public std::runtime_error {
  public:

@@ -88,7 +88,7 @@ StoreError to_store_error(const std::exception& e) {
 
 std::size_t Batch::size() const {
   return telemetry.size() + rides.size() + faults.size() + packs.size() + locks.size() +
-         command_results.size() + commands.size() + messages.size() + meta.size();
+         alarms.size() + command_results.size() + commands.size() + messages.size() + meta.size();
 }
 
 void Batch::clear() {
@@ -97,6 +97,7 @@ void Batch::clear() {
   faults.clear();
   packs.clear();
   locks.clear();
+  alarms.clear();
   command_results.clear();
   commands.clear();
   messages.clear();

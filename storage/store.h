@@ -27,7 +27,8 @@
 //   write() survive a crash or kill of the process; after a power cut the last commits before
 //   the cut may be lost, but the database is never corrupted. Durability::kFull fsyncs the WAL
 //   at every commit so a returned write() also survives power loss.
-// - Outbox: priority 0 is the most urgent (OutboxPriority: command results 0, faults 1, rides 2,
+// - Outbox: priority 0 is the most urgent (OutboxPriority: alarms and command results 0,
+//   faults 1, rides 2,
 //   lock events 3, pack statistics 4, telemetry 5; eviction reports go at priority 1).
 //   peek_outbox() returns entries in (priority, seq) order, skipping the ones in flight, and
 //   marks what it returns as in flight (in memory only). ack() deletes exactly the
@@ -129,6 +130,7 @@ struct Batch {
   std::vector<Pending<FaultEvent>> faults;
   std::vector<Pending<PackSnapshot>> packs;
   std::vector<Pending<LockEvent>> locks;
+  std::vector<Pending<AlarmRecord>> alarms;
   std::vector<Pending<CommandResult>> command_results;
   std::vector<CommandJournalEntry> commands;
   std::vector<UplinkMessage> messages;

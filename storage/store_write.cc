@@ -42,6 +42,10 @@ constexpr std::string_view kInsertPack =
 constexpr std::string_view kInsertLock =
     "INSERT INTO lock_events (ts_us, lock_node, kind, old_state, new_state, cause) "
     "VALUES (?, ?, ?, ?, ?, ?)";
+constexpr std::string_view kInsertAlarm =
+    "INSERT INTO alarms (ts_us, first_evidence_us, kind, transition, lock_node, speed_kmh, "
+    "max_speed_kmh, motor_rpm, soc_pct, threshold_pct, lock_fault_bits, old_bms_serial, "
+    "new_bms_serial, detail) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)";
 constexpr std::string_view kInsertCommandResult =
     "INSERT INTO command_results (command_id, ts_us, result, reason, final_state, duration_ms) "
     "VALUES (?, ?, ?, ?, ?, ?)";
@@ -98,6 +102,7 @@ void validate(const Batch& b) {
   check_uplink(b.faults, "faults");
   check_uplink(b.packs, "packs");
   check_uplink(b.locks, "locks");
+  check_uplink(b.alarms, "alarms");
   check_uplink(b.command_results, "command_results");
   for (std::size_t i = 0; i < b.telemetry.size(); ++i) {
     check_time(b.telemetry[i].record.ts_us, "telemetry", i, "ts_us");
@@ -127,6 +132,13 @@ void validate(const Batch& b) {
   }
   for (std::size_t i = 0; i < b.locks.size(); ++i) {
     check_time(b.locks[i].record.ts_us, "locks", i, "ts_us");
+  }
+  for (std::size_t i = 0; i < b.alarms.size(); ++i) {
+    const AlarmRecord& a = b.alarms[i].record;
+    if (a.kind.empty()) reject("alarms", i, "kind", "empty");
+    if (to_string(a.transition) == "invalid") reject("alarms", i, "transition", "invalid value");
+    check_time(a.ts_us, "alarms", i, "ts_us");
+    check_time(a.first_evidence_us, "alarms", i, "first_evidence_us");
   }
   for (std::size_t i = 0; i < b.command_results.size(); ++i) {
     if (b.command_results[i].record.command_id.empty()) {
@@ -279,6 +291,17 @@ WriteResult Store::Impl::write_once(const Batch& b) {
       queue(uplink, OutboxKind::kLock, OutboxPriority::kLock, db.last_insert_rowid());
     }
   }
+  if (!b.alarms.empty()) {
+    auto st = db.cached(kInsertAlarm);
+    for (const auto& [a, uplink] : b.alarms) {
+      st->bind_all(a.ts_us, a.first_evidence_us, a.kind, to_string(a.transition), a.lock_node,
+                   a.speed_kmh, a.max_speed_kmh, a.motor_rpm, a.soc_pct, a.threshold_pct,
+                   a.lock_fault_bits, a.old_bms_serial, a.new_bms_serial, a.detail);
+      st->run();
+      st->reset();
+      queue(uplink, OutboxKind::kAlarm, OutboxPriority::kAlarm, db.last_insert_rowid());
+    }
+  }
   if (!b.command_results.empty()) {
     auto st = db.cached(kInsertCommandResult);
     for (const auto& [c, uplink] : b.command_results) {
@@ -332,7 +355,7 @@ WriteResult Store::Impl::write_once(const Batch& b) {
   result.first_seq = seq != next_seq ? next_seq : 0;
   result.end_seq = seq != next_seq ? seq : 0;
   result.records = b.telemetry.size() + b.rides.size() + b.faults.size() + b.packs.size() +
-                   b.locks.size() + b.command_results.size() + b.commands.size();
+                   b.locks.size() + b.alarms.size() + b.command_results.size() + b.commands.size();
   next_seq = seq;  // only now: a rolled-back batch must not burn numbers in memory either
   if (result.eviction) {
     const EvictionReport& r = *result.eviction;

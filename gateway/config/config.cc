@@ -126,6 +126,23 @@ class Section {
     }
   }
 
+  // Up to 8 integers in [min, max], strictly descending (thresholds).
+  void descending_integers(std::string_view key, std::vector<int>& out, int min, int max) {
+    const toml::node* n = find(key);
+    const toml::array* a = n ? n->as_array() : nullptr;
+    std::vector<int> v;
+    for (std::size_t i = 0; a && i < a->size() && i < 8; ++i) {
+      const auto x = (*a)[i].value<int64_t>();
+      if (!(*a)[i].is_integer() || *x < min || *x > max || (i > 0 && *x >= v.back())) break;
+      v.push_back(static_cast<int>(*x));
+    }
+    if (a && v.size() == a->size()) {
+      out = std::move(v);
+    } else if (n) {
+      problem(*n, key, fmt::format("expected up to 8 integers in [{}, {}], descending", min, max));
+    }
+  }
+
   template <std::size_t N>
   void string_array(std::string_view key, std::array<std::string, N>& out, bool allow_empty) {
     const toml::node* n = find(key);
@@ -382,6 +399,17 @@ Config parse_root(const toml::table& root, const std::string& name) {
     {
       auto s = top.sub("faults");
       s.integer("debounce_ms", c.faults.debounce_ms, 0, 600'000);
+    }
+    {
+      auto s = top.sub("alarms");
+      s.boolean("enabled", c.alarms.enabled);
+      s.number("movement_speed_kmh", c.alarms.movement_speed_kmh, 0.1, 30);
+      s.number("movement_rpm", c.alarms.movement_rpm, 1, 1000);
+      s.integer("movement_debounce_ms", c.alarms.movement_debounce_ms, 0, 60'000);
+      s.integer("movement_clear_s", c.alarms.movement_clear_s, 1, 3600);
+      s.descending_integers("low_battery_pct", c.alarms.low_battery_pct, 1, 99);
+      s.number("low_battery_hysteresis_pct", c.alarms.low_battery_hysteresis_pct, 0, 50);
+      s.integer("battery_silent_ms", c.alarms.battery_silent_ms, 1000, 3'600'000);
     }
     {
       auto s = top.sub("status");

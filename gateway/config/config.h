@@ -120,6 +120,18 @@ struct FaultConfig {
   int debounce_ms = 3000;
 };
 
+// [alarms] (docs/data-model.md, "Operator alarms").
+struct AlarmsConfig {
+  bool enabled = true;
+  double movement_speed_kmh = 1.0;
+  double movement_rpm = 20.0;
+  int movement_debounce_ms = 2000;
+  int movement_clear_s = 30;
+  std::vector<int> low_battery_pct{20, 10, 5};  // strictly descending, 1..99
+  double low_battery_hysteresis_pct = 3.0;
+  int battery_silent_ms = 10000;
+};
+
 struct CommandConfig {
   std::map<std::string, std::string> trusted_keys;  // key id -> base64 Ed25519 public key
   int clock_skew_s = 30;
@@ -150,6 +162,7 @@ struct Config {
   TelemetryConfig telemetry;
   RideConfig ride;
   FaultConfig faults;
+  AlarmsConfig alarms;
   CommandConfig command;
   StatusConfig status;
 

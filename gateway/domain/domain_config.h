@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "gateway/domain/alarm_config.h"
 #include "motinova/can.h"
 #include "motinova/options.h"
 
@@ -86,6 +87,9 @@ struct DomainConfig {
   PackConfig pack;
   TelemetryConfig telemetry;
   LockConfig locks;
+  // Lock kinds, command window and frame-lock kinds are taken from `locks` and `telemetry` by
+  // DomainTrackers (one source of truth).
+  AlarmConfig alarms;
 
   // Takes the lock tables from the decoder's options so names match the decoded messages.
   void apply(const motinova::DecodeOptions& options) {

@@ -10,6 +10,14 @@ DomainConfig validated(DomainConfig config) {
   return config;
 }
 
+AlarmConfig alarm_config(const DomainConfig& c) {
+  AlarmConfig a = c.alarms;
+  a.lock_kinds = c.locks.lock_kinds;
+  a.command_window = c.locks.cause_window;
+  a.frame_lock_kinds = c.telemetry.wheel_lock_kinds;
+  return a;
+}
+
 }  // namespace
 
 DomainTrackers::DomainTrackers(DomainConfig config, DomainSink& sink)
@@ -18,11 +26,12 @@ DomainTrackers::DomainTrackers(DomainConfig config, DomainSink& sink)
       faults_(config_.faults, sink),
       packs_(config_.pack, sink),
       telemetry_(config_.telemetry, config_.locks.lock_kinds, sink),
-      locks_(config_.locks, sink) {}
+      locks_(config_.locks, sink),
+      alarms_(alarm_config(config_), sink) {}
 
 void DomainTrackers::restore(std::span<const storage::Ride> open_rides, Micros now) {
   rides_.restore(open_rides, now);
-  telemetry_.set_riding(rides_.riding(), now);
+  telemetry_.set_riding(fast_telemetry(), now);
 }
 
 void DomainTrackers::on_message(const motinova::DecodedMessage& msg, Micros now) {
@@ -31,7 +40,8 @@ void DomainTrackers::on_message(const motinova::DecodedMessage& msg, Micros now)
   faults_.on_message(msg, now);
   sync(now);
   rides_.on_message(msg, now);
-  telemetry_.set_riding(rides_.riding(), now);
+  alarms_.on_message(msg, now);
+  telemetry_.set_riding(fast_telemetry(), now);
   telemetry_.on_message(msg, now);
   packs_.on_message(msg, now);
   locks_.on_message(msg, now);
@@ -41,7 +51,8 @@ void DomainTrackers::tick(Micros now) {
   faults_.tick(now);
   sync(now);
   rides_.tick(now);
-  telemetry_.set_riding(rides_.riding(), now);
+  alarms_.tick(now);
+  telemetry_.set_riding(fast_telemetry(), now);
   telemetry_.tick(now);
   packs_.tick(now);
   locks_.tick(now);

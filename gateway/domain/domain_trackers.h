@@ -10,12 +10,14 @@
 //  * restore() must be called once, before the first message, with Store::open_rides(): an open
 //    ride of a previous run is resumed (see RideTracker).
 //  * The ride tracker's fault count is fed from the fault tracker's raises; telemetry follows
-//    the ride state (riding vs parked sampling).
+//    the ride state (riding vs parked sampling), and is sampled at the riding rate as well while
+//    an alarm is active or the bike moves while locked (AlarmTracker).
 #pragma once
 
 #include <span>
 #include <string>
 
+#include "gateway/domain/alarm_tracker.h"
 #include "gateway/domain/domain_config.h"
 #include "gateway/domain/domain_sink.h"
 #include "gateway/domain/fault_tracker.h"
@@ -41,6 +43,7 @@ class DomainTrackers {
   // "command:<id>".
   void expect_lock_command(motinova::Node lock, const std::string& command_id, Micros now) {
     locks_.expect_cause(lock, "command:" + command_id, now);
+    alarms_.expect_command(lock, now);
   }
 
   const RideTracker& rides() const { return rides_; }
@@ -48,9 +51,15 @@ class DomainTrackers {
   const PackTracker& packs() const { return packs_; }
   const TelemetryTracker& telemetry() const { return telemetry_; }
   const LockTracker& locks() const { return locks_; }
+  const AlarmTracker& alarms() const { return alarms_; }
 
  private:
   void sync(Micros now);
+  // Telemetry at the riding rate during a ride, and while an alarm is active or the bike moves
+  // although locked (the moment an operator most needs data).
+  bool fast_telemetry() const {
+    return rides_.riding() || alarms_.active() || alarms_.moving_while_locked();
+  }
 
   DomainConfig config_;
   RideTracker rides_;
@@ -58,6 +67,7 @@ class DomainTrackers {
   PackTracker packs_;
   TelemetryTracker telemetry_;
   LockTracker locks_;
+  AlarmTracker alarms_;
   uint64_t faults_seen_ = 0;
 };
 

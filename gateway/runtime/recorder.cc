@@ -30,6 +30,7 @@ void append(storage::Batch& to, storage::Batch& from) {
   move_all(to.faults, from.faults);
   move_all(to.packs, from.packs);
   move_all(to.locks, from.locks);
+  move_all(to.alarms, from.alarms);
   move_all(to.command_results, from.command_results);
   move_all(to.commands, from.commands);
   move_all(to.messages, from.messages);
@@ -40,8 +41,8 @@ void append(storage::Batch& to, storage::Batch& from) {
 // Anything the store never evicts (or that is not telemetry at all): worth a commit at once.
 bool has_non_telemetry(const storage::Batch& b) {
   return !b.rides.empty() || !b.faults.empty() || !b.packs.empty() || !b.locks.empty() ||
-         !b.command_results.empty() || !b.commands.empty() || !b.messages.empty() ||
-         !b.meta.empty();
+         !b.alarms.empty() || !b.command_results.empty() || !b.commands.empty() ||
+         !b.messages.empty() || !b.meta.empty();
 }
 
 template <typename T>
@@ -57,6 +58,7 @@ std::size_t footprint(const storage::Batch& b) {
   for (const auto& x : b.faults) n += footprint(x);
   for (const auto& x : b.packs) n += footprint(x) + x.record.lifetime_json.size();
   for (const auto& x : b.locks) n += footprint(x);
+  for (const auto& x : b.alarms) n += footprint(x) + x.record.detail.capacity();
   for (const auto& x : b.command_results) n += footprint(x);
   n += b.commands.size() * sizeof(storage::CommandJournalEntry);
   for (const auto& m : b.messages) n += sizeof(m) + m.payload.capacity();
@@ -94,6 +96,14 @@ domain::DomainConfig make_domain_config(const config::Config& c) {
   d.faults.stale = ms(c.node.fault_stale_ms);
   d.telemetry.riding_interval = ms(c.telemetry.riding_interval_ms);
   d.telemetry.parked_interval = ms(c.telemetry.parked_interval_ms);
+  d.alarms.enabled = c.alarms.enabled;
+  d.alarms.movement_speed_kmh = c.alarms.movement_speed_kmh;
+  d.alarms.movement_rpm = c.alarms.movement_rpm;
+  d.alarms.movement_debounce = ms(c.alarms.movement_debounce_ms);
+  d.alarms.movement_clear = Micros(int64_t{c.alarms.movement_clear_s} * 1'000'000);
+  d.alarms.low_battery_pct = c.alarms.low_battery_pct;
+  d.alarms.low_battery_hysteresis_pct = c.alarms.low_battery_hysteresis_pct;
+  d.alarms.battery_silent = ms(c.alarms.battery_silent_ms);
   d.apply(c.protocol);
   return d;
 }
@@ -270,6 +280,7 @@ void Recorder::bound_retry_memory() {
     dropped += drop_oldest(retry_.meta, bytes, hard);
     dropped += drop_oldest(retry_.faults, bytes, hard);
     dropped += drop_oldest(retry_.commands, bytes, hard);
+    dropped += drop_oldest(retry_.alarms, bytes, hard);
     dropped += drop_oldest(retry_.command_results, bytes, hard);
   }
   if (dropped == 0) return;

@@ -29,6 +29,8 @@ std::string uplink_kind(storage::OutboxKind kind) {
       return uplink::kind::kCommandResult;
     case storage::OutboxKind::kEvictionReport:
       return uplink::kind::kEviction;
+    case storage::OutboxKind::kAlarm:
+      return uplink::kind::kAlarm;
   }
   return "invalid";
 }

@@ -28,6 +28,8 @@ constexpr KindRoute kRoutes[] = {
      [](v1::Envelope& e) -> MessageLite* { return e.mutable_command_result(); }},
     {kind::kEviction, &Topics::eviction,
      [](v1::Envelope& e) -> MessageLite* { return e.mutable_eviction(); }},
+    {kind::kAlarm, &Topics::alarm,
+     [](v1::Envelope& e) -> MessageLite* { return e.mutable_alarm(); }},
     {kind::kTelemetry, &Topics::telemetry,
      [](v1::Envelope& e) -> MessageLite* { return e.mutable_telemetry(); }},
 };

@@ -38,6 +38,7 @@ inline constexpr const char* kInfo = "info";                 // payload: fleetgw
 inline constexpr const char* kStatus = "status";             // payload: fleetgw.v1.Status
 inline constexpr const char* kCommandResult = "cmd_result";  // payload: fleetgw.v1.CommandResult
 inline constexpr const char* kEviction = "eviction";         // payload: fleetgw.v1.EvictionReport
+inline constexpr const char* kAlarm = "alarm";               // payload: fleetgw.v1.Alarm
 }  // namespace kind
 
 // One stored record as the uplink sees it (storage::OutboxEntry is the store's row type).

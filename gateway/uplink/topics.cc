@@ -43,6 +43,7 @@ Topics::Topics(std::string_view prefix, std::string_view vehicle_id) {
   info = base + "/info";
   status = base + "/status";
   eviction = base + "/eviction";
+  alarm = base + "/alarm";
   cmd = base + "/cmd";
   cmd_result = base + "/cmd/result";
 }

@@ -44,6 +44,7 @@ struct Collected {
   std::vector<storage::Pending<storage::PackSnapshot>> packs;
   std::vector<storage::Pending<storage::TelemetrySample>> telemetry;
   std::vector<storage::Pending<storage::LockEvent>> locks;
+  std::vector<storage::Pending<storage::AlarmRecord>> alarms;
 
   void add(const storage::Batch& b) {
     rides.insert(rides.end(), b.rides.begin(), b.rides.end());
@@ -51,6 +52,7 @@ struct Collected {
     packs.insert(packs.end(), b.packs.begin(), b.packs.end());
     telemetry.insert(telemetry.end(), b.telemetry.begin(), b.telemetry.end());
     locks.insert(locks.end(), b.locks.begin(), b.locks.end());
+    alarms.insert(alarms.end(), b.alarms.begin(), b.alarms.end());
   }
   // Closed rides (the records sent with an uplink payload).
   std::vector<storage::Ride> closed_rides() const {

@@ -22,6 +22,14 @@ std::vector<nlohmann::json> export_rows(Store& store, std::string_view table,
   return rows;
 }
 
+AlarmRecord alarm_at(std::int64_t t, std::string kind) {
+  AlarmRecord a;
+  a.ts_us = t;
+  a.first_evidence_us = t;
+  a.kind = std::move(kind);
+  return a;
+}
+
 void fill(Store& store) {
   for (std::int64_t t : {1'000, 2'000}) {
     Batch b;
@@ -32,6 +40,12 @@ void fill(Store& store) {
     b.packs.push_back({pack_at(t), payload_of("pack")});
     b.locks.push_back({lock_at(t), payload_of("lock")});
     b.command_results.push_back({command_result("c" + std::to_string(t), t), Bytes{0xde, 0xad}});
+    AlarmRecord alarm = alarm_at(t, "unauthorised_movement");
+    alarm.first_evidence_us = t - 500;
+    alarm.lock_node = 8;
+    alarm.speed_kmh = 12.5;
+    alarm.detail = "wheel turning while frame lock locked";
+    b.alarms.push_back({alarm, payload_of("alarm")});
     b.commands.push_back({"c" + std::to_string(t), t, "done", t + 60'000'000});
     b.meta.emplace_back("vin" + std::to_string(t), "BIKE");
     store.write(b);
@@ -49,7 +63,7 @@ TEST(Export, EveryTableExportsTypedRows) {
     } else if (table == "meta") {
       EXPECT_EQ(rows.size(), 4u) << "two vins, the sequence counter and the store id";
     } else if (table == "outbox") {
-      EXPECT_EQ(rows.size(), 12u);
+      EXPECT_EQ(rows.size(), 14u);
     } else {
       EXPECT_EQ(rows.size(), 2u) << table;
     }
@@ -87,16 +101,47 @@ TEST(Export, EveryTableExportsTypedRows) {
   EXPECT_EQ(locks[0]["new_state"], "locked");
   auto results = export_rows(store, "command_results");
   EXPECT_EQ(results[0]["duration_ms"], 850);
+  auto alarms = export_rows(store, "alarms");
+  EXPECT_EQ(alarms[1]["kind"], "unauthorised_movement");
+  EXPECT_EQ(alarms[1]["transition"], "raised");
+  EXPECT_EQ(alarms[1]["first_evidence_us"], 1500);
+  EXPECT_EQ(alarms[1]["lock_node"], 8);
+  EXPECT_DOUBLE_EQ(alarms[1]["speed_kmh"].get<double>(), 12.5);
+  EXPECT_TRUE(alarms[1]["soc_pct"].is_null()) << "evidence that does not apply stays NULL";
+}
+
+// An alarm stored after a backlog of faults and telemetry still leaves first: priority 0.
+TEST(Export, AlarmsLeaveTheOutboxBeforeFaults) {
+  TempDir dir;
+  Store store(StoreOptions{.path = dir.file("e.db")});
+  fill(store);
+  Batch b;
+  b.now_us = 3'000;
+  b.faults.push_back({fault_at(3'000, 12), payload_of("fault")});
+  b.alarms.push_back({alarm_at(3'000, "lock_forced"), payload_of("alarm")});
+  ASSERT_TRUE(store.write(b).ok());
+  const auto entries = store.peek_outbox(100, 1 << 20);
+  ASSERT_FALSE(entries.empty());
+  std::size_t first_fault = entries.size();
+  std::size_t last_alarm = 0;
+  for (std::size_t i = 0; i < entries.size(); ++i) {
+    if (entries[i].kind == OutboxKind::kFault) first_fault = std::min(first_fault, i);
+    if (entries[i].kind == OutboxKind::kAlarm) last_alarm = i;
+  }
+  EXPECT_EQ(entries[last_alarm].priority, 0);
+  EXPECT_LT(last_alarm, first_fault) << "every alarm precedes every fault";
+  EXPECT_EQ(to_string(entries[last_alarm].kind), "alarm");
 }
 
 TEST(Export, SinceFiltersByTimeColumn) {
   TempDir dir;
   Store store(StoreOptions{.path = dir.file("e.db")});
   fill(store);
-  for (std::string_view table : {"telemetry", "rides", "fault_events", "pack_snapshots",
-                                 "lock_events", "command_results", "commands", "outbox"}) {
+  for (std::string_view table :
+       {"telemetry", "rides", "fault_events", "pack_snapshots", "lock_events", "alarms",
+        "command_results", "commands", "outbox"}) {
     auto rows = export_rows(store, table, 1'500);
-    EXPECT_EQ(rows.size(), table == "outbox" ? 6u : 1u) << table;
+    EXPECT_EQ(rows.size(), table == "outbox" ? 7u : 1u) << table;
   }
   EXPECT_EQ(export_rows(store, "meta", 1'500).size(), 4u) << "no time column: since ignored";
 }
@@ -142,11 +187,12 @@ TEST(Stats, ReportsCountsDepthFileAndCounters) {
   EXPECT_EQ(s.schema_version, kSchemaVersion);
   std::map<std::string, std::uint64_t> rows(s.table_rows.begin(), s.table_rows.end());
   EXPECT_EQ(rows["telemetry"], 2u);
-  EXPECT_EQ(rows["outbox"], 12u);
+  EXPECT_EQ(rows["outbox"], 14u);
+  EXPECT_EQ(rows["alarms"], 2u);
   ASSERT_EQ(s.outbox.size(), 6u);
   EXPECT_EQ(s.outbox[0].priority, 0);
-  EXPECT_EQ(s.outbox[0].entries, 2u);
-  EXPECT_EQ(s.outbox[0].payload_bytes, 4u);
+  EXPECT_EQ(s.outbox[0].entries, 4u) << "two command results and two alarms";
+  EXPECT_EQ(s.outbox[0].payload_bytes, 14u);
   EXPECT_EQ(s.outbox_in_flight, 2u);
   EXPECT_EQ(s.oldest_unsent_seq, 1u);
   EXPECT_EQ(s.oldest_unsent_us, 1'000);
@@ -155,7 +201,7 @@ TEST(Stats, ReportsCountsDepthFileAndCounters) {
   EXPECT_EQ(s.page_size, 4096u);
   EXPECT_EQ(s.live_bytes, (s.page_count - s.freelist_pages) * s.page_size);
   EXPECT_EQ(s.budget_bytes, 50u << 20);
-  EXPECT_EQ(s.next_seq, 13u);
+  EXPECT_EQ(s.next_seq, 15u);
   EXPECT_EQ(s.evictions.size(), 3u);
   auto j = s.to_json();
   EXPECT_EQ(j["tables"]["rides"], 2);

@@ -1,0 +1,322 @@
+#include "gateway/domain/alarm_tracker.h"
+
+#include <algorithm>
+#include <cstdio>
+#include <stdexcept>
+#include <utility>
+
+#include "gateway/domain/alarm_payload.h"
+#include "motinova/can.h"
+
+namespace fleetgw::domain {
+namespace {
+
+constexpr int kUnlocked = 1;
+constexpr int kLocked = 2;
+constexpr int kUnlocking = 3;
+constexpr int kLocking = 4;
+constexpr int kLockFailed = 6;
+
+std::string format(const char* fmt, double a, double b = 0) {
+  std::array<char, 160> buf{};
+  std::snprintf(buf.data(), buf.size(), fmt, a, b);
+  return buf.data();
+}
+
+}  // namespace
+
+void AlarmConfig::validate() const {
+  auto bad = [](const std::string& key, const std::string& why) {
+    throw std::invalid_argument("alarms." + key + ": " + why);
+  };
+  if (!(movement_speed_kmh > 0 && movement_speed_kmh <= 30)) {
+    bad("movement_speed_kmh", "must be in (0, 30]");
+  }
+  if (!(movement_rpm > 0 && movement_rpm <= 1000)) bad("movement_rpm", "must be in (0, 1000]");
+  if (movement_debounce < Micros(0) || movement_debounce > std::chrono::seconds(60)) {
+    bad("movement_debounce_ms", "must be in 0..60000");
+  }
+  if (movement_clear < std::chrono::seconds(1) || movement_clear > std::chrono::hours(1)) {
+    bad("movement_clear_s", "must be in 1..3600");
+  }
+  if (battery_silent < std::chrono::seconds(1) || battery_silent > std::chrono::hours(1)) {
+    bad("battery_silent_ms", "must be in 1000..3600000");
+  }
+  if (!(low_battery_hysteresis_pct >= 0 && low_battery_hysteresis_pct <= 50)) {
+    bad("low_battery_hysteresis_pct", "must be in 0..50");
+  }
+  for (std::size_t i = 0; i < low_battery_pct.size(); ++i) {
+    const int t = low_battery_pct[i];
+    const std::string key = "low_battery_pct[" + std::to_string(i) + "]";
+    if (t < 1 || t > 99) bad(key, "threshold " + std::to_string(t) + " outside 1..99");
+    if (i > 0 && t >= low_battery_pct[i - 1]) bad(key, "thresholds must be strictly descending");
+  }
+}
+
+AlarmTracker::AlarmTracker(AlarmConfig config, DomainSink& sink)
+    : config_(std::move(config)),
+      sink_(sink),
+      low_fired_(config_.low_battery_pct.size(), false),
+      low_emitted_(config_.low_battery_pct.size(), false) {
+  config_.validate();
+}
+
+bool AlarmTracker::active() const {
+  if (movement_.active || removed_.active) return true;
+  return std::any_of(locks_.begin(), locks_.end(),
+                     [](const Lock& l) { return l.forced.active || l.tamper.active; });
+}
+
+bool AlarmTracker::locked() const {
+  if (vehicle_locked_) return true;
+  for (std::size_t i = 0; i < locks_.size(); ++i) {
+    if (locks_[i].state != kLocked) continue;
+    const auto& kinds = config_.frame_lock_kinds;
+    if (std::find(kinds.begin(), kinds.end(), config_.lock_kinds[i]) != kinds.end()) return true;
+  }
+  return false;
+}
+
+void AlarmTracker::expect_command(motinova::Node lock, Micros now) {
+  for (std::size_t i = 0; i < locks_.size(); ++i) {
+    if (lock == motinova::Node::kBroadcast ||
+        (motinova::is_lock(lock) && static_cast<int>(i) == motinova::lock_index(lock))) {
+      locks_[i].commanded_until = now + config_.command_window;
+    }
+  }
+}
+
+void AlarmTracker::on_message(const motinova::DecodedMessage& msg, Micros now) {
+  if (!config_.enabled || msg.status != motinova::DecodeStatus::kOk || msg.desc == nullptr) return;
+  switch (classify(msg)) {
+    case BusEvent::kVehicleLock:
+      vehicle_locked_ = true;
+      expect_command(motinova::Node::kBroadcast, now);
+      return;
+    case BusEvent::kVehicleUnlock:
+      vehicle_locked_ = false;
+      expect_command(motinova::Node::kBroadcast, now);
+      return;
+    case BusEvent::kShutdown:
+      after_shutdown_ = true;
+      return;
+    default:
+      break;
+  }
+  const std::string_view name = msg.desc->name;
+  const motinova::Node src = msg.desc->source();
+  if ((name == "lock" || name == "unlock") && motinova::is_lock(msg.desc->target())) {
+    // The IOT's own LOCK/UNLOCK write to one lock (the gateway is the IOT): a command.
+    expect_command(msg.desc->target(), now);
+    return;
+  }
+  if (name == "mc_status") {
+    on_mc_status(msg, now);
+  } else if (motinova::is_lock(src) && name == "lock_status") {
+    if (const auto s = msg.raw("state")) {
+      on_lock_status(static_cast<std::size_t>(motinova::lock_index(src)), static_cast<int>(*s),
+                     now);
+    }
+  } else if (motinova::is_lock(src) && msg.desc->kind == motinova::MessageKind::kFaultWord) {
+    if (const auto w = msg.raw("raw")) {
+      on_lock_faults(static_cast<std::size_t>(motinova::lock_index(src)),
+                     static_cast<uint32_t>(*w) & 0xFFFFu, now);
+    }
+  } else if (src == motinova::Node::kBms && name == "bms_status") {
+    bms_heard_ = now;
+    after_shutdown_ = false;
+    update(soh_, msg, "soh_pct", now);
+    update(cycles_, msg, "cycles", now);
+    if (removed_.active) {
+      removed_.active = false;
+      emit(record("battery_removed", storage::AlarmTransition::kCleared, now, removed_.first));
+    }
+    if (const auto soc = msg.number("soc_pct")) {
+      soc_ = Reading{*soc, now};
+      on_soc(*soc, now);
+    }
+  } else if (src == motinova::Node::kBms && name == "device_info") {
+    if (const auto serial = msg.text("serial"); !serial.empty()) {
+      on_bms_serial(std::string(serial), now);
+    }
+  }
+}
+
+void AlarmTracker::on_mc_status(const motinova::DecodedMessage& msg, Micros now) {
+  update(speed_, msg, "speed_kmh", now);
+  update(rpm_, msg, "motor_rpm", now);
+  const bool evidence =
+      locked() && ((speed_ && speed_->at == now && speed_->value > config_.movement_speed_kmh) ||
+                   (rpm_ && rpm_->at == now && rpm_->value > config_.movement_rpm));
+  if (!evidence) {
+    evidence_since_.reset();  // a twitch shorter than the debounce is forgotten
+    return;
+  }
+  if (!evidence_since_) {
+    evidence_since_ = now;
+    if (!movement_.active) max_speed_kmh_ = 0;
+  }
+  last_evidence_ = now;
+  if (speed_) max_speed_kmh_ = std::max(max_speed_kmh_, speed_->value);
+  if (!movement_.active && now - *evidence_since_ >= config_.movement_debounce) {
+    movement_ = Episode{true, *evidence_since_};
+    ++raised_total_;
+    storage::AlarmRecord rec =
+        record("unauthorised_movement", storage::AlarmTransition::kRaised, now, movement_.first);
+    rec.detail = format("wheel %.1f km/h, motor %.0f rpm while locked",
+                        speed_ ? speed_->value : 0.0, rpm_ ? rpm_->value : 0.0);
+    emit(std::move(rec));
+  }
+}
+
+void AlarmTracker::on_lock_status(std::size_t index, int state, Micros now) {
+  Lock& l = locks_.at(index);
+  const std::optional<int> before = std::exchange(l.state, state);
+  const std::string lock_name =
+      "lock" + std::to_string(index + 1) + " (" + config_.lock_kinds[index] + ")";
+  if (l.forced.active && state == kLocked) {
+    l.forced.active = false;
+    storage::AlarmRecord rec =
+        record("lock_forced", storage::AlarmTransition::kCleared, now, l.forced.first);
+    rec.lock_node = static_cast<int>(motinova::lock_node(static_cast<int>(index)));
+    rec.detail = lock_name + " locked again";
+    emit(std::move(rec));
+    return;
+  }
+  const bool was_closed =
+      before && (*before == kLocked || *before == kLocking || *before == kLockFailed);
+  const bool opening = state == kUnlocked || state == kUnlocking;
+  if (!was_closed || !opening || l.forced.active || now <= l.commanded_until) return;
+  l.forced = Episode{true, now};
+  ++raised_total_;
+  storage::AlarmRecord rec = record("lock_forced", storage::AlarmTransition::kRaised, now, now);
+  rec.lock_node = static_cast<int>(motinova::lock_node(static_cast<int>(index)));
+  rec.detail = lock_name + " opened without a command";
+  emit(std::move(rec));
+}
+
+void AlarmTracker::on_lock_faults(std::size_t index, uint32_t bits, Micros now) {
+  Lock& l = locks_.at(index);
+  if ((bits != 0) == l.tamper.active) return;
+  const auto t = bits != 0 ? storage::AlarmTransition::kRaised : storage::AlarmTransition::kCleared;
+  if (bits != 0) {
+    l.tamper = Episode{true, now};
+    ++raised_total_;
+  } else {
+    l.tamper.active = false;
+  }
+  storage::AlarmRecord rec = record("lock_tamper", t, now, l.tamper.first);
+  rec.lock_node = static_cast<int>(motinova::lock_node(static_cast<int>(index)));
+  rec.lock_fault_bits = bits;
+  rec.detail = "lock" + std::to_string(index + 1) + " (" + config_.lock_kinds[index] + ") ";
+  if (bits != 0) {
+    std::array<char, 16> hex{};
+    std::snprintf(hex.data(), hex.size(), "%04x", bits);
+    rec.detail += std::string("reports fault bits 0x") + hex.data();
+  } else {
+    rec.detail += "fault bits clear";
+  }
+  emit(std::move(rec));
+}
+
+void AlarmTracker::on_soc(double soc, Micros now) {
+  const auto& th = config_.low_battery_pct;
+  std::optional<std::size_t> lowest;
+  for (std::size_t i = 0; i < th.size(); ++i) {
+    if (low_fired_[i]) {
+      if (soc >= th[i] + config_.low_battery_hysteresis_pct) {
+        low_fired_[i] = false;
+        const bool emitted = low_emitted_[i];
+        low_emitted_[i] = false;
+        if (emitted) {
+          storage::AlarmRecord rec =
+              record("low_battery", storage::AlarmTransition::kCleared, now, now);
+          rec.threshold_pct = th[i];
+          rec.detail = format("SOC %.0f %% back above %.0f %%", soc, th[i]);
+          emit(std::move(rec));
+        }
+      }
+    } else if (soc <= th[i]) {
+      low_fired_[i] = true;
+      lowest = i;  // descending thresholds: the last match is the lowest
+    }
+  }
+  if (!lowest) return;
+  low_emitted_[*lowest] = true;
+  ++raised_total_;
+  storage::AlarmRecord rec = record("low_battery", storage::AlarmTransition::kRaised, now, now);
+  rec.threshold_pct = th[*lowest];
+  rec.detail = format("SOC %.0f %% at or below %.0f %%", soc, th[*lowest]);
+  emit(std::move(rec));
+}
+
+void AlarmTracker::on_bms_serial(std::string serial, Micros now) {
+  if (bms_serial_.empty() || serial == bms_serial_) {
+    bms_serial_ = std::move(serial);
+    return;
+  }
+  ++raised_total_;
+  storage::AlarmRecord rec = record("battery_swapped", storage::AlarmTransition::kRaised, now, now);
+  rec.old_bms_serial = std::exchange(bms_serial_, serial);
+  rec.new_bms_serial = std::move(serial);
+  rec.detail = "battery " + rec.old_bms_serial + " replaced by " + rec.new_bms_serial;
+  emit(std::move(rec));
+}
+
+void AlarmTracker::tick(Micros now) {
+  if (!config_.enabled) return;
+  if (movement_.active && now - last_evidence_ >= config_.movement_clear) {
+    movement_.active = false;
+    evidence_since_.reset();
+    storage::AlarmRecord rec =
+        record("unauthorised_movement", storage::AlarmTransition::kCleared, now, movement_.first);
+    rec.detail =
+        format("no movement for %.0f s", static_cast<double>(config_.movement_clear.count()) / 1e6);
+    emit(std::move(rec));
+  }
+  const bool still = !evidence_since_ && !movement_.active;
+  if (bms_heard_ && !removed_.active && !after_shutdown_ && still && locked() &&
+      now - *bms_heard_ >= config_.battery_silent) {
+    removed_ = Episode{true, *bms_heard_};
+    ++raised_total_;
+    storage::AlarmRecord rec =
+        record("battery_removed", storage::AlarmTransition::kRaised, now, removed_.first);
+    rec.detail = format("BMS silent for %.1f s while parked",
+                        static_cast<double>((now - *bms_heard_).count()) / 1e6);
+    emit(std::move(rec));
+  }
+}
+
+storage::AlarmRecord AlarmTracker::record(std::string_view kind, storage::AlarmTransition t,
+                                          Micros now, Micros first) const {
+  storage::AlarmRecord rec;
+  rec.ts_us = now.count();
+  rec.first_evidence_us = first.count();
+  rec.kind = std::string(kind);
+  rec.transition = t;
+  const Micros age = std::chrono::seconds(5);
+  rec.speed_kmh = fresh(speed_, now, age);
+  rec.motor_rpm = fresh(rpm_, now, age);
+  if (kind == "unauthorised_movement") rec.max_speed_kmh = max_speed_kmh_;
+  rec.soc_pct = fresh(soc_, now, age);
+  if (kind == "battery_removed" && soc_) rec.soc_pct = soc_->value;  // the last one heard
+  return rec;
+}
+
+void AlarmTracker::emit(storage::AlarmRecord rec) {
+  AlarmExtras extras;
+  if (rec.lock_node) {
+    const int index = motinova::lock_index(static_cast<motinova::Node>(*rec.lock_node));
+    if (index >= 0 && index < 5)
+      extras.lock_kind = config_.lock_kinds[static_cast<std::size_t>(index)];
+  }
+  if (rec.kind == "battery_swapped") {
+    const Micros now(rec.ts_us);
+    if (const auto v = fresh(soh_, now, std::chrono::seconds(5))) extras.soh_pct = *v;
+    if (const auto v = fresh(cycles_, now, std::chrono::seconds(5))) extras.cycles = *v;
+  }
+  storage::Bytes payload = alarm_payload(rec, extras);
+  sink_.batch().alarms.push_back({std::move(rec), std::move(payload)});
+}
+
+}  // namespace fleetgw::domain
