@@ -126,7 +126,10 @@ status=0
 results=()
 run_one() {  # test-name exe
   local start=$SECONDS rc=0
-  (cd "$(dirname "$2")" && "$QEMU" "$2" --gtest_brief=1) >"$BUILD/$1.emulated.log" 2>&1 || rc=$?
+  # FLEETGW_EMULATED: tests skip their wall-clock bounds (an emulated instruction stream on a
+  # shared box says nothing about the hardware's latency); every functional check still runs.
+  (cd "$(dirname "$2")" && FLEETGW_EMULATED=1 "$QEMU" "$2" --gtest_brief=1) \
+    >"$BUILD/$1.emulated.log" 2>&1 || rc=$?
   echo "$rc $((SECONDS - start))" >"$BUILD/$1.result"
 }
 step "run ${present[*]} under $QEMU, $JOBS at a time"

@@ -19,8 +19,9 @@ inline motinova::MessageWriter writer(uint16_t can_id, uint8_t function) {
 
 // Decodes `frame` and feeds it to the trackers at `now`, then ticks them.
 inline void feed(DomainTrackers& t, const motinova::AppFrame& frame, motinova::Micros now) {
+  static const motinova::DecodeOptions options{};  // the message points into it
   motinova::DecodedMessage msg;
-  motinova::decode(frame, motinova::Catalogue::standard(), motinova::DecodeOptions{}, msg);
+  motinova::decode(frame, motinova::Catalogue::standard(), options, msg);
   t.on_message(msg, now);
   t.tick(now);
 }

@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cstdlib>
 #include <filesystem>
 #include <functional>
 #include <thread>
@@ -109,7 +110,9 @@ TEST(Checkpointer, AReaderHoldingOldFramesBlocksNeitherWritesNorRequests) {
   // A request only signals the worker: microseconds, where a checkpoint's fsyncs take 5-28 ms
   // (the median, so that a preempted call on a loaded CI box does not count).
   std::sort(request_times.begin(), request_times.end());
-  EXPECT_LT(request_times[request_times.size() / 2], 1ms);
+  if (std::getenv("FLEETGW_EMULATED") == nullptr) {  // qemu: no meaningful wall-clock bound
+    EXPECT_LT(request_times[request_times.size() / 2], 1ms);
+  }
   ASSERT_TRUE(wait_until([&] { return store.checkpoint_counters().partial > 0; }))
       << "the worker tried and was cut short by the reader";
   EXPECT_EQ(store.checkpoint_counters().failed, 0u);

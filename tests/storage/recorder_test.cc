@@ -23,8 +23,9 @@ motinova::DecodedMessage bms_status(double voltage, double soc) {
                          .value("voltage_v", voltage)
                          .value("soc_pct", soc)
                          .frame();
+  static const motinova::DecodeOptions options{};  // the message points into it
   motinova::DecodedMessage msg;
-  motinova::decode(frame, motinova::Catalogue::standard(), motinova::DecodeOptions{}, msg);
+  motinova::decode(frame, motinova::Catalogue::standard(), options, msg);
   return msg;
 }
 
@@ -76,8 +77,9 @@ motinova::DecodedMessage mc_fault_word(std::uint32_t word) {
   EXPECT_NE(d, nullptr);
   const auto frame =
       motinova::MessageWriter(*d, motinova::DecodeOptions{}).raw("raw", word).frame();
+  static const motinova::DecodeOptions options{};  // the message points into it
   motinova::DecodedMessage msg;
-  motinova::decode(frame, motinova::Catalogue::standard(), motinova::DecodeOptions{}, msg);
+  motinova::decode(frame, motinova::Catalogue::standard(), options, msg);
   return msg;
 }
 

@@ -32,6 +32,7 @@ namespace {
 
 using namespace std::chrono_literals;
 using testing::drive;
+using testing::last_status;
 using testing::MosquittoBroker;
 using testing::MosquittoOptions;
 using testing::plain_config;
@@ -442,14 +443,6 @@ TEST(UplinkMqtt, BadCommandPayloadsAreDroppedAndTheClientKeepsWorking) {
 }
 
 // ---- status and last will --------------------------------------------------------------------
-v1::Status last_status(Subscriber& sub) {
-  v1::Status s;
-  for (const auto& m : sub.messages()) {
-    v1::Envelope env;
-    if (env.ParseFromString(m.payload) && env.has_status()) s = env.status();
-  }
-  return s;
-}
 
 TEST(UplinkMqtt, StopPublishesRetainedOfflineStatus) {
   MosquittoBroker broker;

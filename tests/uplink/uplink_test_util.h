@@ -141,6 +141,16 @@ inline std::vector<std::uint64_t> received_sequences(const std::vector<Received>
   return out;
 }
 
+// The last Status among what `sub` received (default-constructed when there was none).
+inline v1::Status last_status(Subscriber& sub) {
+  v1::Status s;
+  for (const auto& m : sub.messages()) {
+    v1::Envelope env;
+    if (env.ParseFromString(m.payload) && env.has_status()) s = env.status();
+  }
+  return s;
+}
+
 inline uplink::UplinkConfig plain_config(const std::string& uri, const std::string& vehicle) {
   uplink::UplinkConfig c;
   c.broker_uri = uri;

@@ -68,9 +68,11 @@ class DecodedMessage {
   std::size_t count_ = 0;
 };
 
-// Decodes `frame` into `out` (reused to avoid allocation).
+// Decodes `frame` into `out` (reused to avoid allocation). `out` may point into `catalogue` and
+// `options` (enum and assist names), so both must outlive it: temporaries are refused.
 void decode(const AppFrame& frame, const Catalogue& catalogue, const DecodeOptions& options,
             DecodedMessage& out);
+void decode(const AppFrame&, const Catalogue&, DecodeOptions&&, DecodedMessage&) = delete;
 
 // Fault word normalisation (U3): wire bytes -> normalised word (documented high group in the
 // high 16 bits), and back.
