@@ -75,10 +75,10 @@ set(CPACK_DEBIAN_PACKAGE_RELEASE 1)
 set(CPACK_DEBIAN_PACKAGE_SECTION net)
 set(CPACK_DEBIAN_PACKAGE_PRIORITY optional)
 set(CPACK_DEBIAN_PACKAGE_SHLIBDEPS ON)
-# adduser: the postinst creates the system user. The others serve the optional CAN helper and
-# the technician.
+# adduser: the postinst creates the system user. The others serve the optional CAN helper, the
+# GNSS receiver ([gnss], through gpsd) and the technician.
 set(CPACK_DEBIAN_PACKAGE_DEPENDS "adduser")
-set(CPACK_DEBIAN_PACKAGE_RECOMMENDS "iproute2")
+set(CPACK_DEBIAN_PACKAGE_RECOMMENDS "iproute2, gpsd")
 set(CPACK_DEBIAN_PACKAGE_SUGGESTS "can-utils, mosquitto-clients")
 set(CPACK_DEBIAN_PACKAGE_CONTROL_EXTRA
     ${FLEETGW_DEPLOY_DIR}/debian/conffiles ${FLEETGW_DEPLOY_DIR}/debian/postinst

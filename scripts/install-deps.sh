@@ -16,6 +16,7 @@ PACKAGES=(
   can-utils iproute2
   libtomlplusplus-dev libcli11-dev nlohmann-json3-dev libasio-dev
   libsystemd-dev
+  gpsd gpsd-clients libgps-dev
   clang libclang-rt-14-dev
   qemu-system-x86 busybox-static cpio xz-utils kmod
   dpkg-dev file systemd adduser lintian help2man

@@ -94,6 +94,10 @@ std::vector<std::string> check_runnable(const config::Config& c) {
   std::vector<std::string> out;
   check_bus(c, out);
   check_storage(c, out);
+  if (c.gnss.enabled && !valid_endpoint(c.gnss.gpsd)) {
+    out.push_back(fmt::format("{}: expected host:port of gpsd (port 1..65535), got \"{}\"",
+                              c.where("gnss.gpsd"), c.gnss.gpsd));
+  }
   if (c.mqtt.enabled) {
     for (const auto& p : uplink::check_uplink_config(runtime::make_uplink_config(c))) {
       out.push_back(fmt::format("{}: {}", c.where(p.config_key), p.message));

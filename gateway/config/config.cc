@@ -412,6 +412,13 @@ Config parse_root(const toml::table& root, const std::string& name) {
       s.integer("battery_silent_ms", c.alarms.battery_silent_ms, 1000, 3'600'000);
     }
     {
+      auto s = top.sub("gnss");
+      s.boolean("enabled", c.gnss.enabled);
+      s.string("gpsd", c.gnss.gpsd);
+      s.integer("max_age_ms", c.gnss.max_age_ms, 200, 600'000);
+      s.integer("reconnect_max_ms", c.gnss.reconnect_max_ms, 1000, 3'600'000);
+    }
+    {
       auto s = top.sub("status");
       s.string("socket", c.status.socket);
     }

@@ -132,6 +132,14 @@ struct AlarmsConfig {
   int battery_silent_ms = 10000;
 };
 
+// [gnss]: the position from a GNSS receiver through gpsd (docs/location.md).
+struct GnssConfig {
+  bool enabled = false;
+  std::string gpsd = "localhost:2947";  // host:port of gpsd
+  int max_age_ms = 3000;                // a fix older than this is not current
+  int reconnect_max_ms = 30000;         // backoff cap while gpsd is unreachable
+};
+
 struct CommandConfig {
   std::map<std::string, std::string> trusted_keys;  // key id -> base64 Ed25519 public key
   int clock_skew_s = 30;
@@ -163,6 +171,7 @@ struct Config {
   RideConfig ride;
   FaultConfig faults;
   AlarmsConfig alarms;
+  GnssConfig gnss;
   CommandConfig command;
   StatusConfig status;
 

@@ -38,6 +38,12 @@ class DomainTrackers {
   void restore(std::span<const storage::Ride> open_rides, Micros now);
   void on_message(const motinova::DecodedMessage& msg, Micros now);
   void tick(Micros now);
+  // The current GNSS fix, or nullopt when the position is unknown (the owner calls this on
+  // every change: telemetry samples and lock events carry the latest one).
+  void on_position(const std::optional<gnss::Position>& position) {
+    telemetry_.set_position(position);
+    locks_.set_position(position);
+  }
 
   // For the command service: the next state changes of `lock` (kBroadcast: all) are caused by
   // "command:<id>".

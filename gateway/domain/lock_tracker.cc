@@ -72,7 +72,7 @@ void LockTracker::on_message(const motinova::DecodedMessage& msg, Micros now) {
   ev.new_state = state_name(next);
   ev.cause = l.cause ? l.cause->text : "local";
   if (final_state(next)) l.cause.reset();
-  storage::Bytes payload = lock_payload(ev, *before, next);
+  storage::Bytes payload = lock_payload(ev, *before, next, position_);
   sink_.batch().locks.push_back({std::move(ev), std::move(payload)});
 }
 

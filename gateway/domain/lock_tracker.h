@@ -19,6 +19,7 @@
 
 #include "gateway/domain/domain_config.h"
 #include "gateway/domain/domain_sink.h"
+#include "gateway/gnss/position.h"
 #include "motinova/codec.h"
 
 namespace fleetgw::domain {
@@ -29,6 +30,8 @@ class LockTracker {
 
   void on_message(const motinova::DecodedMessage& msg, Micros now);
   void tick(Micros now);
+  // The current GNSS fix (nullopt: unknown); lock events carry the latest one given.
+  void set_position(const std::optional<gnss::Position>& position) { position_ = position; }
 
   // Announces why the next state changes of `lock` (a lock node; kBroadcast = every lock) happen.
   void expect_cause(motinova::Node lock, std::string cause, Micros now);
@@ -54,6 +57,7 @@ class LockTracker {
   LockConfig config_;
   DomainSink& sink_;
   std::array<Lock, 5> locks_{};
+  std::optional<gnss::Position> position_;
 };
 
 }  // namespace fleetgw::domain

@@ -8,6 +8,7 @@
 #include "fleetgw/v1/fault.pb.h"
 #include "fleetgw/v1/lock.pb.h"
 #include "fleetgw/v1/pack.pb.h"
+#include "fleetgw/v1/position.pb.h"
 #include "fleetgw/v1/ride.pb.h"
 #include "fleetgw/v1/telemetry.pb.h"
 #include "motinova/can.h"
@@ -30,6 +31,15 @@ uint64_t u64(double v) {
 }
 int32_t s32(double v) {
   return to_int<int32_t>(v);
+}
+
+void set_position(v1::Position& out, const gnss::Position& p) {
+  out.set_lat_e7(s32(p.lat_deg * 1e7));
+  out.set_lon_e7(s32(p.lon_deg * 1e7));
+  if (p.alt_m) out.set_alt_dm(s32(*p.alt_m * 10.0));
+  if (p.hdop) out.set_hdop_centi(u32(*p.hdop * 100.0));
+  if (p.satellites > 0) out.set_satellites(static_cast<uint32_t>(p.satellites));
+  out.set_fixed_at_us(p.fixed_at.count());
 }
 
 template <typename Message>
@@ -188,10 +198,12 @@ storage::Bytes telemetry_payload(const TelemetryReading& r) {
   if (r.remaining_mah) m.set_remaining_mah(u32(*r.remaining_mah));
   if (r.full_mah) m.set_full_mah(u32(*r.full_mah));
   if (r.pack_temp_c) m.set_pack_temp_c(s32(*r.pack_temp_c));
+  if (r.position) set_position(*m.mutable_position(), *r.position);
   return bytes_of(m);
 }
 
-storage::Bytes lock_payload(const storage::LockEvent& e, int old_raw, int new_raw) {
+storage::Bytes lock_payload(const storage::LockEvent& e, int old_raw, int new_raw,
+                            const std::optional<gnss::Position>& where) {
   v1::LockEvent m;
   m.set_lock_kind(e.kind);
   m.set_previous_state(lock_state_of(old_raw));
@@ -210,6 +222,7 @@ storage::Bytes lock_payload(const storage::LockEvent& e, int old_raw, int new_ra
   } else {
     m.set_source(v1::LOCK_EVENT_SOURCE_UNSPECIFIED);
   }
+  if (where) set_position(*m.mutable_position(), *where);
   return bytes_of(m);
 }
 

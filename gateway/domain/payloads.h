@@ -16,6 +16,7 @@
 #include <string_view>
 #include <vector>
 
+#include "gateway/gnss/position.h"
 #include "storage/records.h"
 
 namespace fleetgw::domain {
@@ -47,12 +48,15 @@ struct TelemetryReading {
   std::optional<bool> charging;
   std::optional<int> wheel_lock_state;
   std::optional<int> battery_lock_state;
+  std::optional<gnss::Position> position;  // current fix at sampling time; nullopt = unknown
 
   storage::TelemetrySample record() const;
 };
 storage::Bytes telemetry_payload(const TelemetryReading& reading);
 
 // `old_raw`/`new_raw`: lock-state codes (U19) behind the event's state names.
-storage::Bytes lock_payload(const storage::LockEvent& event, int old_raw, int new_raw);
+// `where`: the current fix when the lock changed state (nullopt: position unknown).
+storage::Bytes lock_payload(const storage::LockEvent& event, int old_raw, int new_raw,
+                            const std::optional<gnss::Position>& where = std::nullopt);
 
 }  // namespace fleetgw::domain

@@ -125,6 +125,7 @@ void TelemetryTracker::sample(Micros now) {
   };
   r.wheel_lock_state = lock_of(config_.wheel_lock_kinds);
   r.battery_lock_state = lock_of(config_.battery_lock_kinds);
+  r.position = position_;
   storage::Bytes payload = telemetry_payload(r);
   sink_.batch().telemetry.push_back({r.record(), std::move(payload)});
   ++samples_;

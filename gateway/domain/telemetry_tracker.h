@@ -32,6 +32,8 @@ class TelemetryTracker {
   void on_message(const motinova::DecodedMessage& msg, Micros now);
   void tick(Micros now);
   void set_riding(bool riding, Micros now);
+  // The current GNSS fix (nullopt: unknown); samples carry the latest one given.
+  void set_position(const std::optional<gnss::Position>& position) { position_ = position; }
 
   uint64_t samples() const { return samples_; }
   Micros next_due() const { return next_due_.value_or(Micros::max()); }
@@ -63,6 +65,7 @@ class TelemetryTracker {
   std::optional<Reading> bms_v_, bms_i_, bms_soc_, remaining_, full_, pack_t_;
   std::array<std::optional<Reading>, 5> lock_state_{};
   uint64_t samples_ = 0;
+  std::optional<gnss::Position> position_;
 };
 
 }  // namespace fleetgw::domain

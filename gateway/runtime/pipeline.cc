@@ -6,6 +6,7 @@
 #include <asio/post.hpp>
 #include <iostream>
 
+#include "gateway/node/messages.h"
 #include "gateway/runtime/service.h"
 
 namespace fleetgw::runtime {
@@ -146,6 +147,17 @@ Pipeline::Pipeline(asio::io_context& io, const config::Config& config, BusTransp
     uplink_->start(system_now());
     publish_due_ = true;  // whatever the outbox kept from the previous run
   }
+  if (config.gnss.enabled) {
+    const auto colon = config.gnss.gpsd.rfind(':');
+    gnss::GnssFeedOptions o;
+    o.host = config.gnss.gpsd.substr(0, colon);
+    o.port = colon == std::string::npos ? "2947" : config.gnss.gpsd.substr(colon + 1);
+    o.state.max_age = std::chrono::milliseconds(config.gnss.max_age_ms);
+    o.reconnect_max = std::chrono::milliseconds(config.gnss.reconnect_max_ms);
+    gnss_ = std::make_unique<gnss::GnssFeed>(io_, std::move(o), system_now,
+                                             [this] { request_settle(); });
+    gnss_->start();
+  }
   request_settle();
 }
 
@@ -208,6 +220,7 @@ void Pipeline::settle() {
   for (int round = 0; round < kMaxSettleRounds; ++round) {
     bool more = false;
     if (device_info_.due()) queue_device_info();
+    if (gnss_ && gnss_->changed()) apply_gnss();
     const auto due = recorder_->flush_deadline();
     const bool urgent = recorder_->urgent();
     // The deadline is "at the latest": pending telemetry rides along with a wake-up that
@@ -284,6 +297,7 @@ void Pipeline::arm_timer() {
   consider(core_deadline());
   consider(recorder_->flush_deadline());
   if (uplink_) consider(uplink_->next_deadline());
+  if (gnss_) consider(gnss_->next_deadline());
   consider(next_live_);
   consider(stop_at_);
   if (!at) {
@@ -319,6 +333,7 @@ void Pipeline::on_timer() {
     }
     if (t >= core_.next_event()) core_.tick(t);
   }
+  if (gnss_) gnss_->on_timer();
   if (next_live_ && wall >= *next_live_) {
     std::ostream& out = options_.live_out ? *options_.live_out : std::cout;
     out << core_.live().line() << std::endl;
@@ -333,6 +348,7 @@ void Pipeline::stop(const char* why) {
   stopping_ = true;
   spdlog::info("stopping: {}", why);
   bus_.transport->stop();
+  if (gnss_) gnss_->stop();
   timer_.cancel();
   armed_for_.reset();
   if (options_.on_stop) options_.on_stop(why);
@@ -343,6 +359,24 @@ void Pipeline::queue_device_info() {
     recorder_->queue_message(storage::UplinkMessage{
         storage::OutboxKind::kInfo, static_cast<int>(storage::OutboxPriority::kPack),
         storage::Bytes(payload->begin(), payload->end())});
+  }
+}
+
+void Pipeline::apply_gnss() {
+  gnss_->take_changed();
+  const auto wall = gnss_->wall_now();
+  const auto position = gnss_->state().current(wall);
+  recorder_->trackers().on_position(position);
+  const bool fault = !position;
+  if (gnss_fault_ != fault) {
+    if (fault) {
+      spdlog::warn("gnss: position unknown ({}): IoT fault bit 0x0004 set",
+                   gnss_->state().reason(wall));
+    } else if (gnss_fault_) {
+      spdlog::info("gnss: fix acquired: IoT fault bit 0x0004 cleared");
+    }
+    gnss_fault_ = fault;
+    core_.node().set_own_fault(node::iot_fault::kGps, fault, bus_now());
   }
 }
 

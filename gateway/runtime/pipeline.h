@@ -5,7 +5,9 @@
 // Contract:
 //  * Stages never call each other across the pipeline and are never re-entered. They signal:
 //    the recorder by urgent()/flush_deadline(), the command service by result_stored /
-//    publish_unstored, the uplink by its wake-up (Paho threads) and next_deadline(). The
+//    publish_unstored, the uplink by its wake-up (Paho threads) and next_deadline(), the GNSS
+//    feed (gpsd) by changed() and next_deadline(): its position goes to the trackers and its
+//    fault to the node's own fault word (0x0004) in settle(). The
 //    pipeline reacts in settle(), which runs after the handler that raised the signal returned:
 //    flush the recorder when urgent, poll the uplink once, hand the commands it took
 //    (Uplink::take_commands) to the CommandService, deliver the echoes of what the node sent,
@@ -46,6 +48,7 @@
 #include "gateway/can/transport.h"
 #include "gateway/command/command_service.h"
 #include "gateway/config/config.h"
+#include "gateway/gnss/gnss_feed.h"
 #include "gateway/node/transport_sender.h"
 #include "gateway/runtime/device_info_reporter.h"
 #include "gateway/runtime/gateway_core.h"
@@ -115,6 +118,7 @@ class Pipeline {
   const can::Transport& transport() const { return *bus_.transport; }
   const uplink::Uplink* uplink() const { return uplink_.get(); }
   uplink::Uplink* uplink() { return uplink_.get(); }
+  const gnss::GnssFeed* gnss() const { return gnss_.get(); }
   const Recorder& recorder() const { return *recorder_; }
   const PipelineCounters& counters() const { return counters_; }
   // Bus time covered by the frames delivered so far (0 before the first frame).
@@ -130,6 +134,7 @@ class Pipeline {
   void arm_timer();
   std::optional<std::chrono::steady_clock::time_point> core_deadline() const;
   void queue_device_info();
+  void apply_gnss();
   fleetgw::v1::BusState bus_state() const;
 
   asio::io_context& io_;
@@ -145,6 +150,8 @@ class Pipeline {
   StoreOutbox outbox_;
   std::unique_ptr<uplink::Uplink> uplink_;
   DeviceInfoReporter device_info_;
+  std::unique_ptr<gnss::GnssFeed> gnss_;
+  std::optional<bool> gnss_fault_;  // last value given to the node's fault bit
 
   asio::steady_timer timer_;
   std::optional<std::chrono::steady_clock::time_point> armed_for_;

@@ -178,6 +178,7 @@ int run_service(const config::Config& config, const ServiceOptions& options,
                     pipeline->started(),
                     pipeline->bus_now()};
     in.storage_health = pipeline->recorder().health();
+    in.gnss = pipeline->gnss();
     if (const uplink::Uplink* up = pipeline->uplink()) {
       const auto s = up->stats();
       in.uplink_failure =

@@ -135,6 +135,28 @@ nlohmann::json make_status_json(const StatusInputs& in) {
         {"effective_budget_bytes", effective},
         {"dropped_records", h.dropped_records}};
   }
+  if (in.gnss) {
+    // Judged on the feed's own (wall) clock, like the fix itself.
+    const Micros gnss_now = in.gnss->wall_now();
+    const auto& state = in.gnss->state();
+    json g = {{"enabled", true},
+              {"gpsd", in.gnss->endpoint()},
+              {"connected", in.gnss->connected()},
+              {"fix", false},
+              {"reason", std::string(state.reason(gnss_now))},
+              {"fixes", state.fixes()}};
+    if (const auto p = state.current(gnss_now)) {
+      g["fix"] = true;
+      g["lat"] = p->lat_deg;
+      g["lon"] = p->lon_deg;
+      g["hdop"] = p->hdop ? json(*p->hdop) : json(nullptr);
+      g["satellites"] = p->satellites;
+    }
+    if (const auto& last = state.last_fix()) {
+      g["last_fix_age_s"] = std::max(0.0, seconds(gnss_now - last->received_at));
+    }
+    j["gnss"] = std::move(g);
+  }
   return j;
 }
 

@@ -11,6 +11,7 @@
 
 #include "gateway/can/transport.h"
 #include "gateway/config/config.h"
+#include "gateway/gnss/gnss_feed.h"
 #include "gateway/runtime/gateway_core.h"
 #include "gateway/uplink/uplink.h"
 #include "storage/health.h"
@@ -38,6 +39,7 @@ struct StatusInputs {
   // show no failure). The pipeline passes Recorder::health() and the uplink's failure fields.
   std::optional<storage::StorageHealth> storage_health = std::nullopt;
   std::optional<UplinkFailure> uplink_failure = std::nullopt;
+  const gnss::GnssFeed* gnss = nullptr;  // nullptr when [gnss] is disabled
   // Wall clock for the ages of wall-clock times (failing_since_us...); 0 = system_clock::now().
   Micros wall_now{0};
 };

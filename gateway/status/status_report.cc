@@ -103,6 +103,12 @@ std::vector<Attention> evaluate(const json& status, const AttentionRules& rules)
     }
   }
   // Optional section (older services do not send it).
+  if (const json* g = member(status, "gnss"); g && g->is_object()) {
+    if (boolean(*g, "enabled").value_or(false) && !boolean(*g, "connected").value_or(true)) {
+      out.push_back(
+          {"gnss", fmt::format("gpsd at {} unreachable: position unknown", str(*g, "gpsd"))});
+    }
+  }
   if (const json* storage = member(status, "storage"); storage && storage->is_object()) {
     if (boolean(*storage, "failing").value_or(false)) {
       const auto since = num(*storage, "failing_for_s");
@@ -252,6 +258,22 @@ std::string format_summary(const json& s, const std::vector<Attention>& findings
                           bytes_text(effective), bytes_text(configured));
     }
     line("storage", text);
+  }
+
+  if (const json* g = member(s, "gnss"); g && g->is_object()) {
+    std::string text;
+    if (boolean(*g, "fix").value_or(false)) {
+      text =
+          fmt::format("fix {:.6f}, {:.6f}", num(*g, "lat").value_or(0), num(*g, "lon").value_or(0));
+      if (const auto hdop = num(*g, "hdop")) text += fmt::format("  hdop {:.1f}", *hdop);
+      text += fmt::format("  {} satellites", count(*g, "satellites"));
+    } else {
+      text = fmt::format("POSITION UNKNOWN: {}", str(*g, "reason", "no fix"));
+      if (const auto age = num(*g, "last_fix_age_s"))
+        text += ", last fix " + age_text(*age) + " ago";
+    }
+    text += fmt::format("  (gpsd {})", str(*g, "gpsd"));
+    line("gnss", text);
   }
 
   out += '\n';

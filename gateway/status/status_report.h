@@ -19,7 +19,11 @@
 //     "storage": {"failing": true, "last_error": "disk full (SQLITE_FULL)", "failed_writes": 7,
 //                 "failing_since_us": 1790000000000000, "failing_for_s": 12.5 | null,
 //                 "configured_budget_bytes": 268435456, "effective_budget_bytes": 104857600,
-//                 "dropped_records": 0}                   // optional section
+//                 "dropped_records": 0},                  // optional section
+//     "gnss":   {"enabled": true, "gpsd": "localhost:2947", "connected": true, "fix": true,
+//                "reason": "" | "no fix" | "gpsd unreachable" | "fix stale", "fixes": 120,
+//                "lat": 52.52, "lon": 13.405, "hdop": 0.9 | null, "satellites": 8,
+//                "last_fix_age_s": 0.4}                  // optional section ([gnss] enabled)
 //   }
 //   Ages are computed by the service on its own clock, so the client needs no clock agreement.
 //   Unknown keys are ignored (newer services may add some).
@@ -34,7 +38,9 @@
 //   * store writes are failing ("storage": reason, failed writes, for how long),
 //   * the disk budget was clamped below storage.max_mb because the disk is smaller ("budget"),
 //   * disk use exceeds disk_fraction of the budget ("disk"),
-//   * the oldest unsent outbox record is older than outbox_max_age ("outbox").
+//   * the oldest unsent outbox record is older than outbox_max_age ("outbox"),
+//   * gpsd is unreachable while [gnss] is enabled ("gnss"; no fix under a roof is not a fault
+//     of the unit: it shows in the rendering and as the IoT GNSS fault, not as attention).
 // Evaluation never throws, whatever the JSON holds.
 #pragma once
 

@@ -37,7 +37,7 @@ PACKAGES=(
   libsqlite3-dev:arm64 libprotobuf-dev:arm64 libspdlog-dev:arm64 libfmt-dev:arm64
   libgtest-dev:arm64 libgmock-dev:arm64
   libpaho-mqttpp-dev:arm64 libpaho-mqtt-dev:arm64 libssl-dev:arm64 libsystemd-dev:arm64
-  libtomlplusplus-dev:arm64 libcli11-dev nlohmann-json3-dev libasio-dev
+  libtomlplusplus-dev:arm64 libgps-dev:arm64 libcli11-dev nlohmann-json3-dev libasio-dev
 )
 FIGURES=${ARM64_FIGURES:-0}
 [ "$FIGURES" = 1 ] && PACKAGES+=(libbenchmark-dev:arm64)

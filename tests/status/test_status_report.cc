@@ -63,6 +63,26 @@ TEST(Attention, BrokerDisconnectedUnlessDisabled) {
   EXPECT_TRUE(evaluate(d).empty());
 }
 
+TEST(Attention, GpsdUnreachableButNotANoFixUnderARoof) {
+  json d = healthy_status();
+  d["gnss"] = {{"enabled", true}, {"gpsd", "localhost:2947"}, {"connected", true},
+               {"fix", false},    {"reason", "no fix"},       {"fixes", 0}};
+  EXPECT_TRUE(evaluate(d).empty());
+  EXPECT_NE(format_summary(d, {}).find("POSITION UNKNOWN: no fix"), std::string::npos);
+  d["gnss"]["connected"] = false;
+  d["gnss"]["reason"] = "gpsd unreachable";
+  const auto f = evaluate(d);
+  ASSERT_EQ(f.size(), 1u);
+  EXPECT_EQ(f[0].rule, "gnss");
+  EXPECT_NE(f[0].detail.find("localhost:2947"), std::string::npos);
+  d["gnss"] = {{"enabled", true},   {"gpsd", "localhost:2947"},
+               {"connected", true}, {"fix", true},
+               {"lat", 52.52},      {"lon", 13.405},
+               {"hdop", 0.9},       {"satellites", 8}};
+  EXPECT_TRUE(evaluate(d).empty());
+  EXPECT_NE(format_summary(d, {}).find("fix 52.520000, 13.405000"), std::string::npos);
+}
+
 TEST(Attention, DiskAboveTheFractionOfTheBudget) {
   json d = healthy_status();
   d["disk"]["used_bytes"] = 0.90 * 268435456;  // exactly at the limit: fine

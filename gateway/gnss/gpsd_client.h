@@ -1,0 +1,59 @@
+// GpsdClient: a connection to gpsd through libgps (Debian's libgps-dev), read without blocking.
+//
+// Contract:
+//  * connect() opens the TCP connection and enables JSON watching; it returns an error text
+//    instead of throwing (gpsd missing is an expected field condition, not a bug). The connect
+//    itself blocks: point it at a local gpsd (the deployed setup), not at a remote host.
+//  * fd() is the socket to watch for readability (the owner's event loop); after it becomes
+//    readable, read_available() consumes every complete report already received and returns
+//    them, in order. It never waits for more.
+//  * A report is a fix (mode 2D/3D with latitude and longitude: a Position stamped with the
+//    `now` given) or a "no fix" (mode reported, but below 2D). Everything received from gpsd is
+//    untrusted: non-finite or out-of-range coordinates are dropped as "no fix".
+//  * A read error or EOF closes the connection (connected() turns false) and is reported once
+//    through the return value; the owner reconnects on its own schedule.
+#pragma once
+
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "gateway/gnss/position.h"
+
+namespace fleetgw::gnss {
+
+struct GnssReport {
+  std::optional<Position> fix;  // nullopt: the receiver reports no fix
+};
+
+class GpsdClient {
+ public:
+  GpsdClient(std::string host, std::string port);
+  ~GpsdClient();
+  GpsdClient(const GpsdClient&) = delete;
+  GpsdClient& operator=(const GpsdClient&) = delete;
+
+  // Empty on success, else why (e.g. "connect to localhost:2947: Connection refused").
+  std::string connect();
+  void close();
+  bool connected() const { return data_ != nullptr; }
+  int fd() const;
+  std::string endpoint() const { return host_ + ":" + port_; }
+
+  enum class ReadStatus { kOk, kClosed };
+  ReadStatus read_available(Micros now, std::vector<GnssReport>& out);
+
+ private:
+  struct Data;  // libgps's gps_data_t, kept out of this header
+  struct DataDeleter {
+    void operator()(Data* d) const;
+  };
+  std::string host_;
+  std::string port_;
+  std::unique_ptr<Data, DataDeleter> data_;
+  std::optional<double> hdop_;  // SKY reports arrive apart from the TPV fixes
+  int satellites_ = 0;
+};
+
+}  // namespace fleetgw::gnss

@@ -1,0 +1,40 @@
+// Position: one GNSS fix as the gateway uses it -- a plain value, no I/O.
+//
+// Contract:
+//  * lat_deg/lon_deg are WGS-84 degrees, valid by construction (a Position exists only for a
+//    2D or 3D fix); alt_m and hdop are absent when the receiver did not report them.
+//  * fixed_at is the receiver's UTC time of the fix; received_at is when the gateway got it, on
+//    the wall clock (microseconds since the Unix epoch). "Current" is judged from received_at
+//    (GnssState), never from fixed_at: a receiver with a wrong clock must not make a stale
+//    position look fresh.
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <optional>
+
+namespace fleetgw::gnss {
+
+using Micros = std::chrono::microseconds;
+
+struct Position {
+  double lat_deg = 0;
+  double lon_deg = 0;
+  std::optional<double> alt_m;
+  std::optional<double> hdop;
+  int satellites = 0;  // used in the solution; 0 when not reported
+  bool three_d = false;
+  Micros fixed_at{0};
+  Micros received_at{0};
+
+  friend bool operator==(const Position&, const Position&) = default;
+};
+
+// Great-circle distance in metres (haversine on a sphere of the WGS-84 mean radius: within
+// 0.5 % of the ellipsoidal distance, far below GNSS noise for a ride).
+double distance_m(double lat1_deg, double lon1_deg, double lat2_deg, double lon2_deg);
+inline double distance_m(const Position& a, const Position& b) {
+  return distance_m(a.lat_deg, a.lon_deg, b.lat_deg, b.lon_deg);
+}
+
+}  // namespace fleetgw::gnss

@@ -1,0 +1,215 @@
+// GNSS through the real `fleetgw run` (simulated bike) and a real gpsd fed by gpsfake (issue
+// 14): the position reaches the telemetry samples; gpsd unreachable at start, gpsd gone mid-run
+// and its return drive the IoT node's GNSS fault bit (0x0004) and "position unknown". The
+// store is read with SQLite itself; every wait is for a condition with a deadline.
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <sqlite3.h>
+
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <optional>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "fleetgw/v1/telemetry.pb.h"
+#include "tests/support/nmea.h"
+#include "tests/support/process.h"
+#include "tests/support/temp_dir.h"
+#include "tests/support/wait.h"
+
+namespace {
+
+using fleetgw::testing::ChildProcess;
+using fleetgw::testing::GatewayProcess;
+using fleetgw::testing::RoutePoint;
+using fleetgw::testing::TempDir;
+using fleetgw::testing::wait_until;
+using namespace std::chrono_literals;
+namespace v1 = fleetgw::v1;
+
+constexpr double kLat0 = 52.5200;
+constexpr double kLon0 = 13.4050;
+constexpr int kIotNode = 6;
+constexpr int kGpsBit = 2;  // 0x0004 in the normalised IoT fault word
+
+bool have_gpsfake() {
+  return std::system("command -v gpsfake >/dev/null 2>&1 && command -v gpsd >/dev/null 2>&1") == 0;
+}
+
+struct Sample {
+  std::int64_t seq;
+  v1::TelemetrySample msg;
+};
+
+// Every telemetry sample in the outbox (the uplink is off: nothing is taken out).
+std::vector<Sample> telemetry(const std::filesystem::path& db_path) {
+  std::vector<Sample> out;
+  sqlite3* db = nullptr;
+  if (sqlite3_open_v2(db_path.c_str(), &db, SQLITE_OPEN_READONLY, nullptr) == SQLITE_OK) {
+    sqlite3_stmt* st = nullptr;
+    if (sqlite3_prepare_v2(db,
+                           "SELECT seq, payload FROM outbox WHERE kind = 'telemetry' ORDER BY seq",
+                           -1, &st, nullptr) == SQLITE_OK) {
+      while (sqlite3_step(st) == SQLITE_ROW) {
+        Sample s{sqlite3_column_int64(st, 0), {}};
+        const void* blob = sqlite3_column_blob(st, 1);
+        if (blob != nullptr && s.msg.ParseFromArray(blob, sqlite3_column_bytes(st, 1))) {
+          out.push_back(std::move(s));
+        }
+      }
+    }
+    sqlite3_finalize(st);
+  }
+  sqlite3_close(db);
+  return out;
+}
+
+// Fault events of the GNSS bit, in order ("raised", "cleared", ...).
+std::vector<std::string> gps_fault_events(const std::filesystem::path& db_path) {
+  std::vector<std::string> out;
+  sqlite3* db = nullptr;
+  if (sqlite3_open_v2(db_path.c_str(), &db, SQLITE_OPEN_READONLY, nullptr) == SQLITE_OK) {
+    sqlite3_stmt* st = nullptr;
+    const std::string sql =
+        "SELECT event FROM fault_events WHERE node = " + std::to_string(kIotNode) +
+        " AND bit = " + std::to_string(kGpsBit) + " ORDER BY id";
+    if (sqlite3_prepare_v2(db, sql.c_str(), -1, &st, nullptr) == SQLITE_OK) {
+      while (sqlite3_step(st) == SQLITE_ROW) {
+        out.emplace_back(reinterpret_cast<const char*>(sqlite3_column_text(st, 0)));
+      }
+    }
+    sqlite3_finalize(st);
+  }
+  sqlite3_close(db);
+  return out;
+}
+
+// gpsfake (and the gpsd it starts) in a process group of its own, so the test can end both.
+class FakeGps {
+ public:
+  FakeGps(const TempDir& dir, std::uint16_t port, const std::string& nmea)
+      : nmea_file_(dir.path() / "route.nmea") {
+    std::ofstream(nmea_file_) << nmea;
+    process_.emplace(std::vector<std::string>{"setsid", "gpsfake", "-q", "-c", "0.5", "-P",
+                                              std::to_string(port), "-S", nmea_file_.string()},
+                     dir.path() / "gpsfake.log");
+  }
+  ~FakeGps() { kill(); }
+  void kill() {
+    if (!process_) return;
+    ::kill(-process_->pid(), SIGKILL);  // the whole group: gpsfake and its gpsd
+    process_->kill();
+    process_.reset();
+  }
+
+ private:
+  std::filesystem::path nmea_file_;
+  std::optional<ChildProcess> process_;
+};
+
+std::string write_config(const TempDir& dir, std::uint16_t gpsd_port) {
+  std::ostringstream c;
+  c << "[vehicle]\nid = \"gnss-bike\"\n[log]\nlevel = \"info\"\n"
+    << "[can]\ntransport = \"sim\"\n[sim]\nscenario = \"" << FLEETGW_SOURCE_DIR
+    << "/config/scenarios/demo.toml\"\nspeed = 1\n"
+    << "[storage]\npath = \"" << (dir.path() / "fleetgw.db").string() << "\"\nflush_ms = 100\n"
+    << "[telemetry]\nriding_interval_ms = 500\nparked_interval_ms = 1000\n"
+    << "[status]\nsocket = \"\"\n"
+    << "[gnss]\nenabled = true\ngpsd = \"127.0.0.1:" << gpsd_port
+    << "\"\nmax_age_ms = 3000\nreconnect_max_ms = 1000\n";
+  const std::string path = (dir.path() / "fleetgw.toml").string();
+  std::ofstream(path) << c.str();
+  return path;
+}
+
+bool on_route(const v1::Position& p) {
+  const double lat = p.lat_e7() / 1e7;
+  const double lon = p.lon_e7() / 1e7;
+  return lat >= kLat0 - 1e-6 && lat <= kLat0 + 0.01 && std::abs(lon - kLon0) < 1e-6;
+}
+
+TEST(GnssEndToEnd, PositionReachesTelemetryAndTheFaultBitFollowsGpsd) {
+  if (!have_gpsfake()) GTEST_SKIP() << "gpsd/gpsfake not installed (scripts/install-deps.sh)";
+  TempDir dir;
+  const std::uint16_t port = fleetgw::testing::free_loopback_port();
+  const auto db = dir.path() / "fleetgw.db";
+  GatewayProcess gw(FLEETGW_BINARY, write_config(dir, port), {"--duration", "120"});
+
+  // No gpsd yet: position unknown, the GNSS fault raised at once, no sample carries a position.
+  ASSERT_TRUE(wait_until([&] { return !gps_fault_events(db).empty(); }, 20s)) << gw.log();
+  EXPECT_EQ(gps_fault_events(db).front(), "raised");
+  ASSERT_TRUE(wait_until([&] { return !telemetry(db).empty(); }, 20s)) << gw.log();
+  for (const auto& s : telemetry(db)) {
+    EXPECT_FALSE(s.msg.has_position()) << s.seq;
+  }
+
+  // gpsd comes up with a route north from (kLat0, kLon0), about 5 m a second.
+  std::vector<RoutePoint> route;
+  for (int i = 0; i < 120; ++i) route.push_back({kLat0 + i * 0.000045, kLon0});
+  std::optional<FakeGps> gps;
+  gps.emplace(dir, port, fleetgw::testing::nmea_route(route));
+  std::int64_t first_fixed_seq = 0;
+  ASSERT_TRUE(wait_until(
+      [&] {
+        for (const auto& s : telemetry(db)) {
+          if (s.msg.has_position()) {
+            first_fixed_seq = s.seq;
+            return true;
+          }
+        }
+        return false;
+      },
+      30s))
+      << gw.log();
+  // Positions are the route's, with the receiver's details.
+  int with_position = 0;
+  for (const auto& s : telemetry(db)) {
+    if (!s.msg.has_position()) continue;
+    ++with_position;
+    EXPECT_TRUE(on_route(s.msg.position())) << s.msg.position().lat_e7();
+    EXPECT_GT(s.msg.position().fixed_at_us(), 0);
+  }
+  EXPECT_GE(with_position, 1);
+  // The fault clears once the fix holds for the fault debounce.
+  ASSERT_TRUE(wait_until(
+      [&] {
+        const auto ev = gps_fault_events(db);
+        return ev.size() >= 2 && ev[1] == "cleared";
+      },
+      20s))
+      << gw.log();
+
+  // gpsd gone mid-run: position unknown again at once, the fault raised again.
+  gps->kill();
+  gps.reset();
+  ASSERT_TRUE(wait_until(
+      [&] {
+        const auto ev = gps_fault_events(db);
+        return ev.size() >= 3 && ev[2] == "raised";
+      },
+      20s))
+      << gw.log();
+  std::int64_t after_loss = 0;
+  for (const auto& s : telemetry(db)) after_loss = std::max(after_loss, s.seq);
+  ASSERT_TRUE(wait_until(
+      [&] {
+        for (const auto& s : telemetry(db)) {
+          if (s.seq > after_loss) return true;
+        }
+        return false;
+      },
+      20s));
+  for (const auto& s : telemetry(db)) {
+    if (s.seq > after_loss) {
+      EXPECT_FALSE(s.msg.has_position()) << "stale position at " << s.seq;
+    }
+  }
+  EXPECT_GT(first_fixed_seq, 0);
+  EXPECT_EQ(gw.stop(), 0) << gw.log();
+  EXPECT_TRUE(gw.log_contains("gnss: position unknown")) << gw.log();
+}
+
+}  // namespace
