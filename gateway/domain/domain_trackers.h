@@ -43,6 +43,7 @@ class DomainTrackers {
   void on_position(const std::optional<gnss::Position>& position) {
     telemetry_.set_position(position);
     locks_.set_position(position);
+    if (position) rides_.on_position(*position);
   }
 
   // For the command service: the next state changes of `lock` (kBroadcast: all) are caused by

@@ -107,6 +107,24 @@ storage::Bytes ride_payload(const storage::Ride& r, const RideExtras& extras) {
   m.set_fault_count(u32(r.fault_count));
   m.set_partial(r.partial);
   if (r.partial) m.set_partial_reason(extras.partial_reason);
+  if (extras.track && !extras.track->empty()) {
+    const RideTrack& t = *extras.track;
+    set_position(*m.mutable_start_position(), *t.start());
+    set_position(*m.mutable_end_position(), *t.end());
+    m.set_distance_gnss_m(u64(t.distance_m()));
+    v1::Track& track = *m.mutable_track();
+    track.set_tolerance_m(u32(t.tolerance_m()));
+    int32_t lat = 0;
+    int32_t lon = 0;
+    for (const gnss::Position& p : t.simplified()) {
+      const int32_t la = s32(p.lat_deg * 1e7);
+      const int32_t lo = s32(p.lon_deg * 1e7);
+      track.add_lat_e7_delta(la - lat);
+      track.add_lon_e7_delta(lo - lon);
+      lat = la;
+      lon = lo;
+    }
+  }
   return bytes_of(m);
 }
 

@@ -16,6 +16,7 @@
 #include <string_view>
 #include <vector>
 
+#include "gateway/domain/ride_track.h"
 #include "gateway/gnss/position.h"
 #include "storage/records.h"
 
@@ -24,6 +25,7 @@ namespace fleetgw::domain {
 struct RideExtras {
   std::string partial_reason;                  // "gateway_restart", "bus_lost", ... or empty
   std::map<std::string, unsigned> assist_raw;  // assist name -> raw bus value, when known
+  const RideTrack* track = nullptr;            // positions of the ride, when any
 };
 storage::Bytes ride_payload(const storage::Ride& ride, const RideExtras& extras);
 

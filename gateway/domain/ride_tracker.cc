@@ -351,7 +351,9 @@ storage::Ride RideTracker::snapshot(const Open& o, Micros until) const {
 
 void RideTracker::emit(const storage::Ride& rec, const Open& o, bool with_payload) {
   storage::Pending<storage::Ride> p{rec, std::nullopt};
-  if (with_payload) p.uplink = ride_payload(rec, RideExtras{o.partial_reason, assist_raw_});
+  if (with_payload) {
+    p.uplink = ride_payload(rec, RideExtras{o.partial_reason, assist_raw_, &o.track});
+  }
   sink_.batch().rides.push_back(std::move(p));
 }
 

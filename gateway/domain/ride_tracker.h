@@ -37,6 +37,7 @@
 #include "gateway/domain/domain_config.h"
 #include "gateway/domain/domain_sink.h"
 #include "gateway/domain/payloads.h"
+#include "gateway/domain/ride_track.h"
 #include "gateway/domain/signals.h"
 #include "motinova/codec.h"
 #include "storage/records.h"
@@ -55,6 +56,10 @@ class RideTracker {
   void tick(Micros now);
   // A fault was raised (fed by the fault tracker through the facade).
   void on_fault_raised(Micros now);
+  // A current GNSS fix (the facade passes every one): the open ride's track (RideTrack).
+  void on_position(const gnss::Position& position) {
+    if (open_) open_->track.add(position);
+  }
 
   bool riding() const { return open_.has_value(); }
   // The open ride as it would be checkpointed now (nullopt when parked).
@@ -79,6 +84,7 @@ class RideTracker {
     std::array<double, 3> base{};   // counter totals at the start (or resume)
     std::array<bool, 3> valid{};    // counter known at the start and heard since
     std::optional<double> latest_soc;
+    RideTrack track;  // positions since the start (or the resume after a restart)
   };
 
   void start(Micros now);

@@ -165,12 +165,29 @@ TEST(GnssEndToEnd, PositionReachesTelemetryAndTheFaultBitFollowsGpsd) {
       30s))
       << gw.log();
   // Positions are the route's, with the receiver's details.
+  // The receiver's time: gpsd reports it once a sentence with the date (RMC) has arrived, so the
+  // very first fix may carry none (0 = "receiver time unknown", never a made-up one); any time
+  // reported is the route's day (2026-11-23, from the NMEA) -- not the gateway's clock.
+  ASSERT_TRUE(wait_until(
+      [&] {
+        for (const auto& s : telemetry(db)) {
+          if (s.msg.has_position() && s.msg.position().fixed_at_us() > 0) return true;
+        }
+        return false;
+      },
+      30s))
+      << gw.log();
+  constexpr std::int64_t kRouteDayUs = 1'795'392'000LL * 1'000'000;  // 2026-11-23T00:00:00Z
   int with_position = 0;
   for (const auto& s : telemetry(db)) {
     if (!s.msg.has_position()) continue;
     ++with_position;
     EXPECT_TRUE(on_route(s.msg.position())) << s.msg.position().lat_e7();
-    EXPECT_GT(s.msg.position().fixed_at_us(), 0);
+    const std::int64_t fixed_at = s.msg.position().fixed_at_us();
+    if (fixed_at != 0) {
+      EXPECT_GE(fixed_at, kRouteDayUs) << s.seq;
+      EXPECT_LT(fixed_at, kRouteDayUs + 86'400LL * 1'000'000) << s.seq;
+    }
   }
   EXPECT_GE(with_position, 1);
   // The fault clears once the fix holds for the fault debounce.

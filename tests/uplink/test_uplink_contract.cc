@@ -75,8 +75,15 @@ TEST(UplinkContract, CommandsWaitForTakeCommandsAndTheWakeupFiresFromPahoThreads
   }
   EXPECT_GE(wakeups.load(), before + 2);
   EXPECT_TRUE(up.take_commands().empty()) << "nothing is handed out before poll()";
-  up.poll(wall_now());
-  const auto commands = up.take_commands();
+  // Other events (the status publish's acknowledgement) also wake the loop, so the second
+  // command may still be on its way: poll until both are handed out, in order.
+  std::vector<std::string> commands;
+  const auto handed_deadline = std::chrono::steady_clock::now() + 5s;
+  while (commands.size() < 2 && std::chrono::steady_clock::now() < handed_deadline) {
+    up.poll(wall_now());
+    for (auto& c : up.take_commands()) commands.push_back(std::move(c));
+    if (commands.size() < 2) up.wait_for_events(10ms);
+  }
   ASSERT_EQ(commands.size(), 2u);
   EXPECT_EQ(commands[0], signed_command("c-1"));
   EXPECT_EQ(commands[1], signed_command("c-2"));
