@@ -1,27 +1,37 @@
 #!/usr/bin/env bash
 # Installs the Debian 12 packages fleetgw needs to build, test and run its demo.
 # Idempotent: packages already installed are skipped, and apt is not touched when none is missing.
-# Usage: install-deps.sh [EXTRA_PACKAGE...]   (e.g. the arm64 cross packages, which
+# Usage: install-deps.sh [--build] [EXTRA_PACKAGE...]   (e.g. the arm64 cross packages, which
 #   tests/deploy/arm64-cross.sh --packages lists: installed in the same apt run as the rest).
+#   --build: only what compiling the x86 tree needs (scripts/test.sh installs the rest -- brokers,
+#   gpsd, the VM, clang, lintian, the cross packages -- while that build runs).
 set -euo pipefail
 
-PACKAGES=(
+BUILD_PACKAGES=(
   build-essential cmake pkg-config git
   libpaho-mqttpp-dev libpaho-mqtt-dev libssl-dev openssl
   libprotobuf-dev protobuf-compiler
   libsqlite3-dev sqlite3
   libspdlog-dev libfmt-dev
   libgtest-dev libgmock-dev libbenchmark-dev
-  mosquitto mosquitto-clients
-  can-utils iproute2
   libtomlplusplus-dev libcli11-dev nlohmann-json3-dev libasio-dev
-  libsystemd-dev
-  gpsd gpsd-clients libgps-dev
-  clang libclang-rt-14-dev
-  qemu-system-x86 busybox-static cpio xz-utils kmod
-  dpkg-dev file systemd adduser lintian help2man
-  "$@"
+  libsystemd-dev libgps-dev help2man
 )
+if [ "${1:-}" = --build ]; then
+  shift
+  PACKAGES=("${BUILD_PACKAGES[@]}" "$@")
+else
+  PACKAGES=(
+    "${BUILD_PACKAGES[@]}"
+    mosquitto mosquitto-clients
+    can-utils iproute2
+    gpsd gpsd-clients
+    clang libclang-rt-14-dev
+    qemu-system-x86 busybox-static cpio xz-utils kmod
+    dpkg-dev file systemd adduser lintian
+    "$@"
+  )
+fi
 
 missing=()
 for p in "${PACKAGES[@]}"; do

@@ -1,20 +1,26 @@
 #!/usr/bin/env bash
 # Runs every fleetgw test on a fresh Debian 12 machine (as root, or with sudo), in timed phases:
-#   deps      installs the Debian packages, the arm64 cross packages included, in one apt run;
-#   build     one configure of build/ (warnings as errors), then the whole tree;
+#   deps      the Debian packages the x86 build needs; the rest (brokers, gpsd, the VM, clang,
+#             lintian, the arm64 cross packages) is installed in the background during the build;
+#   build     one configure of build/ (Release, warnings as errors, test files compiled in unity
+#             batches), then the whole tree;
 #   test      the CTest suite without the arm64 tests (unit, integration with a real mosquitto,
-#             real SQLite files, the Debian package installed and purged) and, alongside it,
-#             the SocketCAN tests inside a QEMU VM (a stock Debian kernel with vcan);
-#   arm64     cross build of the unit tests that run under qemu-aarch64-static, and their run
-#             (tests/deploy/arm64-cross.sh: -O1, no debug info, no benchmarks);
+#             real SQLite files, the Debian package installed and purged); alongside it, at low
+#             CPU priority, what mostly waits or can use the suite's idle time: the SocketCAN
+#             tests inside a QEMU VM (a stock Debian kernel with vcan), the arm64 cross build
+#             with its emulated tests, and the sanitizer build;
+#   arm64     the result of the cross build of the protocol and storage unit tests, run under
+#             qemu-aarch64-static (tests/deploy/arm64-cross.sh: -O1, no debug info);
 #   sanitize  one clang build with AddressSanitizer + UndefinedBehaviorSanitizer and libFuzzer
 #             instrumentation (no benchmarks, no VM test binary): the suite again, then every
 #             libFuzzer target of FUZZ_TARGETS for FUZZ_SECONDS each.
-# The summary lists every phase with its elapsed time.
+# The summary lists every phase with its elapsed time. On the project's 2-core machines the whole
+# run takes under 20 minutes from a fresh clone (README, "Tests").
 # Environment: JOBS (default: nproc), FUZZ_SECONDS (default 30), FUZZ_TARGETS (default
 #   "fuzz_reassembler fuzz_command"; a target the tree does not define yet is skipped and said
 #   so), SKIP_ASAN=1, SKIP_FUZZ=1, SKIP_VM=1, SKIP_ARM64=1, ARM64_FIGURES=1 (the release arm64
-#   binary with its size, and the emulated protocol benchmark).
+#   binary with its size, and the emulated protocol benchmark), ARM64_TESTS (the emulated test
+#   executables; default "protocol_tests storage_tests").
 set -euo pipefail
 cd "$(dirname "$0")/.."
 ROOT=$(pwd)
@@ -72,25 +78,83 @@ if command -v ccache >/dev/null; then
 fi
 
 phase_start deps
+./scripts/install-deps.sh --build
+# Everything else is installed while the x86 tree compiles (one apt run; waited for below).
 extra_packages=()
 if [ "${SKIP_ARM64:-0}" != 1 ]; then
   mapfile -t extra_packages < <(tests/deploy/arm64-cross.sh --packages)
 fi
-./scripts/install-deps.sh "${extra_packages[@]}"
+deps_log=$(mktemp)
+./scripts/install-deps.sh "${extra_packages[@]}" >"$deps_log" 2>&1 &
+deps_pid=$!
 phase_end
 
 phase_start build
-cmake -S . -B build -DCMAKE_BUILD_TYPE=RelWithDebInfo -DFLEETGW_WERROR=ON "${LAUNCHER[@]}" >/dev/null
+cmake -S . -B build -DCMAKE_BUILD_TYPE=Release -DFLEETGW_WERROR=ON -DFLEETGW_UNITY_TESTS=ON \
+  "${LAUNCHER[@]}" >/dev/null
 cmake --build build -j "$JOBS"
+echo "== the rest of the packages (installed during the build)"
+deps_rc=0
+wait "$deps_pid" || deps_rc=$?
+tail -3 "$deps_log"
+if [ "$deps_rc" != 0 ]; then
+  cat "$deps_log"
+  echo "install-deps failed (exit $deps_rc)" >&2
+  exit 1
+fi
 phase_end
 
+# The sanitizer build: one clang tree serves both the sanitizer suite and the fuzzers. Everything
+# is compiled with AddressSanitizer + UndefinedBehaviorSanitizer and libFuzzer's coverage
+# instrumentation (-fsanitize=fuzzer-no-link); the fuzz targets link libFuzzer's main, the tests
+# gtest's. -O1 with line tables: sanitizer reports keep file:line, the suite runs at a useful
+# speed. Started when the x86 suite starts, at low priority: it compiles in the suite's idle time.
+san_build() {
+  CXX=clang++ CC=clang cmake -S . -B build-san -DCMAKE_BUILD_TYPE=Debug \
+    "-DCMAKE_CXX_FLAGS_DEBUG=-O1 -gline-tables-only" -DFLEETGW_SANITIZE=ON -DFLEETGW_FUZZ=ON \
+    -DFLEETGW_WERROR=ON -DFLEETGW_BUILD_BENCH=OFF -DFLEETGW_UNITY_TESTS=ON "${LAUNCHER[@]}" \
+    >/dev/null
+  local san_targets build_targets=() t
+  san_targets=$(cmake --build build-san --target help | sed -n 's/^\.\.\. //p')
+  if [ "${SKIP_ASAN:-0}" != 1 ]; then
+    # Everything the suite executes; not the VM test binary (it runs in the VM only).
+    mapfile -t build_targets < <(grep -Ev '^(socketcan_vm_tests|.*_autogen)$' <<<"$san_targets" |
+      grep -E '_tests$|_smoke$|^fleetgw(-watch)?$' || true)
+  fi
+  : >build/san-fuzz-targets
+  if [ "${SKIP_FUZZ:-0}" != 1 ]; then
+    for t in $FUZZ_TARGETS; do
+      if grep -qx "$t" <<<"$san_targets"; then
+        build_targets+=("$t")
+        echo "$t" >>build/san-fuzz-targets
+      else
+        echo "fuzz $t: skipped (no such target in tests/fuzz)" >>build/san-fuzz-targets.skipped
+      fi
+    done
+  fi
+  nice -n 19 cmake --build build-san -j "$JOBS" --target "${build_targets[@]}"
+}
+
 phase_start test
-# The SocketCAN tests boot a VM that mostly waits (≈ 70 s, ≈ 15 s of CPU): they run alongside
-# the suite instead of after it, their output printed once both are done.
+# The SocketCAN tests boot a VM that mostly waits (≈ 70 s, ≈ 15 s of CPU); the arm64 cross build
+# and the sanitizer build compile at low priority while the suite waits on brokers and child
+# processes. Their output is printed once the suite is done.
 vm_pid=
 if [ "${SKIP_VM:-0}" != 1 ]; then
   (cd build && exec ctest --output-on-failure --timeout 900 -L vm) >build/vm-tests.log 2>&1 &
   vm_pid=$!
+fi
+arm64_pid=
+if [ "${SKIP_ARM64:-0}" != 1 ]; then
+  (cd build && exec nice -n 19 ctest --output-on-failure --timeout 1500 -L arm64) \
+    >build/arm64-tests.log 2>&1 &
+  arm64_pid=$!
+fi
+san_pid=
+rm -f build/san-fuzz-targets build/san-fuzz-targets.skipped
+if [ "${SKIP_ASAN:-0}" != 1 ] || [ "${SKIP_FUZZ:-0}" != 1 ]; then
+  san_build >build/san-build.log 2>&1 &
+  san_pid=$!
 fi
 run_ctest build -LE "vm|arm64" || status=1
 if [ -n "$vm_pid" ]; then
@@ -103,9 +167,13 @@ if [ -n "$vm_pid" ]; then
 fi
 phase_end
 
-if [ "${SKIP_ARM64:-0}" != 1 ]; then
+if [ -n "$arm64_pid" ]; then
   phase_start arm64
-  run_ctest build -L arm64 || status=1
+  arm64_rc=0
+  wait "$arm64_pid" || arm64_rc=$?
+  cat build/arm64-tests.log
+  account_ctest build/arm64-tests.log "$arm64_rc" "build -L arm64 (alongside)"
+  [ "$arm64_rc" = 0 ] || status=1
   if [ -f build/arm64-cross/summary.txt ]; then
     while IFS= read -r line; do SUMMARY+=("arm64 ${line#"${line%%[![:space:]]*}"}"); done \
       < <(grep -v "^==" build/arm64-cross/summary.txt)
@@ -113,63 +181,54 @@ if [ "${SKIP_ARM64:-0}" != 1 ]; then
   phase_end
 fi
 
-# One clang build serves both the sanitizer suite and the fuzzers: everything is compiled with
-# AddressSanitizer + UndefinedBehaviorSanitizer and libFuzzer's coverage instrumentation
-# (-fsanitize=fuzzer-no-link); the fuzz targets link libFuzzer's main, the tests gtest's.
-# -O1 with line tables: sanitizer reports keep file:line, the suite runs at a useful speed.
-if [ "${SKIP_ASAN:-0}" != 1 ] || [ "${SKIP_FUZZ:-0}" != 1 ]; then
+if [ -n "$san_pid" ]; then
   phase_start sanitize
-  CXX=clang++ CC=clang cmake -S . -B build-san -DCMAKE_BUILD_TYPE=Debug \
-    "-DCMAKE_CXX_FLAGS_DEBUG=-O1 -gline-tables-only" -DFLEETGW_SANITIZE=ON -DFLEETGW_FUZZ=ON \
-    -DFLEETGW_WERROR=ON -DFLEETGW_BUILD_BENCH=OFF "${LAUNCHER[@]}" >/dev/null
-  san_targets=$(cmake --build build-san --target help | sed -n 's/^\.\.\. //p')
-  build_targets=()
-  if [ "${SKIP_ASAN:-0}" != 1 ]; then
-    # Everything the suite executes; not the VM test binary (it runs in the VM only).
-    mapfile -t build_targets < <(grep -Ev '^(socketcan_vm_tests|.*_autogen)$' <<<"$san_targets" |
-      grep -E '_tests$|_smoke$|^fleetgw(-watch)?$' || true)
-  fi
-  fuzz_targets=()
-  if [ "${SKIP_FUZZ:-0}" != 1 ]; then
-    for t in $FUZZ_TARGETS; do
-      if grep -qx "$t" <<<"$san_targets"; then
-        fuzz_targets+=("$t")
-      else
-        SUMMARY+=("fuzz $t: skipped (no such target in tests/fuzz)")
-      fi
-    done
-  fi
-  cmake --build build-san -j "$JOBS" --target "${build_targets[@]}" "${fuzz_targets[@]}"
+  san_rc=0
+  wait "$san_pid" || san_rc=$?
+  tail -5 build/san-build.log
   san_built=$SECONDS
-  if [ "${SKIP_ASAN:-0}" != 1 ]; then
-    ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
-      run_ctest build-san -LE "vm|bench|deploy|arm64" || status=1
-  fi
-  san_tested=$SECONDS
-  for t in "${fuzz_targets[@]}"; do
-    corpus=build-san/corpus/$t
-    mkdir -p "$corpus"
-    seeds=()
-    for s in "tests/fuzz/seeds/$t" "tests/fuzz/seeds"; do
-      if [ -d "$s" ]; then
-        seeds=("$ROOT/$s")
-        break
-      fi
-    done
-    log=build-san/$t.log
-    if "build-san/tests/fuzz/$t" -max_total_time="$FUZZ_SECONDS" -print_final_stats=1 \
-      "$corpus" "${seeds[@]}" >"$log" 2>&1; then
-      runs=$(grep -E 'stat::number_of_executed_units' "$log" | awk '{print $2}')
-      SUMMARY+=("fuzz $t: $runs inputs in ${FUZZ_SECONDS}s ($((runs / FUZZ_SECONDS))/s), no crash")
-      PASSED=$((PASSED + 1))
-    else
-      tail -50 "$log"
-      SUMMARY+=("fuzz $t: CRASH or sanitizer report (see $log)")
-      FAILED=$((FAILED + 1))
-      status=1
+  if [ "$san_rc" != 0 ]; then
+    grep -E "error|Error" build/san-build.log | head -40
+    SUMMARY+=("sanitizer build: FAILED (exit $san_rc, build/san-build.log)")
+    FAILED=$((FAILED + 1))
+    status=1
+  else
+    if [ "${SKIP_ASAN:-0}" != 1 ]; then
+      ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 \
+        UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
+        run_ctest build-san -LE "vm|bench|deploy|arm64" || status=1
     fi
-  done
-  phase_end "build $((san_built - PHASE_T0)) s, tests $((san_tested - san_built)) s, fuzz $((SECONDS - san_tested)) s"
+    san_tested=$SECONDS
+    if [ -f build/san-fuzz-targets.skipped ]; then
+      while IFS= read -r line; do SUMMARY+=("$line"); done <build/san-fuzz-targets.skipped
+    fi
+    while IFS= read -r t; do
+      [ -n "$t" ] || continue
+      corpus=build-san/corpus/$t
+      mkdir -p "$corpus"
+      seeds=()
+      for s in "tests/fuzz/seeds/$t" "tests/fuzz/seeds"; do
+        if [ -d "$s" ]; then
+          seeds=("$ROOT/$s")
+          break
+        fi
+      done
+      log=build-san/$t.log
+      if "build-san/tests/fuzz/$t" -max_total_time="$FUZZ_SECONDS" -print_final_stats=1 \
+        "$corpus" "${seeds[@]}" >"$log" 2>&1; then
+        runs=$(grep -E 'stat::number_of_executed_units' "$log" | awk '{print $2}')
+        SUMMARY+=("fuzz $t: $runs inputs in ${FUZZ_SECONDS}s ($((runs / FUZZ_SECONDS))/s), no crash")
+        PASSED=$((PASSED + 1))
+      else
+        tail -50 "$log"
+        SUMMARY+=("fuzz $t: CRASH or sanitizer report (see $log)")
+        FAILED=$((FAILED + 1))
+        status=1
+      fi
+    done <build/san-fuzz-targets
+    phase_end "build waited $((san_built - PHASE_T0)) s, tests $((san_tested - san_built)) s, fuzz $((SECONDS - san_tested)) s"
+  fi
+  [ "$san_rc" = 0 ] || phase_end "build failed"
 fi
 
 echo
