@@ -90,7 +90,8 @@ deps_pid=$!
 phase_end
 
 phase_start build
-cmake -S . -B build -DCMAKE_BUILD_TYPE=Release -DFLEETGW_WERROR=ON -DFLEETGW_UNITY_TESTS=ON \
+cmake -S . -B build -DCMAKE_BUILD_TYPE=Release -DFLEETGW_WERROR=ON -DFLEETGW_UNITY=ON \
+  -DFLEETGW_UNITY_TESTS=ON \
   "${LAUNCHER[@]}" >/dev/null
 cmake --build build -j "$JOBS"
 echo "== the rest of the packages (installed during the build)"
@@ -112,7 +113,8 @@ phase_end
 san_build() {
   CXX=clang++ CC=clang cmake -S . -B build-san -DCMAKE_BUILD_TYPE=Debug \
     "-DCMAKE_CXX_FLAGS_DEBUG=-O1 -gline-tables-only" -DFLEETGW_SANITIZE=ON -DFLEETGW_FUZZ=ON \
-    -DFLEETGW_WERROR=ON -DFLEETGW_BUILD_BENCH=OFF -DFLEETGW_UNITY_TESTS=ON "${LAUNCHER[@]}" \
+    -DFLEETGW_WERROR=ON -DFLEETGW_BUILD_BENCH=OFF -DFLEETGW_UNITY=ON -DFLEETGW_UNITY_TESTS=ON \
+    "${LAUNCHER[@]}" \
     >/dev/null
   local san_targets build_targets=() t
   san_targets=$(cmake --build build-san --target help | sed -n 's/^\.\.\. //p')
@@ -196,14 +198,15 @@ if [ -n "$san_pid" ]; then
     if [ "${SKIP_ASAN:-0}" != 1 ]; then
       ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 \
         UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
-        run_ctest build-san -LE "vm|bench|deploy|arm64" || status=1
+        run_ctest build-san -j "$((JOBS + 1))" -LE "vm|bench|deploy|arm64" || status=1
     fi
     san_tested=$SECONDS
     if [ -f build/san-fuzz-targets.skipped ]; then
       while IFS= read -r line; do SUMMARY+=("$line"); done <build/san-fuzz-targets.skipped
     fi
-    while IFS= read -r t; do
-      [ -n "$t" ] || continue
+    # The fuzz targets run side by side (each is single-threaded), FUZZ_SECONDS each.
+    mapfile -t fuzz_targets <build/san-fuzz-targets
+    for t in "${fuzz_targets[@]}"; do
       corpus=build-san/corpus/$t
       mkdir -p "$corpus"
       seeds=()
@@ -213,9 +216,15 @@ if [ -n "$san_pid" ]; then
           break
         fi
       done
+      ( rc=0
+        "build-san/tests/fuzz/$t" -max_total_time="$FUZZ_SECONDS" -print_final_stats=1 \
+          "$corpus" "${seeds[@]}" >"build-san/$t.log" 2>&1 || rc=$?
+        echo "$rc" >"build-san/$t.rc" ) &
+    done
+    wait
+    for t in "${fuzz_targets[@]}"; do
       log=build-san/$t.log
-      if "build-san/tests/fuzz/$t" -max_total_time="$FUZZ_SECONDS" -print_final_stats=1 \
-        "$corpus" "${seeds[@]}" >"$log" 2>&1; then
+      if [ "$(cat "build-san/$t.rc")" = 0 ]; then
         runs=$(grep -E 'stat::number_of_executed_units' "$log" | awk '{print $2}')
         SUMMARY+=("fuzz $t: $runs inputs in ${FUZZ_SECONDS}s ($((runs / FUZZ_SECONDS))/s), no crash")
         PASSED=$((PASSED + 1))
@@ -225,7 +234,7 @@ if [ -n "$san_pid" ]; then
         FAILED=$((FAILED + 1))
         status=1
       fi
-    done <build/san-fuzz-targets
+    done
     phase_end "build waited $((san_built - PHASE_T0)) s, tests $((san_tested - san_built)) s, fuzz $((SECONDS - san_tested)) s"
   fi
   [ "$san_rc" = 0 ] || phase_end "build failed"

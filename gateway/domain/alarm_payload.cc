@@ -8,14 +8,12 @@
 #include <utility>
 
 #include "fleetgw/v1/alarm.pb.h"
+#include "gateway/domain/wire_numbers.h"
 
 namespace fleetgw::domain {
 namespace {
 
-uint32_t u32(double v) {
-  if (!std::isfinite(v)) return 0;
-  return static_cast<uint32_t>(std::clamp(std::round(v), 0.0, 4'294'967'295.0));
-}
+using wire::u32;
 
 constexpr std::array<std::pair<std::string_view, v1::AlarmKind>, 6> kKinds = {{
     {"unauthorised_movement", v1::ALARM_KIND_UNAUTHORISED_MOVEMENT},

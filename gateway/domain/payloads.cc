@@ -11,27 +11,15 @@
 #include "fleetgw/v1/position.pb.h"
 #include "fleetgw/v1/ride.pb.h"
 #include "fleetgw/v1/telemetry.pb.h"
+#include "gateway/domain/wire_numbers.h"
 #include "motinova/can.h"
 
 namespace fleetgw::domain {
 namespace {
 
-template <typename Int>
-Int to_int(double v) {
-  if (!std::isfinite(v)) return 0;
-  const double lo = static_cast<double>(std::numeric_limits<Int>::min());
-  const double hi = static_cast<double>(std::numeric_limits<Int>::max());
-  return static_cast<Int>(std::clamp(std::round(v), lo, hi));
-}
-uint32_t u32(double v) {
-  return to_int<uint32_t>(v);
-}
-uint64_t u64(double v) {
-  return to_int<uint64_t>(v);
-}
-int32_t s32(double v) {
-  return to_int<int32_t>(v);
-}
+using wire::s32;
+using wire::u32;
+using wire::u64;
 
 void set_position(v1::Position& out, const gnss::Position& p) {
   out.set_lat_e7(s32(p.lat_deg * 1e7));

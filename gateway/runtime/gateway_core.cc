@@ -5,16 +5,9 @@
 #include <algorithm>
 
 #include "gateway/decode/json_format.h"
+#include "gateway/runtime/clock_units.h"
 
 namespace fleetgw::runtime {
-namespace {
-
-Micros ms(int v) {
-  return Micros(int64_t{v} * 1000);
-}
-
-}  // namespace
-
 node::NodeConfig make_node_config(const config::Config& c) {
   node::NodeConfig n;
   n.identity.model = c.node.identity.model;

@@ -7,16 +7,13 @@
 #include <iostream>
 
 #include "gateway/node/messages.h"
+#include "gateway/runtime/clock_units.h"
 #include "gateway/runtime/service.h"
 
 namespace fleetgw::runtime {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-
-Micros system_now() {
-  return std::chrono::duration_cast<Micros>(std::chrono::system_clock::now().time_since_epoch());
-}
 
 // settle() repeats while stages keep producing work; a bound keeps one loop turn short even if
 // a stage misbehaves (the rest is picked up by the next settle, which is posted).

@@ -4,12 +4,10 @@
 
 #include <algorithm>
 
+#include "gateway/runtime/clock_units.h"
+
 namespace fleetgw::runtime {
 namespace {
-
-Micros ms(int64_t v) {
-  return Micros(v * 1000);
-}
 
 std::int64_t system_now_us() {
   return std::chrono::duration_cast<std::chrono::microseconds>(

@@ -8,6 +8,7 @@
 #include "gateway/can/replay_transport.h"
 #include "gateway/can/socketcan_transport.h"
 #include "gateway/can/udp_transport.h"
+#include "gateway/runtime/clock_units.h"
 #include "gateway/runtime/pipeline.h"
 #include "gateway/runtime/recorder.h"
 #include "gateway/runtime/status_provider.h"
@@ -20,10 +21,6 @@
 
 namespace fleetgw::runtime {
 namespace {
-
-Micros system_now() {
-  return std::chrono::duration_cast<Micros>(std::chrono::system_clock::now().time_since_epoch());
-}
 
 // "127.0.0.1:20000" -> address, port; throws naming the key.
 std::pair<std::string, uint16_t> endpoint(const std::string& text, const char* key) {

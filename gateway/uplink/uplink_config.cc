@@ -19,10 +19,6 @@ void require_readable(std::string_view field, const std::string& path) {
   if (::access(path.c_str(), R_OK) != 0) fail(field, "cannot read file '" + path + "'");
 }
 
-bool starts_with(std::string_view s, std::string_view p) {
-  return s.substr(0, p.size()) == p;
-}
-
 }  // namespace
 
 std::string redact_uri(std::string_view uri) {
@@ -37,8 +33,8 @@ std::string redact_uri(std::string_view uri) {
 void UplinkConfig::validate() const {
   if (auto p = check_uplink_config(*this); !p.empty()) throw std::invalid_argument(describe(p[0]));
   const std::string safe_uri = redact_uri(broker_uri);
-  const bool is_ssl = starts_with(broker_uri, "ssl://") || starts_with(broker_uri, "mqtts://");
-  const bool is_tcp = starts_with(broker_uri, "tcp://") || starts_with(broker_uri, "mqtt://");
+  const bool is_ssl = broker_uri.starts_with("ssl://") || broker_uri.starts_with("mqtts://");
+  const bool is_tcp = broker_uri.starts_with("tcp://") || broker_uri.starts_with("mqtt://");
   if (!is_ssl && !is_tcp) {
     fail("broker_uri", "'" + safe_uri + "' must start with tcp:// or ssl://");
   }

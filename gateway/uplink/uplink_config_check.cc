@@ -33,10 +33,6 @@ std::string config_key_of(const std::string& field) {
   return it != keys.end() ? it->second : "uplink." + field;
 }
 
-bool starts_with(std::string_view s, std::string_view p) {
-  return s.substr(0, p.size()) == p;
-}
-
 }  // namespace
 
 std::vector<UplinkConfigProblem> check_uplink_config(const UplinkConfig& c) {
@@ -50,8 +46,8 @@ std::vector<UplinkConfigProblem> check_uplink_config(const UplinkConfig& c) {
   };
 
   const std::string safe_uri = redact_uri(c.broker_uri);
-  const bool is_ssl = starts_with(c.broker_uri, "ssl://") || starts_with(c.broker_uri, "mqtts://");
-  const bool is_tcp = starts_with(c.broker_uri, "tcp://") || starts_with(c.broker_uri, "mqtt://");
+  const bool is_ssl = c.broker_uri.starts_with("ssl://") || c.broker_uri.starts_with("mqtts://");
+  const bool is_tcp = c.broker_uri.starts_with("tcp://") || c.broker_uri.starts_with("mqtt://");
   if (!is_ssl && !is_tcp) {
     fail("broker_uri", "'" + safe_uri + "' must start with tcp:// or ssl://");
   }

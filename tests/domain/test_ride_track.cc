@@ -59,8 +59,9 @@ TEST(RideTrack, RideRecordCarriesATrackWhoseLengthAgreesWithTheOdometer) {
   }
   h.send_keyword(0x760, 0x11);  // the rental ends: one-touch LOCK
   h.run_until_offset(1760);
-  ASSERT_EQ(h.out.closed_rides().size(), 1u);
-  const storage::Ride& r = h.out.closed_rides().front();
+  const std::vector<storage::Ride> closed = h.out.closed_rides();  // a copy: keep it alive
+  ASSERT_EQ(closed.size(), 1u);
+  const storage::Ride& r = closed.front();
   const double odo_m = h.truth_at(Micros(*r.end_us)).odo_m - h.truth_at(Micros(r.start_us)).odo_m;
 
   v1::RideRecord m;
