@@ -275,6 +275,22 @@ class Store {
   // Same, as JSON lines.
   std::uint64_t export_table(std::string_view table, std::int64_t since_us, std::ostream& out);
   static std::span<const std::string_view> exportable_tables();
+  // Newest first, for `fleetgw db rides|faults|commands|alarms`: calls `write_row` with one JSON
+  // object per row (columns as export_table) of the listing, at most `limit` rows (0: all),
+  // only rows at or after `since_us`. Listings (order and time filter):
+  //   "rides"    rides by start_us;
+  //   "faults"   fault_events by their event time `at_us` (last_seen_us for a cleared event,
+  //              first_seen_us otherwise), an extra column;
+  //   "alarms"   alarms by ts_us;
+  //   "commands" one row per command: the journal (commands) joined with its result
+  //              (command_results), plus results whose journal entry was purged; columns
+  //              command_id, at_us (received_us, else the result's ts_us), received_us,
+  //              state (journal), result_us, result, reason, final_state, duration_ms,
+  //              expires_at_us (NULL where unknown).
+  // Unknown listings throw std::invalid_argument listing the known ones. Returns the rows.
+  std::uint64_t list_recent(std::string_view listing, std::int64_t since_us, std::uint64_t limit,
+                            const RowWriter& write_row);
+  static std::span<const std::string_view> listings();
 
   // Maintenance and diagnostics.
   std::string integrity_check();  // "ok" or SQLite's list of problems

@@ -1,6 +1,9 @@
-// Technician tools: Stats (row counts, outbox, disk and budget figures, evictions) and the
-// JSON-lines export of one table. Read-only: works on a store opened with read_only.
+// Technician tools: Stats (row counts, outbox, disk and budget figures, evictions), the
+// JSON-lines export of one table and the newest-first listings behind `fleetgw db rides|faults|
+// commands|alarms`. Read-only: works on a store opened with read_only.
+#include <algorithm>
 #include <filesystem>
+#include <limits>
 #include <stdexcept>
 
 #include "storage/schema.h"
@@ -44,6 +47,70 @@ std::string hex(std::span<const std::uint8_t> bytes) {
   }
   return s;
 }
+
+// One row of `st` as a JSON object: *_json columns embedded as JSON, blobs as lowercase hex.
+nlohmann::json row_json(const Statement& st) {
+  nlohmann::json row = nlohmann::json::object();
+  const int ncol = st.column_count();
+  for (int c = 0; c < ncol; ++c) {
+    const std::string name = st.column_name(c);
+    switch (st.column_type(c)) {
+      case SQLITE_INTEGER:
+        row[name] = st.column_int64(c);
+        break;
+      case SQLITE_FLOAT:
+        row[name] = st.column_double(c);
+        break;
+      case SQLITE_TEXT: {
+        std::string text = st.column_text(c);
+        if (name.ends_with("_json")) {
+          auto parsed = nlohmann::json::parse(text, nullptr, false);
+          row[name] = parsed.is_discarded() ? nlohmann::json(text) : parsed;
+        } else {
+          row[name] = std::move(text);
+        }
+        break;
+      }
+      case SQLITE_BLOB:
+        row[name] = hex(st.column_blob(c));
+        break;
+      default:
+        row[name] = nullptr;
+    }
+  }
+  return row;
+}
+
+// The listings of list_recent(): ?1 = since_us, ?2 = limit (-1: none). Fixed text, never spliced.
+struct ListingSpec {
+  std::string_view name;
+  std::string_view sql;
+};
+constexpr std::array<ListingSpec, 4> kListings = {{
+    {"rides", "SELECT * FROM rides WHERE start_us >= ?1 ORDER BY start_us DESC, id DESC LIMIT ?2"},
+    {"faults",
+     "SELECT * FROM (SELECT *, CASE event WHEN 'cleared' THEN last_seen_us ELSE first_seen_us "
+     "END AS at_us FROM fault_events) WHERE at_us >= ?1 ORDER BY at_us DESC, id DESC LIMIT ?2"},
+    {"alarms", "SELECT * FROM alarms WHERE ts_us >= ?1 ORDER BY ts_us DESC, id DESC LIMIT ?2"},
+    {"commands",
+     "SELECT * FROM ("
+     " SELECT r.command_id AS command_id, coalesce(c.received_us, r.ts_us) AS at_us,"
+     "  c.received_us AS received_us, c.state AS state, r.ts_us AS result_us, r.result AS result,"
+     "  r.reason AS reason, r.final_state AS final_state, r.duration_ms AS duration_ms,"
+     "  c.expires_at_us AS expires_at_us, r.id AS result_row"
+     " FROM command_results r LEFT JOIN commands c ON c.command_id = r.command_id"
+     " UNION ALL"
+     " SELECT c.command_id, c.received_us, c.received_us, c.state, NULL, NULL, NULL, NULL, NULL,"
+     "  c.expires_at_us, NULL"
+     " FROM commands c WHERE NOT EXISTS"
+     "  (SELECT 1 FROM command_results r WHERE r.command_id = c.command_id))"
+     " WHERE at_us >= ?1 ORDER BY at_us DESC, result_row DESC LIMIT ?2"},
+}};
+constexpr std::array<std::string_view, kListings.size()> kListingNames = [] {
+  std::array<std::string_view, kListings.size()> names{};
+  for (std::size_t i = 0; i < kListings.size(); ++i) names[i] = kListings[i].name;
+  return names;
+}();
 
 }  // namespace
 
@@ -155,36 +222,8 @@ std::uint64_t Store::export_table(std::string_view table, std::int64_t since_us,
   Statement st = impl_->db.prepare(sql);
   if (!spec->time_column.empty()) st.bind(1, since_us);
   std::uint64_t rows = 0;
-  const int ncol = st.column_count();
   while (st.step()) {
-    nlohmann::json row = nlohmann::json::object();
-    for (int c = 0; c < ncol; ++c) {
-      const std::string name = st.column_name(c);
-      switch (st.column_type(c)) {
-        case SQLITE_INTEGER:
-          row[name] = st.column_int64(c);
-          break;
-        case SQLITE_FLOAT:
-          row[name] = st.column_double(c);
-          break;
-        case SQLITE_TEXT: {
-          std::string text = st.column_text(c);
-          if (name.ends_with("_json")) {
-            auto parsed = nlohmann::json::parse(text, nullptr, false);
-            row[name] = parsed.is_discarded() ? nlohmann::json(text) : parsed;
-          } else {
-            row[name] = std::move(text);
-          }
-          break;
-        }
-        case SQLITE_BLOB:
-          row[name] = hex(st.column_blob(c));
-          break;
-        default:
-          row[name] = nullptr;
-      }
-    }
-    write_row(row);
+    write_row(row_json(st));
     ++rows;
   }
   return rows;
@@ -194,6 +233,36 @@ std::uint64_t Store::export_table(std::string_view table, std::int64_t since_us,
                                   std::ostream& out) {
   return export_table(table, since_us,
                       [&out](const nlohmann::json& row) { out << row.dump() << '\n'; });
+}
+
+std::span<const std::string_view> Store::listings() {
+  return kListingNames;
+}
+
+std::uint64_t Store::list_recent(std::string_view listing, std::int64_t since_us,
+                                 std::uint64_t limit, const RowWriter& write_row) {
+  const ListingSpec* spec = nullptr;
+  for (const auto& l : kListings) {
+    if (l.name == listing) spec = &l;
+  }
+  if (spec == nullptr) {
+    std::string known;
+    for (auto name : kListingNames) known += (known.empty() ? "" : ", ") + std::string(name);
+    throw std::invalid_argument("storage: list_recent: unknown listing '" + std::string(listing) +
+                                "' (known: " + known + ")");
+  }
+  Statement st = impl_->db.prepare(spec->sql);
+  st.bind(1, since_us);
+  const auto max = static_cast<std::uint64_t>(std::numeric_limits<std::int64_t>::max());
+  st.bind(2, limit == 0 ? std::int64_t{-1} : static_cast<std::int64_t>(std::min(limit, max)));
+  std::uint64_t rows = 0;
+  while (st.step()) {
+    nlohmann::json row = row_json(st);
+    row.erase("result_row");  // ordering only
+    write_row(row);
+    ++rows;
+  }
+  return rows;
 }
 
 std::string Store::integrity_check() {

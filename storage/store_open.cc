@@ -161,7 +161,11 @@ Store::Impl::Impl(StoreOptions opts)
     budget = plan_budget(options.max_bytes, options.max_bytes, 4096, 0);
     health.configured_budget_bytes = budget.configured;
     health.effective_budget_bytes = budget.effective;
+    // One read snapshot for both reads: the service may commit between them (WAL), and a
+    // counter read before a commit next to outbox rows read after it is no inconsistency.
+    db.exec("BEGIN");
     load_next_seq();
+    db.exec("COMMIT");
     load_store_id(false);
     return;
   }

@@ -6,12 +6,14 @@
 #include <unistd.h>
 
 #include <iostream>
+#include <sstream>
 
 #include "gateway/app/check_config.h"
+#include "gateway/app/command_tool.h"
 #include "gateway/app/db_command.h"
 #include "gateway/app/logging.h"
+#include "gateway/app/table_format.h"
 #include "gateway/app/watch_command.h"
-#include "gateway/app/command_tool.h"
 #include "gateway/config/config.h"
 #include "gateway/decode/decode_command.h"
 #include "gateway/runtime/recorder.h"
@@ -169,6 +171,21 @@ struct ProtocolFlags {
   }
 };
 
+// `fleetgw status --format`: the summary, the raw document, or the document as key,value CSV
+// (same exit codes whatever the form).
+int run_status(status::StatusCommandOptions options, const std::string& format, std::ostream& out,
+               std::ostream& err) {
+  if (format == "json") options.json = true;
+  if (format != "csv") return status::run_status_command(options, out, err);
+  options.json = true;
+  std::ostringstream doc;
+  const int rc = status::run_status_command(options, doc, err);
+  if (rc != status::kStatusUnreachable) {
+    write_csv(flatten(nlohmann::json::parse(doc.str(), nullptr, false)), out);
+  }
+  return rc;
+}
+
 }  // namespace
 
 int run_cli(int argc, char** argv) {
@@ -254,7 +271,15 @@ int run_cli(int argc, char** argv) {
       ->add_option("--config", status_config,
                    "take the socket from this configuration file (status.socket)")
       ->excludes(status_socket_opt);
-  status_cmd->add_flag("--json", status_options.json, "print the raw JSON document");
+  std::string status_format;
+  auto* status_format_opt =
+      status_cmd
+          ->add_option("--format", status_format,
+                       "table: the summary (default); json: the raw document; csv: the document "
+                       "flattened to key,value rows")
+          ->check(CLI::IsMember({"table", "json", "csv"}));
+  status_cmd->add_flag("--json", status_options.json, "print the raw JSON document (--format json)")
+      ->excludes(status_format_opt);
 
   // keygen
   auto* keygen_cmd = app.add_subcommand("keygen", "write an Ed25519 key pair for signing commands");
@@ -338,7 +363,12 @@ int run_cli(int argc, char** argv) {
       setup_logging("info");
       return sim::run_sim(sim_options);
     }
-    if (db->command->parsed()) return run_db_command(*db, std::cout, std::cerr);
+    if (db->command->parsed()) {
+      // stdout is the data (JSON, CSV): the store's log lines go to stderr.
+      setup_logging("warn");
+      db->stdout_is_terminal = ::isatty(STDOUT_FILENO) != 0;
+      return run_db_command(*db, std::cout, std::cerr);
+    }
     if (watch_cmd->parsed()) {
       int first = 1;
       while (first < argc && std::string_view(argv[first]) != "watch") ++first;
@@ -353,7 +383,7 @@ int run_cli(int argc, char** argv) {
           return status::kStatusUnreachable;
         }
       }
-      return status::run_status_command(status_options, std::cout, std::cerr);
+      return run_status(status_options, status_format, std::cout, std::cerr);
     }
     if (keygen_cmd->parsed()) return command::run_keygen(keygen_prefix, std::cout);
     if (command_cmd->parsed()) {

@@ -11,6 +11,7 @@
 
 #include "fleetgw/v1/command.pb.h"
 #include "fleetgw/v1/envelope.pb.h"
+#include "gateway/app/time_arg.h"
 #include "gateway/command/sha256.h"
 #include "gateway/command/verifier.h"
 #include "gateway/common/untrusted_text.h"
@@ -74,6 +75,32 @@ nlohmann::json to_json(const v1::CommandResult& r, std::string_view vehicle, Mic
   }
   j["locks"] = std::move(locks);
   return j;
+}
+
+// What the retained status says about a vehicle that gave no answer (see the header).
+std::string liveness(const std::string& vehicle, const std::string& status_topic,
+                     const std::optional<v1::Envelope>& status) {
+  using app::iso_utc;
+  if (!status)
+    return "vehicle " + vehicle + " never seen (no retained status on " + status_topic + ")";
+  if (!status->has_status()) {
+    return "vehicle " + vehicle + ": the retained message on " + status_topic +
+           " is not a fleetgw status";
+  }
+  const v1::Status& s = status->status();
+  const std::int64_t at = status->created_at_us();
+  if (s.state() == v1::ONLINE_STATE_OFFLINE) {
+    if (at > 0) return "vehicle " + vehicle + " offline since " + iso_utc(at);
+    // The last will carries no time: the broker published it when the connection was lost.
+    std::string text = "vehicle " + vehicle + " offline: its connection was lost (last will)";
+    if (s.connected_at_us() > 0) text += "; it had connected at " + iso_utc(s.connected_at_us());
+    return text;
+  }
+  if (s.state() == v1::ONLINE_STATE_ONLINE) {
+    return "vehicle " + vehicle + " online (status of " + (at > 0 ? iso_utc(at) : "unknown time") +
+           ") but it did not answer";
+  }
+  return "vehicle " + vehicle + ": the retained status on " + status_topic + " has no online state";
 }
 
 // Messages arriving on Paho's thread, handed to the tool's thread.
@@ -147,6 +174,7 @@ int run_command_tool(const CommandToolOptions& o) {
   const std::string base = o.topic_prefix + "/" + o.vehicle;
   const std::string cmd_topic = base + "/cmd";
   const std::string result_topic = base + "/cmd/result";
+  const std::string status_topic = base + "/status";  // retained by the gateway's uplink
 
   try {
     mqtt::async_client client(uplink::normalise_broker_uri(o.broker),
@@ -181,6 +209,11 @@ int run_command_tool(const CommandToolOptions& o) {
         err << "command: subscribe to " << result_topic << " timed out\n";
         return kExitNoAnswer;
       }
+      // The retained status says, if no result comes, whether the vehicle is offline or was
+      // never seen. Only a diagnosis: its absence changes nothing else.
+      if (!client.subscribe(status_topic, 1)->wait_for(remaining())) {
+        err << "command: subscribe to " << status_topic << " timed out\n";
+      }
     } catch (const mqtt::exception& e) {
       err << "command: broker " << o.broker << ": " << e.what() << '\n';
       return kExitNoAnswer;
@@ -201,10 +234,18 @@ int run_command_tool(const CommandToolOptions& o) {
     err << "command: " << id << " published to " << cmd_topic << "; waiting for the result\n";
 
     std::size_t unbound = 0;
+    std::optional<v1::Envelope> last_status;  // the latest message on the status topic
     while (auto m = inbox.pop_until(deadline)) {
+      const auto& p = m->get_payload_ref();
+      if (m->get_topic() == status_topic) {
+        last_status.emplace();
+        if (!last_status->ParseFromArray(p.data(), static_cast<int>(p.size()))) {
+          last_status->Clear();
+        }
+        continue;
+      }
       if (m->get_topic() != result_topic) continue;
       v1::Envelope env;
-      const auto& p = m->get_payload_ref();
       if (!env.ParseFromArray(p.data(), static_cast<int>(p.size())) || !env.has_command_result() ||
           env.command_result().command_id() != id) {
         continue;  // someone else's result, or a re-sent one of an older command
@@ -229,7 +270,8 @@ int run_command_tool(const CommandToolOptions& o) {
       return env.command_result().result() == v1::COMMAND_RESULT_CODE_SUCCEEDED ? kExitSucceeded
                                                                                 : kExitNotSucceeded;
     }
-    err << "command: no result for " << id << " within " << o.timeout.count() << " s";
+    err << "command: no result for " << id << " within " << o.timeout.count()
+        << " s: " << liveness(o.vehicle, status_topic, last_status);
     if (unbound > 0) err << " (" << unbound << " result(s) with this id but other bytes ignored)";
     err << '\n';
     try {

@@ -15,6 +15,13 @@
 //    prints that result as one JSON line on `out` and returns 0 only for `succeeded`; 1 for failed
 //    / timeout / rejected; 3 when no answer came (or the broker could not be reached). Diagnostics
 //    go to `err`; the password is never printed.
+//  * It also subscribes to <prefix>/<V>/status, where the gateway's uplink keeps its retained
+//    Status (online on connect, offline on a clean stop, the last will when the connection is
+//    lost). When no result comes, the message on `err` says what the latest status there said:
+//    "vehicle V offline since <ISO 8601 UTC>" (a clean stop: the Envelope's created_at_us),
+//    "vehicle V offline: its connection was lost (last will); it had connected at <time>",
+//    "vehicle V online (status of <time>) but it did not answer", or "vehicle V never seen (no
+//    retained status on <topic>)". Exit status stays 3.
 //  * This is an edge tool, not a gateway component: it reads the system clock (issued_at,
 //    expiry, its own deadline) unless `wall_clock` is given.
 #pragma once

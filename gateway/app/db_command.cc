@@ -2,12 +2,35 @@
 
 #include <CLI/CLI.hpp>
 
+#include "gateway/app/db_listings.h"
+#include "gateway/app/table_format.h"
+#include "gateway/app/time_arg.h"
 #include "gateway/config/config.h"
 #include "gateway/runtime/recorder.h"
 #include "storage/schema.h"
 #include "storage/store.h"
 
 namespace fleetgw::app {
+namespace {
+
+constexpr std::pair<const char*, const char*> kListings[] = {
+    {"rides", "rides, newest first (start, duration, distance, speed, energy, SOC)"},
+    {"faults", "fault events, newest first (node, fault, severity, raised/cleared)"},
+    {"commands", "remote commands, newest first (result, reason, final lock state)"},
+    {"alarms", "operator alarms, newest first (theft, tamper, battery)"},
+};
+
+void add_since(CLI::App& c, DbCommand& db) {
+  c.add_option("--since", db.since,
+               "only rows at or after this time: 2026-11-27T10:00:00Z, 2026-11-27, 90s, 15m, "
+               "2h, 3d, or microseconds since the epoch");
+}
+
+void add_format(CLI::App& c, DbCommand& db, const char* what) {
+  c.add_option("--format", db.format, what)->check(CLI::IsMember({"table", "json", "csv"}));
+}
+
+}  // namespace
 
 std::unique_ptr<DbCommand> add_db_command(CLI::App& app) {
   auto db = std::make_unique<DbCommand>();
@@ -15,17 +38,39 @@ std::unique_ptr<DbCommand> add_db_command(CLI::App& app) {
   db->command->require_subcommand(1);
   db->stats = db->command->add_subcommand("stats", "row counts, outbox depth, size, evictions");
   db->export_rows = db->command->add_subcommand("export", "one JSON object per row");
-  for (auto* c : {db->stats, db->export_rows}) {
+  std::vector<CLI::App*> all = {db->stats, db->export_rows};
+  for (const auto& [name, help] : kListings) {
+    auto* c = db->command->add_subcommand(name, help);
+    db->listings.emplace_back(name, c);
+    all.push_back(c);
+    add_since(*c, *db);
+    add_format(*c, *db, "output format (default: table)");
+    c->add_option("--limit", db->limit, "at most this many rows, newest first (0: all)")
+        ->capture_default_str()
+        ->check(CLI::NonNegativeNumber);
+  }
+  for (auto* c : all) {
     c->add_option("--config", db->config_file, "configuration file (for storage.path)");
     c->add_option("--db", db->db_path, "database file (overrides the configuration)");
   }
+  add_format(*db->stats, *db, "output format (default: table on a terminal, else json)");
   db->export_rows->add_option("--table", db->table, "table to export")->required();
-  db->export_rows->add_option("--since", db->since_us,
-                              "only rows at or after this time (us since epoch)");
+  add_since(*db->export_rows, *db);
   return db;
 }
 
 int run_db_command(const DbCommand& db, std::ostream& out, std::ostream& err) {
+  // Arguments first: a typo must not cost opening a store (or name a store problem instead).
+  std::int64_t since_us = 0;
+  if (!db.since.empty()) {
+    const auto parsed = parse_since(db.since, db.now_us != 0 ? db.now_us : wall_clock_us());
+    if (!parsed) {
+      err << "fleetgw db: --since: invalid value '" << table_cell(db.since) << "': expected "
+          << kSinceForms << '\n';
+      return 2;
+    }
+    since_us = *parsed;
+  }
   storage::StoreOptions options;
   if (db.db_path.empty()) {
     options = runtime::make_store_options(config::load_config(db.config_file));
@@ -44,10 +89,28 @@ int run_db_command(const DbCommand& db, std::ostream& out, std::ostream& err) {
     return 1;
   }
   if (db.stats->parsed()) {
-    out << store->stats().to_json().dump(2) << '\n';
-  } else {
-    const auto rows = store->export_table(db.table, db.since_us, out);
+    const auto doc = store->stats().to_json();
+    const auto format = parse_output_format(db.format).value_or(
+        db.format.empty() && db.stdout_is_terminal ? OutputFormat::kTable : OutputFormat::kJson);
+    if (format == OutputFormat::kJson) {
+      out << doc.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << '\n';
+    } else {
+      write_as(format, flatten(doc), out);
+    }
+    return 0;
+  }
+  if (db.export_rows->parsed()) {
+    const auto rows = store->export_table(db.table, since_us, out);
     err << rows << " rows\n";
+    return 0;
+  }
+  for (const auto& [name, cmd] : db.listings) {
+    if (!cmd->parsed()) continue;
+    std::vector<nlohmann::json> rows;
+    store->list_recent(name, since_us, db.limit,
+                       [&rows](const nlohmann::json& row) { rows.push_back(row); });
+    write_as(parse_output_format(db.format).value_or(OutputFormat::kTable),
+             listing_table(name, rows), out);
   }
   return 0;
 }
