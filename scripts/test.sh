@@ -141,6 +141,9 @@ phase_start test
 # The SocketCAN tests boot a VM that mostly waits (≈ 70 s, ≈ 15 s of CPU); the arm64 cross build
 # and the sanitizer build compile at low priority while the suite waits on brokers and child
 # processes. Their output is printed once the suite is done.
+# The test executables are listed once, here, before three ctest processes read the lists
+# (gtest discovery at ctest time: concurrent discoveries would write the same files).
+(cd build && ctest -N >/dev/null)
 vm_pid=
 if [ "${SKIP_VM:-0}" != 1 ]; then
   (cd build && exec ctest --output-on-failure --timeout 900 -L vm) >build/vm-tests.log 2>&1 &

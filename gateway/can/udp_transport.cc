@@ -115,8 +115,7 @@ asio::ip::udp::endpoint make_endpoint(const std::string& address, uint16_t port,
 }  // namespace
 
 UdpTransport::UdpTransport(asio::io_context& io, UdpOptions options)
-    : io_(io),
-      options_(std::move(options)),
+    : options_(std::move(options)),
       socket_(io),
       rx_buffer_(65536),
       tx_(io, options_.tx_queue_limit, [this] { send_next(); }) {

@@ -113,7 +113,6 @@ class UdpTransport final : public Transport {
   void reject(std::string_view what);
   void send_next();
 
-  asio::io_context& io_;
   UdpOptions options_;
   std::string name_;
   asio::ip::udp::socket socket_;
