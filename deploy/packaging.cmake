@@ -2,8 +2,10 @@
 #
 # Contents: /usr/bin/fleetgw (from gateway/app), /etc/fleetgw/fleetgw.toml (conffile: dpkg keeps
 # the technician's edits across upgrades), /lib/systemd/system/fleetgw.service, the CAN set-up
-# helper and its networkd example, and docs/deployment.md. /var/lib/fleetgw and the `fleetgw`
-# system user come from the maintainer scripts in deploy/debian/ (and StateDirectory=).
+# helper and its networkd example, docs/deployment.md, the manual pages and the bash completion
+# (/usr/share/bash-completion/completions/fleetgw), both generated from the CLI definitions.
+# /var/lib/fleetgw and the `fleetgw` system user come from the maintainer scripts in
+# deploy/debian/ (and StateDirectory=).
 # Runtime dependencies are computed by dpkg-shlibdeps (package dpkg-dev) from the binary, so a
 # cross-built package depends on the arm64 libraries it really links.
 #
@@ -42,7 +44,7 @@ if(NOT CMAKE_CROSSCOMPILING AND TARGET fleetgw-watch)
     set(man_dir ${CMAKE_BINARY_DIR}/deploy/man)
     set(man_pages)
     foreach(page fleetgw fleetgw-run fleetgw-decode fleetgw-check-config fleetgw-status
-                 fleetgw-command fleetgw-keygen fleetgw-db fleetgw-sim fleetgw-watch)
+                 fleetgw-command fleetgw-keygen fleetgw-db fleetgw-ride fleetgw-sim fleetgw-watch)
       list(APPEND man_pages ${man_dir}/${page}.1.gz)
     endforeach()
     add_custom_command(
@@ -56,6 +58,23 @@ if(NOT CMAKE_CROSSCOMPILING AND TARGET fleetgw-watch)
   else()
     message(STATUS "help2man not found: the package will have no manual pages")
   endif()
+endif()
+
+# Bash completion, printed by the built binary from its CLI definitions (`fleetgw completion
+# bash`), so it follows every option added; likewise not in a cross build. Written to a
+# temporary name first: a failing run leaves no stale script that looks up to date.
+if(NOT CMAKE_CROSSCOMPILING)
+  set(FLEETGW_COMPLETION ${CMAKE_BINARY_DIR}/deploy/bash-completion/fleetgw)
+  add_custom_command(
+    OUTPUT ${FLEETGW_COMPLETION}
+    COMMAND ${CMAKE_COMMAND} -E make_directory ${CMAKE_BINARY_DIR}/deploy/bash-completion
+    COMMAND $<TARGET_FILE:fleetgw> completion bash > ${FLEETGW_COMPLETION}.tmp
+    COMMAND ${CMAKE_COMMAND} -E rename ${FLEETGW_COMPLETION}.tmp ${FLEETGW_COMPLETION}
+    DEPENDS fleetgw
+    VERBATIM)
+  add_custom_target(fleetgw_bash_completion ALL DEPENDS ${FLEETGW_COMPLETION})
+  install(FILES ${FLEETGW_COMPLETION}
+          DESTINATION ${CMAKE_INSTALL_DATADIR}/bash-completion/completions)
 endif()
 
 set(CPACK_GENERATOR DEB)

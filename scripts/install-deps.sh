@@ -4,7 +4,7 @@
 # Usage: install-deps.sh [--build] [EXTRA_PACKAGE...]   (e.g. the arm64 cross packages, which
 #   tests/deploy/arm64-cross.sh --packages lists: installed in the same apt run as the rest).
 #   --build: only what compiling the x86 tree needs (scripts/test.sh installs the rest -- brokers,
-#   gpsd, the VM, clang, lintian, the cross packages -- while that build runs).
+#   gpsd, the VM, clang, lintian, chromium, the cross packages -- while that build runs).
 set -euo pipefail
 
 BUILD_PACKAGES=(
@@ -29,6 +29,7 @@ else
     clang libclang-rt-14-dev
     qemu-system-x86 busybox-static cpio xz-utils kmod
     dpkg-dev file systemd adduser lintian
+    chromium
     "$@"
   )
 fi

@@ -257,6 +257,8 @@ class Store {
   // State the gateway restores at start-up.
   std::vector<Ride> open_rides();
   std::optional<Ride> ride(std::string_view ride_id);
+  // Telemetry samples with from_us <= ts_us <= to_us, in time order (`fleetgw ride plot`).
+  std::vector<TelemetrySample> telemetry_between(std::int64_t from_us, std::int64_t to_us);
   std::optional<CommandJournalEntry> command(std::string_view command_id);
   // True when the command id was recorded and has not expired at now_us.
   bool command_seen(std::string_view command_id, std::int64_t now_us);

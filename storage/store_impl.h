@@ -6,6 +6,7 @@
 //   checkpointer.cc  the background thread that runs checkpoint_if_due()'s checkpoints
 //   outbox.cc        outbox queue (peek/ack/release) and the start-up restore queries
 //   store_export.cc  technician tools: stats and table export
+//   store_telemetry.cc  the telemetry of a time window (fleetgw ride plot)
 //   store.cc         Store's lifecycle, health and small accessors
 //
 // Contract: Impl is used from one thread (the checkpointer's thread shares none of its state).

@@ -11,7 +11,7 @@ mkdir -p "$out"
 PATH="$(cd "$(dirname "$fleetgw")" && pwd):$(cd "$(dirname "$watch")" && pwd):$PATH"
 fleetgw=$(basename "$fleetgw") watch=$(basename "$watch")
 # `fleetgw watch` runs fleetgw-watch with the same options: its page is fleetgw-watch(1).
-subcommands=(run decode check-config status command keygen db sim)
+subcommands=(run decode check-config status command keygen db ride sim)
 see_also=$(printf 'fleetgw-%s(1), ' "${subcommands[@]}" watch)
 include=$(mktemp)
 trap 'rm -f "$include"' EXIT

@@ -10,8 +10,10 @@
 
 #include "gateway/app/check_config.h"
 #include "gateway/app/command_tool.h"
+#include "gateway/app/completion.h"
 #include "gateway/app/db_command.h"
 #include "gateway/app/logging.h"
+#include "gateway/app/ride_command.h"
 #include "gateway/app/table_format.h"
 #include "gateway/app/watch_command.h"
 #include "gateway/config/config.h"
@@ -204,6 +206,12 @@ int run_cli(int argc, char** argv) {
   decode_cmd->add_option("--gap-ms", gap_ms, "drop a partial message after this gap (U15)")
       ->check(CLI::Range(1, 60'000));
   decode_flags.add_to(*decode_cmd);
+  std::string decode_format;
+  decode_cmd
+      ->add_option("--format", decode_format,
+                   "the summary on stderr: table (one line for people, the default), json (one "
+                   "object) or csv (key,value rows)")
+      ->check(CLI::IsMember({"table", "json", "csv"}));
 
   // check-config
   auto* check_cmd = app.add_subcommand("check-config", "validate a configuration file");
@@ -251,6 +259,9 @@ int run_cli(int argc, char** argv) {
 
   // db
   auto db = add_db_command(app);
+
+  // ride
+  auto ride = add_ride_command(app);
 
   // watch
   // Options are validated here (so `fleetgw watch --help` and typos behave like every other
@@ -314,6 +325,9 @@ int run_cli(int argc, char** argv) {
   command_cmd->add_option("--expires-in-s", cmd_expires_s, "command validity")
       ->check(CLI::Range(1, 86400));
 
+  // completion (hidden): the bash completion script, from every definition above
+  auto* completion_cmd = add_completion_command(app);
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -333,6 +347,8 @@ int run_cli(int argc, char** argv) {
       }
       decode_options.protocol = decode_flags.resolve();
       decode_options.gap_timeout = motinova::Micros(int64_t{gap_ms} * 1000);
+      decode_options.summary_format =
+          parse_output_format(decode_format).value_or(OutputFormat::kTable);
       return decode::run_decode(decode_options, std::cout, std::cerr);
     }
     if (run_cmd->parsed()) {
@@ -369,6 +385,10 @@ int run_cli(int argc, char** argv) {
       db->stdout_is_terminal = ::isatty(STDOUT_FILENO) != 0;
       return run_db_command(*db, std::cout, std::cerr);
     }
+    if (ride->command->parsed()) {
+      setup_logging("warn");  // the store's log lines on stderr
+      return run_ride_command(*ride, std::cout, std::cerr);
+    }
     if (watch_cmd->parsed()) {
       int first = 1;
       while (first < argc && std::string_view(argv[first]) != "watch") ++first;
@@ -392,6 +412,10 @@ int run_cli(int argc, char** argv) {
       return command::run_command_tool(cmd_options);
     }
     if (check_cmd->parsed()) return run_check_config(check_file, std::cout, std::cerr);
+    if (completion_cmd->parsed()) {
+      write_bash_completion(app, std::cout);
+      return 0;
+    }
   } catch (const config::ConfigError& e) {
     print_config_error(e, std::cerr);
     return 1;

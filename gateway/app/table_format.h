@@ -1,65 +1,22 @@
-// Output of the inspection commands (`fleetgw db ...`, `fleetgw status`) in the three forms of
-// `--format table|json|csv`, all from one Table.
-//
-// Contract:
-//  * A Table is its columns (key for JSON and CSV, header for the aligned table, decimals for
-//    floating-point cells) and rows of cells, each an nlohmann::json null, boolean, number or
-//    string. Rows are printed in the order given.
-//  * table: a header line, then exactly one line per row; columns separated by two spaces and
-//    padded to the widest cell (counted in code points); numbers right-aligned, floating point
-//    with the column's decimals; null is "-", booleans "yes"/"no". Strings come from the store
-//    and are untrusted: every one passes common::escape_controls, so a newline, tab, ESC or any
-//    other control character (C0, DEL, C1, U+2028/9) prints as \n, \t, \x1b..., a backslash as
-//    \\, invalid UTF-8 as U+FFFD, and a row can never take more than one line. No rows: the
-//    line "(no rows)" alone.
-//  * csv: RFC 4180. A header line of the column keys, CRLF after every record; a field is
-//    quoted ("...", an inner quote doubled) when it contains a comma, a quote, CR, LF or any
-//    other control character; the content is kept exactly (only invalid UTF-8 is replaced by
-//    U+FFFD), so a CSV reader gets the stored string back, newlines included. Null is an empty
-//    field; floating point with the column's decimals; booleans true/false.
-//  * json: one JSON array, one object per row (column key -> value) on its own line; floating
-//    point rounded to the column's decimals; invalid UTF-8 replaced by U+FFFD.
-//  * parse_output_format() accepts exactly "table", "json" and "csv".
+// The `--format table|json|csv` writers of the inspection commands, under the CLI's namespace.
+// They live in gateway/common/table_format.h (contract there), because `fleetgw decode` prints
+// its summary with them too and the decode area must not depend on app.
 #pragma once
 
-#include <nlohmann/json.hpp>
-
-#include <optional>
-#include <ostream>
-#include <string>
-#include <string_view>
-#include <vector>
+#include "gateway/common/table_format.h"
 
 namespace fleetgw::app {
 
-enum class OutputFormat { kTable, kJson, kCsv };
-
-std::optional<OutputFormat> parse_output_format(std::string_view text);
-
-struct Column {
-  std::string key;     // JSON member and CSV header: snake_case with the unit, e.g. distance_km
-  std::string header;  // table header, e.g. "KM"
-  int decimals = 1;    // for floating-point cells
-};
-
-struct Table {
-  std::vector<Column> columns;
-  std::vector<std::vector<nlohmann::json>> rows;  // each row has columns.size() cells
-};
-
-void write_table(const Table& t, std::ostream& out);
-void write_csv(const Table& t, std::ostream& out);
-void write_json(const Table& t, std::ostream& out);
-void write_as(OutputFormat format, const Table& t, std::ostream& out);
-
-// One CSV field (RFC 4180 quoting as above), without the separator.
-std::string csv_field(std::string_view text);
-// One table cell's text: escape_controls of valid UTF-8.
-std::string table_cell(std::string_view text);
-
-// A JSON document as a two-column table (key, value): nested members flattened to dotted keys
-// ("outbox.in_flight"), array elements to their index ("attention.0"); empty objects and
-// arrays are left out. For `db stats` and `status` in table and CSV form.
-Table flatten(const nlohmann::json& doc);
+using common::Column;
+using common::csv_field;
+using common::flatten;
+using common::OutputFormat;
+using common::parse_output_format;
+using common::Table;
+using common::table_cell;
+using common::write_as;
+using common::write_csv;
+using common::write_json;
+using common::write_table;
 
 }  // namespace fleetgw::app

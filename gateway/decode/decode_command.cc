@@ -120,11 +120,11 @@ std::string nothing_decoded_hint(const DecodeSummary& s, const DecodeCommandOpti
   const auto& r = s.reassembly;
   if (r.can_frames == 0) {
     return s.lines_malformed > 0
-               ? "decode: no candump -L line in the input (expected lines such as "
+               ? "no candump -L line in the input (expected lines such as "
                  "\"(1700000000.000000) can0 710#55AA0C...\"; record with candump -L)"
-               : "decode: the input holds no CAN frame";
+               : "the input holds no CAN frame";
   }
-  std::string hint = "decode: no valid MOTINOVA message in the input";
+  std::string hint = "no valid MOTINOVA message in the input";
   if (r.error(motinova::ReassemblyError::kBadCrc) > 0 &&
       options.protocol.crc_order != motinova::CrcOrder::kAuto) {
     hint += "; every complete frame failed its CRC: try --crc-order auto (spec U1)";
@@ -136,7 +136,41 @@ std::string nothing_decoded_hint(const DecodeSummary& s, const DecodeCommandOpti
   return hint;
 }
 
+void print_summary(const DecodeCommandOptions& options, const DecodeSummary& summary,
+                   const std::string& source, const std::string& hint, std::ostream& err) {
+  if (options.summary_format == common::OutputFormat::kTable) {
+    err << format_summary(summary) << '\n';
+    if (!hint.empty()) err << "decode: " << hint << '\n';
+    return;
+  }
+  nlohmann::json doc = summary_document(summary);
+  doc["input"] = source;
+  doc["hint"] = hint.empty() ? nlohmann::json() : nlohmann::json(hint);
+  if (options.summary_format == common::OutputFormat::kJson) {
+    // A file name is bytes, not necessarily UTF-8: replaced, never an exception.
+    err << doc.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace) << '\n';
+  } else {
+    common::write_as(options.summary_format, common::flatten(doc), err);
+  }
+}
+
 }  // namespace
+
+nlohmann::json summary_document(const DecodeSummary& s) {
+  nlohmann::json errors = nlohmann::json::object();
+  for (std::size_t k = 0; k < motinova::kReassemblyErrorKinds; ++k) {
+    errors[std::string(motinova::reassembly_error_name(
+        static_cast<motinova::ReassemblyError>(k)))] = s.reassembly.errors[k];
+  }
+  return {{"can_frames", s.reassembly.can_frames},
+          {"messages", s.messages},
+          {"unknown_messages", s.unknown_messages},
+          {"non_data_frames", s.non_data_frames},
+          {"malformed_lines", s.lines_malformed},
+          {"frame_errors", std::move(errors)},
+          {"crc_order_seen",
+           {{"be", s.reassembly.crc_big_endian}, {"le", s.reassembly.crc_little_endian}}}};
+}
 
 std::string format_summary(const DecodeSummary& s) {
   std::string text = fmt::format("decode: {} CAN frames, {} messages ({} unknown)",
@@ -182,8 +216,12 @@ int run_decode(const DecodeCommandOptions& options, std::ostream& out, std::ostr
   // A binary or foreign file would print one message per line: report the first few only.
   constexpr uint64_t kMaxReportedLines = 20;
   uint64_t malformed = 0;
+  // json and csv: the summary is all that goes to `err`, so a script can parse it.
+  const bool report_lines = options.summary_format == common::OutputFormat::kTable;
   auto report = [&](const can::candump::ParseError& e) {
-    if (++malformed <= kMaxReportedLines) {
+    if (!report_lines) {
+      ++malformed;
+    } else if (++malformed <= kMaxReportedLines) {
       err << source << ": " << e.message << '\n';
     } else if (malformed == kMaxReportedLines + 1) {
       err << source << ": more malformed lines are counted, not shown\n";
@@ -235,13 +273,10 @@ int run_decode(const DecodeCommandOptions& options, std::ostream& out, std::ostr
   out.flush();
   summary.lines_malformed = malformed;
   summary.reassembly = reassembler.stats();
-  err << format_summary(summary) << '\n';
+  const std::string hint = summary.messages == 0 ? nothing_decoded_hint(summary, options) : "";
+  print_summary(options, summary, source, hint, err);
   if (summary_out) *summary_out = summary;
-  if (summary.messages == 0) {
-    err << nothing_decoded_hint(summary, options) << '\n';
-    return 1;
-  }
-  return 0;
+  return summary.messages == 0 ? 1 : 0;
 }
 
 }  // namespace fleetgw::decode

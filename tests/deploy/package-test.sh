@@ -49,7 +49,8 @@ for f in ./usr/bin/fleetgw ./usr/bin/fleetgw-watch ./etc/fleetgw/fleetgw.toml ./
          ./usr/libexec/fleetgw/fleetgw-can-setup ./usr/share/doc/fleetgw/deployment.md \
          ./usr/share/doc/fleetgw/examples/80-can.network ./usr/share/doc/fleetgw/copyright \
          ./usr/share/doc/fleetgw/changelog.Debian.gz ./usr/share/man/man1/fleetgw.1.gz \
-         ./usr/share/man/man1/fleetgw-run.1.gz ./usr/share/man/man1/fleetgw-watch.1.gz; do
+         ./usr/share/man/man1/fleetgw-run.1.gz ./usr/share/man/man1/fleetgw-watch.1.gz \
+         ./usr/share/bash-completion/completions/fleetgw; do
   grep -q " $f\$" <<<"$contents" && ok "contains $f" || fail "package lacks $f"
 done
 conffiles=$(dpkg-deb --ctrl-tarfile "$deb" | tar -xO ./conffiles)
@@ -113,6 +114,18 @@ out=$(/usr/bin/fleetgw watch --broker tcp://127.0.0.1:1 --duration 1 2>&1 || tru
 
 [ -f /usr/share/man/man1/fleetgw-run.1.gz ] && ok "manual page fleetgw-run(1) installed" ||
   fail "no /usr/share/man/man1/fleetgw-run.1.gz"
+# The installed completion is the installed binary's own (generated at build time from the
+# same definitions), and bash takes it: `fleetgw dec<TAB>` completes to decode.
+completion=/usr/share/bash-completion/completions/fleetgw
+if [ -f "$completion" ] && cmp -s "$completion" <(/usr/bin/fleetgw completion bash); then
+  ok "bash completion installed, the binary's own"
+else
+  fail "$completion missing or not what /usr/bin/fleetgw completion bash prints"
+fi
+words=$(bash -c 'source "$1" && COMP_WORDS=(fleetgw dec) COMP_CWORD=1 && _fleetgw &&
+  echo "${COMPREPLY[*]}"' _ "$completion" 2>&1 || true)
+[ "$words" = decode ] && ok "bash completion: fleetgw dec<TAB> -> decode" ||
+  fail "bash completion of 'fleetgw dec': \"$words\""
 version=$(/usr/bin/fleetgw --version)
 pkg_version=$(dpkg-query -W -f='${Version}' fleetgw)
 [ "$version" = "fleetgw ${pkg_version%-*}" ] && ok "--version: $version" ||
@@ -144,7 +157,8 @@ dpkg -r fleetgw >/dev/null || fail "dpkg -r failed"
 echo "== purge leaves nothing"
 dpkg --purge fleetgw >/dev/null || fail "dpkg --purge failed"
 for p in /etc/fleetgw /var/lib/fleetgw /usr/bin/fleetgw /lib/systemd/system/fleetgw.service \
-         /usr/libexec/fleetgw /usr/share/doc/fleetgw; do
+         /usr/libexec/fleetgw /usr/share/doc/fleetgw \
+         /usr/share/bash-completion/completions/fleetgw; do
   [ ! -e "$p" ] && ok "gone: $p" || fail "left after purge: $p"
 done
 getent passwd fleetgw >/dev/null && fail "user fleetgw left" || ok "user removed"

@@ -1,4 +1,4 @@
-#include "gateway/app/table_format.h"
+#include "gateway/common/table_format.h"
 
 #include <fmt/format.h>
 
@@ -7,7 +7,7 @@
 
 #include "gateway/common/untrusted_text.h"
 
-namespace fleetgw::app {
+namespace fleetgw::common {
 namespace {
 
 using nlohmann::json;
@@ -75,11 +75,11 @@ std::optional<OutputFormat> parse_output_format(std::string_view text) {
 }
 
 std::string table_cell(std::string_view text) {
-  return common::escape_controls(text);
+  return escape_controls(text);
 }
 
 std::string csv_field(std::string_view text) {
-  std::string valid = common::valid_utf8(text);
+  std::string valid = valid_utf8(text);
   bool quote = false;
   for (const char c : valid) {
     const auto u = static_cast<unsigned char>(c);
@@ -179,4 +179,4 @@ Table flatten(const nlohmann::json& doc) {
   return t;
 }
 
-}  // namespace fleetgw::app
+}  // namespace fleetgw::common
