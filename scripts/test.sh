@@ -15,7 +15,7 @@
 #             instrumentation (no benchmarks, no VM test binary): the suite again, then every
 #             libFuzzer target of FUZZ_TARGETS for FUZZ_SECONDS each.
 # The summary lists every phase with its elapsed time. On the project's 2-core machines the whole
-# run takes under 20 minutes from a fresh clone (README, "Tests").
+# run takes about 28 minutes from a fresh clone, most of it the sanitizer build (README figures).
 # Environment: JOBS (default: nproc), FUZZ_SECONDS (default 30), FUZZ_TARGETS (default
 #   "fuzz_reassembler fuzz_command"; a target the tree does not define yet is skipped and said
 #   so), SKIP_ASAN=1, SKIP_FUZZ=1, SKIP_VM=1, SKIP_ARM64=1, ARM64_FIGURES=1 (the release arm64
