@@ -3,8 +3,8 @@
 # Idempotent: packages already installed are skipped, and apt is not touched when none is missing.
 # Usage: install-deps.sh [--build] [EXTRA_PACKAGE...]   (e.g. the arm64 cross packages, which
 #   tests/deploy/arm64-cross.sh --packages lists: installed in the same apt run as the rest).
-#   --build: only what compiling the x86 tree needs (scripts/test.sh installs the rest -- brokers,
-#   gpsd, the VM, clang, lintian, chromium, the cross packages -- while that build runs).
+#   --build: only what compiling the x86 trees needs, with gcc and clang (scripts/test.sh installs
+#   the rest -- brokers, gpsd, the VM, lintian, chromium, the cross packages -- while they build).
 set -euo pipefail
 
 BUILD_PACKAGES=(
@@ -16,6 +16,7 @@ BUILD_PACKAGES=(
   libgtest-dev libgmock-dev libbenchmark-dev
   libtomlplusplus-dev libcli11-dev nlohmann-json3-dev libasio-dev
   libsystemd-dev libgps-dev help2man
+  clang libclang-rt-14-dev
 )
 if [ "${1:-}" = --build ]; then
   shift
@@ -26,7 +27,6 @@ else
     mosquitto mosquitto-clients
     can-utils iproute2
     gpsd gpsd-clients
-    clang libclang-rt-14-dev
     qemu-system-x86 busybox-static cpio xz-utils kmod
     dpkg-dev file systemd adduser lintian
     chromium
