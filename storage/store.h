@@ -277,6 +277,9 @@ class Store {
   // Same, as JSON lines.
   std::uint64_t export_table(std::string_view table, std::int64_t since_us, std::ostream& out);
   static std::span<const std::string_view> exportable_tables();
+  // The columns of `table` in schema order (the members of export_table's rows), for writers
+  // that need them before the first row (CSV headers). Unknown tables throw as export_table.
+  std::vector<std::string> export_columns(std::string_view table);
   // Newest first, for `fleetgw db rides|faults|commands|alarms`: calls `write_row` with one JSON
   // object per row (columns as export_table) of the listing, at most `limit` rows (0: all),
   // only rows at or after `since_us`. Listings (order and time filter):

@@ -200,21 +200,35 @@ std::span<const std::string_view> Store::exportable_tables() {
   return kExportNames;
 }
 
+namespace {
+
+const ExportSpec& export_spec(std::string_view table) {
+  for (const auto& s : kExportSpecs) {
+    if (s.table == table) return s;
+  }
+  std::string known;
+  for (auto name : kExportNames) {
+    if (!known.empty()) known += ", ";
+    known += name;
+  }
+  throw std::invalid_argument("storage: export_table: unknown table '" + std::string(table) +
+                              "' (known: " + known + ")");
+}
+
+}  // namespace
+
+std::vector<std::string> Store::export_columns(std::string_view table) {
+  // The table name comes from the whitelist, never from the caller's string.
+  Statement st =
+      impl_->db.prepare("SELECT * FROM " + std::string(export_spec(table).table) + " LIMIT 0");
+  std::vector<std::string> columns;
+  for (int c = 0; c < st.column_count(); ++c) columns.push_back(st.column_name(c));
+  return columns;
+}
+
 std::uint64_t Store::export_table(std::string_view table, std::int64_t since_us,
                                   const RowWriter& write_row) {
-  const ExportSpec* spec = nullptr;
-  for (const auto& s : kExportSpecs) {
-    if (s.table == table) spec = &s;
-  }
-  if (spec == nullptr) {
-    std::string known;
-    for (auto name : kExportNames) {
-      if (!known.empty()) known += ", ";
-      known += name;
-    }
-    throw std::invalid_argument("storage: export_table: unknown table '" + std::string(table) +
-                                "' (known: " + known + ")");
-  }
+  const ExportSpec* spec = &export_spec(table);
   // The table name comes from the whitelist above, never from the caller's string.
   std::string sql = "SELECT * FROM " + std::string(spec->table);
   if (!spec->time_column.empty()) sql += " WHERE " + std::string(spec->time_column) + " >= ?";

@@ -300,17 +300,29 @@ int run_cli(int argc, char** argv) {
       ->required();
 
   // command
-  auto* command_cmd =
-      app.add_subcommand("command", "sign and send a lock/unlock command, wait for its result");
+  auto* command_cmd = app.add_subcommand(
+      "command",
+      "sign and send a remote command (lock/unlock, speed limit, assist, lights, "
+      "clear trip, power off), wait for its result");
   command::CommandToolOptions cmd_options;
   int64_t cmd_timeout_s = 10, cmd_expires_s = 60;
   command_cmd->add_option("--vehicle", cmd_options.vehicle, "vehicle id")->required();
-  command_cmd
-      ->add_option("--lock", cmd_options.lock, "lock kind (seat, battery, frame...) or vehicle")
-      ->required();
-  command_cmd->add_option("--action", cmd_options.action, "lock or unlock")
-      ->required()
+  command_cmd->add_option("--lock", cmd_options.lock,
+                          "lock kind (seat, battery, frame...) or vehicle; with --action");
+  command_cmd->add_option("--action", cmd_options.action, "lock or unlock (with --lock)")
       ->check(CLI::IsMember({"lock", "unlock"}));
+  // MC actions (issue 13): one action per command; run_command_tool() checks there is one.
+  int cmd_speed_limit = 0;
+  command_cmd->add_option("--speed-limit", cmd_speed_limit, "set the speed limit, km/h")
+      ->check(CLI::Range(0, 255));
+  // Names are the gateway's [protocol.assist_names] (U7), so any well-formed name goes.
+  command_cmd->add_option("--assist", cmd_options.assist,
+                          "set the assist level (off, eco, norm, sport, turbo, walk...)");
+  command_cmd->add_option("--lights", cmd_options.lights, "switch the headlight")
+      ->check(CLI::IsMember({"on", "off"}));
+  command_cmd->add_flag("--clear-trip", cmd_options.clear_trip, "reset the trip distance and time");
+  command_cmd->add_flag("--power-off", cmd_options.power_off,
+                        "power the bike off (refused while it or a lock moves)");
   command_cmd->add_option("--key", cmd_options.key, "Ed25519 private key (PEM)")->required();
   command_cmd->add_option("--key-id", cmd_options.key_id, "key id (default: the key file's stem)");
   command_cmd->add_option("--broker", cmd_options.broker, "broker URI")->required();
@@ -409,6 +421,7 @@ int run_cli(int argc, char** argv) {
     if (command_cmd->parsed()) {
       cmd_options.timeout = std::chrono::seconds(cmd_timeout_s);
       cmd_options.expires_in = std::chrono::seconds(cmd_expires_s);
+      if (command_cmd->count("--speed-limit") > 0) cmd_options.speed_limit_kmh = cmd_speed_limit;
       return command::run_command_tool(cmd_options);
     }
     if (check_cmd->parsed()) return run_check_config(check_file, std::cout, std::cerr);

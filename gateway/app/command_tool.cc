@@ -3,6 +3,7 @@
 #include <mqtt/async_client.h>
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <condition_variable>
 #include <deque>
 #include <fstream>
@@ -74,6 +75,19 @@ nlohmann::json to_json(const v1::CommandResult& r, std::string_view vehicle, Mic
                      {"commands_sent", l.commands_sent()}});
   }
   j["locks"] = std::move(locks);
+  if (r.has_mc()) {
+    const auto& m = r.mc();
+    nlohmann::json mc{{"action", m.action()}, {"writes_sent", m.writes_sent()}};
+    if (m.has_speed_limit_kmh()) mc["speed_limit_kmh"] = m.speed_limit_kmh();
+    if (m.has_factory_speed_limit_kmh())
+      mc["factory_speed_limit_kmh"] = m.factory_speed_limit_kmh();
+    if (!m.assist_level().empty()) mc["assist_level"] = m.assist_level();
+    if (m.has_headlight_on()) mc["headlight_on"] = m.headlight_on();
+    if (m.has_trip_m()) mc["trip_m"] = m.trip_m();
+    if (m.has_mc_ready()) mc["mc_ready"] = m.mc_ready();
+    if (m.has_obc_ready()) mc["obc_ready"] = m.obc_ready();
+    j["mc"] = std::move(mc);
+  }
   return j;
 }
 
@@ -139,8 +153,40 @@ int run_command_tool(const CommandToolOptions& o) {
   };
 
   if (!is_valid_tool_id(o.vehicle)) return usage("--vehicle: 1..64 characters of [A-Za-z0-9._-]");
-  if (o.action != "lock" && o.action != "unlock") return usage("--action: lock or unlock");
-  if (o.lock.empty() || o.lock.size() > 64) return usage("--lock: a lock kind or 'vehicle'");
+  // Exactly one action: lock/unlock, or one MC action.
+  const bool lock_action = !o.lock.empty() || !o.action.empty();
+  const int actions = int{lock_action} + int{o.speed_limit_kmh.has_value()} +
+                      int{!o.assist.empty()} + int{!o.lights.empty()} + int{o.clear_trip} +
+                      int{o.power_off};
+  if (actions != 1) {
+    return usage(
+        "give exactly one action: --lock with --action, --speed-limit, --assist, --lights, "
+        "--clear-trip or --power-off");
+  }
+  std::string mc_action, mc_value;
+  if (lock_action) {
+    if (o.action != "lock" && o.action != "unlock") return usage("--action: lock or unlock");
+    if (o.lock.empty() || o.lock.size() > 64) return usage("--lock: a lock kind or 'vehicle'");
+  } else if (o.speed_limit_kmh) {
+    if (*o.speed_limit_kmh < 0 || *o.speed_limit_kmh > 255) return usage("--speed-limit: 0..255");
+    mc_action = "speed_limit";
+    mc_value = std::to_string(*o.speed_limit_kmh);
+  } else if (!o.assist.empty()) {
+    const bool name_ok =
+        o.assist.size() <= 32 && std::all_of(o.assist.begin(), o.assist.end(), [](char c) {
+          return (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') || c == '_';
+        });
+    if (!name_ok)
+      return usage("--assist: an assist level name (off, eco, norm, sport, turbo, walk...)");
+    mc_action = "assist_level";
+    mc_value = o.assist;
+  } else if (!o.lights.empty()) {
+    if (o.lights != "on" && o.lights != "off") return usage("--lights: on or off");
+    mc_action = "headlight";
+    mc_value = o.lights;
+  } else {
+    mc_action = o.clear_trip ? "clear_trip" : "power_off";
+  }
   if (o.broker.rfind("tcp://", 0) != 0 && o.broker.rfind("ssl://", 0) != 0) {
     return usage("--broker: tcp://host:port or ssl://host:port");
   }
@@ -220,8 +266,10 @@ int run_command_tool(const CommandToolOptions& o) {
     }
 
     const Micros now = clock();
-    const auto cmd = make_command(o.vehicle, o.lock, o.action, now,
-                                  now + std::chrono::duration_cast<Micros>(o.expires_in), id);
+    const Micros expires = now + std::chrono::duration_cast<Micros>(o.expires_in);
+    const auto cmd = mc_action.empty()
+                         ? make_command(o.vehicle, o.lock, o.action, now, expires, id)
+                         : make_mc_command(o.vehicle, mc_action, mc_value, now, expires, id);
     const SentCommand sent = sign_for_sending(*cmd, *key, key_id);
     const std::string& payload = sent.payload;
     const auto sent_at = std::chrono::steady_clock::now();

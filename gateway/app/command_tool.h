@@ -4,7 +4,9 @@
 //
 // Contract:
 //  * run_command_tool(): validates the options (exit 2 with a message for usage errors: unknown
-//    action, bad vehicle id, unreadable key, credentials over plain tcp:// ...), signs a Command
+//    action, not exactly one action, bad vehicle id, unreadable key, credentials over plain
+//    tcp:// ...), signs a Command -- lock/unlock (--lock + --action) or one MC action
+//    (--speed-limit, --assist, --lights, --clear-trip, --power-off; issue 13) --
 //    with a fresh random 128-bit command id, connects (clean session; TLS with server and
 //    host-name verification when the URI is ssl://), subscribes to <prefix>/<V>/cmd/result
 //    BEFORE publishing the SignedCommand to <prefix>/<V>/cmd at QoS 1, then waits up to
@@ -49,9 +51,15 @@ inline constexpr int kExitUsage = 2;
 inline constexpr int kExitNoAnswer = 3;
 
 struct CommandToolOptions {
-  std::string vehicle;                       // --vehicle V
-  std::string lock;                          // --lock seat|battery|frame|...|vehicle
-  std::string action;                        // --action lock|unlock
+  std::string vehicle;  // --vehicle V
+  std::string lock;     // --lock seat|battery|frame|...|vehicle
+  std::string action;   // --action lock|unlock
+  // MC actions (issue 13); exactly one action per command, lock/unlock included.
+  std::optional<int> speed_limit_kmh;        // --speed-limit KMH
+  std::string assist;                        // --assist eco|norm|...
+  std::string lights;                        // --lights on|off
+  bool clear_trip = false;                   // --clear-trip
+  bool power_off = false;                    // --power-off
   std::filesystem::path key;                 // --key KEY.pem (Ed25519 private key)
   std::string key_id;                        // --key-id ID; default: the key file's stem
   std::string broker;                        // --broker tcp://host:1883 | ssl://host:8883

@@ -2,12 +2,15 @@
 
 #include <CLI/CLI.hpp>
 
+#include <limits>
+
 #include "gateway/app/db_listings.h"
+#include "gateway/app/db_summary.h"
+#include "gateway/app/store_open.h"
 #include "gateway/app/table_format.h"
 #include "gateway/app/time_arg.h"
 #include "gateway/config/config.h"
 #include "gateway/runtime/recorder.h"
-#include "storage/schema.h"
 #include "storage/store.h"
 
 namespace fleetgw::app {
@@ -30,6 +33,53 @@ void add_format(CLI::App& c, DbCommand& db, const char* what) {
   c.add_option("--format", db.format, what)->check(CLI::IsMember({"table", "json", "csv"}));
 }
 
+// `db export --format csv`: streamed, so a table of days of telemetry is never held in memory.
+std::uint64_t export_csv(storage::Store& store, const std::string& table, std::int64_t since_us,
+                         std::ostream& out) {
+  std::vector<Column> columns;
+  for (auto& name : store.export_columns(table)) {
+    columns.push_back({name, name, -1});  // -1: full precision, the value parses back exactly
+  }
+  write_csv_header(columns, out);
+  std::vector<nlohmann::json> cells(columns.size());
+  return store.export_table(table, since_us, [&](const nlohmann::json& row) {
+    for (std::size_t c = 0; c < columns.size(); ++c) {
+      const auto it = row.find(columns[c].key);
+      cells[c] = it == row.end() ? nlohmann::json() : *it;
+    }
+    write_csv_record(columns, cells, out);
+  });
+}
+
+int run_summary(storage::Store& store, const DbCommand& db, std::optional<std::int64_t> since_us,
+                std::ostream& out) {
+  SummaryRows rows;
+  const std::int64_t from = since_us.value_or(std::numeric_limits<std::int64_t>::min());
+  const std::pair<const char*, std::vector<nlohmann::json>*> listings[] = {
+      {"rides", &rows.rides},
+      {"faults", &rows.faults},
+      {"commands", &rows.commands},
+      {"alarms", &rows.alarms}};
+  for (const auto& [name, into] : listings) {
+    store.list_recent(name, from, 0, [into](const nlohmann::json& row) { into->push_back(row); });
+  }
+  const DbSummary summary = summarize(rows, since_us);
+  switch (parse_output_format(db.format).value_or(OutputFormat::kTable)) {
+    case OutputFormat::kTable:
+      out << summary_sentence(summary) << "\n\n";
+      write_table(summary_table(summary), out);
+      break;
+    case OutputFormat::kJson:
+      out << summary_json(summary).dump(2, ' ', false, nlohmann::json::error_handler_t::replace)
+          << '\n';
+      break;
+    case OutputFormat::kCsv:
+      write_csv(flatten(summary_json(summary)), out);
+      break;
+  }
+  return 0;
+}
+
 }  // namespace
 
 std::unique_ptr<DbCommand> add_db_command(CLI::App& app) {
@@ -37,8 +87,11 @@ std::unique_ptr<DbCommand> add_db_command(CLI::App& app) {
   db->command = app.add_subcommand("db", "inspect the SQLite store, read-only (technicians)");
   db->command->require_subcommand(1);
   db->stats = db->command->add_subcommand("stats", "row counts, outbox depth, size, evictions");
-  db->export_rows = db->command->add_subcommand("export", "one JSON object per row");
-  std::vector<CLI::App*> all = {db->stats, db->export_rows};
+  db->export_rows = db->command->add_subcommand(
+      "export", "one table, every row: JSON lines (default) or CSV (--format csv)");
+  db->summary = db->command->add_subcommand(
+      "summary", "what happened, in one sentence: rides, faults, commands, alarms");
+  std::vector<CLI::App*> all = {db->stats, db->export_rows, db->summary};
   for (const auto& [name, help] : kListings) {
     auto* c = db->command->add_subcommand(name, help);
     db->listings.emplace_back(name, c);
@@ -55,13 +108,20 @@ std::unique_ptr<DbCommand> add_db_command(CLI::App& app) {
   }
   add_format(*db->stats, *db, "output format (default: table on a terminal, else json)");
   db->export_rows->add_option("--table", db->table, "table to export")->required();
+  db->export_rows
+      ->add_option("--format", db->export_format,
+                   "jsonl: one JSON object per line (default); csv: RFC 4180 with a header")
+      ->check(CLI::IsMember({"jsonl", "csv"}));
   add_since(*db->export_rows, *db);
+  add_since(*db->summary, *db);
+  add_format(*db->summary, *db, "output format (default: table)");
   return db;
 }
 
 int run_db_command(const DbCommand& db, std::ostream& out, std::ostream& err) {
   // Arguments first: a typo must not cost opening a store (or name a store problem instead).
   std::int64_t since_us = 0;
+  std::optional<std::int64_t> since_given;
   if (!db.since.empty()) {
     const auto parsed = parse_since(db.since, db.now_us != 0 ? db.now_us : wall_clock_us());
     if (!parsed) {
@@ -70,6 +130,7 @@ int run_db_command(const DbCommand& db, std::ostream& out, std::ostream& err) {
       return 2;
     }
     since_us = *parsed;
+    since_given = since_us;
   }
   storage::StoreOptions options;
   if (db.db_path.empty()) {
@@ -77,17 +138,11 @@ int run_db_command(const DbCommand& db, std::ostream& out, std::ostream& err) {
   } else {
     options.path = db.db_path;
   }
-  options.read_only = true;
   std::optional<storage::Store> store;
-  try {
-    store.emplace(std::move(options));
-  } catch (const storage::NotAStoreError& e) {
-    err << "fleetgw db: " << e.what() << '\n';
-    return 2;
-  } catch (const storage::SchemaTooNewError& e) {
-    err << "fleetgw db: " << e.what() << '\n';
-    return 1;
+  if (const int rc = open_store_read_only(std::move(options), "db", store, err); rc != 0) {
+    return rc;
   }
+  if (db.summary->parsed()) return run_summary(*store, db, since_given, out);
   if (db.stats->parsed()) {
     const auto doc = store->stats().to_json();
     const auto format = parse_output_format(db.format).value_or(
@@ -100,7 +155,8 @@ int run_db_command(const DbCommand& db, std::ostream& out, std::ostream& err) {
     return 0;
   }
   if (db.export_rows->parsed()) {
-    const auto rows = store->export_table(db.table, since_us, out);
+    const auto rows = db.export_format == "csv" ? export_csv(*store, db.table, since_us, out)
+                                                : store->export_table(db.table, since_us, out);
     err << rows << " rows\n";
     return 0;
   }

@@ -12,10 +12,10 @@
 #include <vector>
 
 #include "gateway/app/ride_plot.h"
+#include "gateway/app/store_open.h"
 #include "gateway/app/table_format.h"
 #include "gateway/config/config.h"
 #include "gateway/runtime/recorder.h"
-#include "storage/schema.h"
 #include "storage/store.h"
 
 namespace fleetgw::app {
@@ -93,16 +93,9 @@ int run_ride_command(const RideCommand& ride, std::ostream& out, std::ostream& e
     options = runtime::make_store_options(cfg);
   }
   if (!ride.db_path.empty()) options.path = ride.db_path;
-  options.read_only = true;
   std::optional<storage::Store> store;
-  try {
-    store.emplace(std::move(options));
-  } catch (const storage::NotAStoreError& e) {
-    err << "fleetgw ride plot: " << e.what() << '\n';
-    return 2;
-  } catch (const storage::SchemaTooNewError& e) {
-    err << "fleetgw ride plot: " << e.what() << '\n';
-    return 1;
+  if (const int rc = open_store_read_only(std::move(options), "ride plot", store, err); rc != 0) {
+    return rc;
   }
   const auto found = ride_cli::find_ride(*store, ride.ride_id);
   if (!found) {

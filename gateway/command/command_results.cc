@@ -208,7 +208,7 @@ Disposition CommandService::Impl::duplicate(const storage::CommandJournalEntry& 
                                             const std::string& sha, Micros now) {
   ++stats.duplicates;
   if (entry.state == kExecuting) {
-    if (find_running(entry.command_id) != nullptr) {
+    if (executing(entry.command_id)) {
       spdlog::info("command {}: duplicate delivery while executing; ignored", entry.command_id);
       return Disposition::kDuplicateInProgress;
     }

@@ -25,6 +25,14 @@ InterlockSettings interlock_settings(const CommandServiceConfig& c) {
           .decode_options = c.decode_options};
 }
 
+McActionConfig mc_settings(const CommandServiceConfig& c) {
+  McActionConfig m = c.mc;
+  m.decode_options = c.decode_options;
+  m.confirm_timeout = c.confirm_timeout;
+  m.retries = c.retries;
+  return m;
+}
+
 }  // namespace
 
 std::int64_t to_ms(Micros d) {
@@ -88,6 +96,7 @@ CommandServiceConfig make_command_service_config(const config::Config& c) {
   out.interlock_motor_window = Micros(std::int64_t{c.command.interlock_motor_s} * 1'000'000);
   out.confirm_timeout = Micros(std::int64_t{c.command.confirm_timeout_ms} * 1000);
   out.retries = c.command.retries;
+  out.mc.settings_limit_is_factory = c.command.mc_settings_limit == "factory";
   return out;
 }
 
@@ -97,7 +106,8 @@ CommandService::Impl::Impl(CommandServiceConfig c, CommandContext ctx)
     : config(std::move(c)),
       context(std::move(ctx)),
       verifier(config.verifier),
-      motion(interlock_settings(config)) {
+      motion(interlock_settings(config)),
+      mc(mc_settings(config), context.node, motion) {
   if (config.retries < 0) throw std::invalid_argument("command.retries must be >= 0");
   if (config.confirm_timeout <= Micros(0)) {
     throw std::invalid_argument("command.confirm_timeout must be > 0");
@@ -129,6 +139,10 @@ CommandService::Impl::Running* CommandService::Impl::find_running(std::string_vi
   return nullptr;
 }
 
+bool CommandService::Impl::executing(std::string_view id) {
+  return find_running(id) != nullptr || (mc_run && mc_run->cmd.command_id == id);
+}
+
 // ---------------------------------------------------------------------------------------------
 
 CommandService::CommandService(CommandServiceConfig config, CommandContext context)
@@ -151,7 +165,7 @@ std::size_t CommandService::recover(Micros now) {
     spdlog::error("command: reading the journal at start-up failed: {}", e.what());
   }
   for (const auto& e : stuck) {
-    if (impl_->find_running(e.command_id) == nullptr) impl_->finish_interrupted(e, now);
+    if (!impl_->executing(e.command_id)) impl_->finish_interrupted(e, now);
   }
   return stuck.size();
 }
@@ -169,11 +183,13 @@ void CommandService::on_message(const motinova::DecodedMessage& msg, Micros now)
   if (msg.status == motinova::DecodeStatus::kOk && msg.name() == "mc_status") {
     impl_->motion.observe_mc_status(msg, now);
   }
+  impl_->mc.on_message(msg, now);
 }
 
 void CommandService::tick(Micros now) {
   Impl& s = *impl_;
   if (!s.unjournaled.empty()) s.retry_unjournaled(now);
+  s.mc.tick(now);
   const Micros wall_now = s.wall(now);
   if (now < s.next_purge || !s.context.clock_synchronised(wall_now)) return;
   s.next_purge = now + s.config.purge_interval;
@@ -191,7 +207,7 @@ void CommandService::set_result_observer(ResultObserver observer) {
 }
 
 bool CommandService::busy() const {
-  return !impl_->running.empty();
+  return !impl_->running.empty() || impl_->mc.busy();
 }
 std::size_t CommandService::unjournaled() const {
   return impl_->unjournaled.size();

@@ -55,6 +55,11 @@
 //    (secure what can be secured), the overall result is the worst of the locks.
 //  * Domain trackers (optional) are told before each actuation, so lock events carry the cause
 //    "command:<id>".
+//  * MC actions (Command.mc_action: speed limit, assist level, headlight, clear trip, power off)
+//    take the same way in (authentication, freshness, replay, journal first, one result) and
+//    are executed and confirmed from the bus by McActionRunner (mc_actions.h); the result
+//    carries McActionResult. One MC action at a time; power off is refused while a lock
+//    command runs, a lock moves or the bike moves (or its motion is unknown).
 //  * Destroying the service mid-command is safe: pending node callbacks become no-ops, the
 //    journal keeps "executing" and the next recover() finishes it.
 #pragma once
@@ -70,6 +75,7 @@
 #include <string_view>
 #include <vector>
 
+#include "gateway/command/mc_actions.h"
 #include "gateway/command/motion_interlock.h"
 #include "gateway/command/verifier.h"
 #include "gateway/node/iot_node.h"
@@ -114,6 +120,9 @@ struct CommandServiceConfig {
   // Results the store refused, kept for a later journal write; beyond this the oldest is
   // given up (counted in CommandStats::unjournaled_dropped).
   std::size_t max_unjournaled = 256;
+  // MC actions (issue 13). Its decode_options, confirm_timeout and retries are taken from the
+  // fields above when the service is built.
+  McActionConfig mc{};
 };
 
 // Fills the config from fleetgw.toml: [vehicle].id, [command], [protocol] lock kinds and names.

@@ -7,6 +7,8 @@
 //   command_results.cc    results: built, stored with the journal (or published unstored and
 //                         journaled later), rejections, re-sent answers, the rate limit
 //   motion_interlock.cc   whether the bike moves (MotionInterlock)
+//   command_mc.cc         MC actions (issue 13): pre-flight, journal-first start, result
+//   mc_actions.cc         MC actions on the bus and their confirmation (McActionRunner)
 // Contract: single-threaded; every function runs on the caller's thread inside one of the
 // CommandService entry points. Nothing here throws to the caller for a storage failure.
 #pragma once
@@ -19,6 +21,7 @@
 
 #include "fleetgw/v1/command.pb.h"
 #include "gateway/command/command_service.h"
+#include "gateway/command/mc_actions.h"
 #include "gateway/command/motion_interlock.h"
 #include "storage/store.h"
 
@@ -64,6 +67,13 @@ struct CommandService::Impl : std::enable_shared_from_this<CommandService::Impl>
   CommandContext context;
   CommandVerifier verifier;
   MotionInterlock motion;
+  McActionRunner mc;  // after `motion`, which it reads
+  // The MC action in progress (one at a time), for its journal entry and result.
+  struct McRun {
+    VerifiedCommand cmd;
+    Micros received{0};
+  };
+  std::optional<McRun> mc_run;
   std::vector<std::unique_ptr<Running>> running;
   CommandStats stats;
   ResultObserver observer;
@@ -87,6 +97,8 @@ struct CommandService::Impl : std::enable_shared_from_this<CommandService::Impl>
   std::string state_name(std::optional<std::uint8_t> raw) const;
   std::string_view kind_of(int k) const;
   Running* find_running(std::string_view id);
+  // A lock command or an MC action with this id is in progress.
+  bool executing(std::string_view id);
 
   // command_intake.cc
   Disposition on_payload(std::span<const std::uint8_t> payload, Micros now);
@@ -100,6 +112,10 @@ struct CommandService::Impl : std::enable_shared_from_this<CommandService::Impl>
   bool attempt(Running& r, Step& s, Micros now);
   void on_lock_result(const std::string& id, const node::LockResult& res);
   void finish(Running& r, Micros now);
+
+  // command_mc.cc
+  Disposition on_mc_command(VerifiedCommand cmd, Micros now);
+  void finish_mc(McOutcome outcome, Micros now);
 
   // command_results.cc
   bool store_result(v1::CommandResult r, Micros now, std::optional<Micros> journal_expires,

@@ -1,5 +1,6 @@
 #include "gateway/command/signing.h"
 
+#include <charconv>
 #include <fstream>
 #include <iostream>
 
@@ -39,6 +40,35 @@ std::optional<v1::Command> make_command(std::string_view vehicle, std::string_vi
     c.set_whole_vehicle(true);
   } else {
     c.set_lock_kind(std::string(lock));
+  }
+  c.set_command_id(std::move(command_id));
+  c.set_vehicle_id(std::string(vehicle));
+  c.set_issued_at_us(issued_at.count());
+  c.set_expires_at_us(expires_at.count());
+  return c;
+}
+
+std::optional<v1::Command> make_mc_command(std::string_view vehicle, std::string_view action,
+                                           std::string_view value, Micros issued_at,
+                                           Micros expires_at, std::string command_id) {
+  v1::Command c;
+  if (action == "speed_limit") {
+    unsigned kmh = 0;
+    const auto [end, ec] = std::from_chars(value.data(), value.data() + value.size(), kmh);
+    if (ec != std::errc() || end != value.data() + value.size() || kmh > 255) return std::nullopt;
+    c.mutable_speed_limit()->set_kmh(kmh);
+  } else if (action == "assist_level") {
+    if (value.empty()) return std::nullopt;
+    c.mutable_assist_level()->set_level(std::string(value));
+  } else if (action == "headlight") {
+    if (value != "on" && value != "off") return std::nullopt;
+    c.mutable_headlight()->set_on(value == "on");
+  } else if (action == "clear_trip") {
+    c.mutable_clear_trip();
+  } else if (action == "power_off") {
+    c.mutable_power_off();
+  } else {
+    return std::nullopt;
   }
   c.set_command_id(std::move(command_id));
   c.set_vehicle_id(std::string(vehicle));

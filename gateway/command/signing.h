@@ -48,6 +48,12 @@ std::string random_command_id();
 std::optional<v1::Command> make_command(std::string_view vehicle, std::string_view lock,
                                         std::string_view action, Micros issued_at,
                                         Micros expires_at, std::string command_id);
+// A Command carrying one MC action (issue 13): `action` "speed_limit" (value: km/h, 0..255),
+// "assist_level" (value: a level name), "headlight" (value: "on" or "off"), "clear_trip" or
+// "power_off" (value ignored); nullopt for an unknown action or a bad value.
+std::optional<v1::Command> make_mc_command(std::string_view vehicle, std::string_view action,
+                                           std::string_view value, Micros issued_at,
+                                           Micros expires_at, std::string command_id);
 // Serialized fleetgw.v1.SignedCommand: `command` serialized once, signed over exactly those
 // bytes; `command_sha256` (optional) receives the raw SHA-256 of those bytes.
 std::string sign_command(const v1::Command& command, const Ed25519PrivateKey& key,

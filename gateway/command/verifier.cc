@@ -74,6 +74,36 @@ std::string_view reject_reason_name(RejectReason reason) {
       return "shutting_down";
     case RejectReason::kStorageError:
       return "storage_error";
+    case RejectReason::kMcOffline:
+      return "mc_offline";
+    case RejectReason::kMcBusy:
+      return "mc_busy";
+    case RejectReason::kMcStateUnknown:
+      return "mc_state_unknown";
+    case RejectReason::kOutOfRange:
+      return "out_of_range";
+    case RejectReason::kUnknownAssistLevel:
+      return "unknown_assist_level";
+    case RejectReason::kLockMoving:
+      return "lock_moving";
+  }
+  return "unknown";
+}
+
+std::string_view mc_action_name(McActionKind kind) {
+  switch (kind) {
+    case McActionKind::kNone:
+      return "lock";
+    case McActionKind::kSpeedLimit:
+      return "speed_limit";
+    case McActionKind::kAssistLevel:
+      return "assist_level";
+    case McActionKind::kHeadlight:
+      return "headlight";
+    case McActionKind::kClearTrip:
+      return "clear_trip";
+    case McActionKind::kPowerOff:
+      return "power_off";
   }
   return "unknown";
 }
@@ -152,18 +182,54 @@ VerifyResult CommandVerifier::authenticate(std::span<const std::uint8_t> payload
   if (cmd.issued_at_us() <= 0) return bad("no issued_at_us");
   if (cmd.expires_at_us() <= 0) return bad("no expires_at_us");
   if (cmd.expires_at_us() <= cmd.issued_at_us()) return bad("expires_at_us <= issued_at_us");
-  if (cmd.action() != v1::COMMAND_ACTION_LOCK && cmd.action() != v1::COMMAND_ACTION_UNLOCK) {
-    return bad("action is neither LOCK nor UNLOCK");
-  }
-  switch (cmd.target_case()) {
-    case v1::Command::kLockKind:
-      if (cmd.lock_kind().empty()) return bad("empty lock_kind");
-      break;
-    case v1::Command::kWholeVehicle:
-      if (!cmd.whole_vehicle()) return bad("whole_vehicle must be true when set");
-      break;
-    default:
-      return bad("no target (lock_kind or whole_vehicle)");
+  McRequest mc;
+  if (cmd.mc_action_case() != v1::Command::MC_ACTION_NOT_SET) {
+    // Never both: a gateway that predates mc_action would execute the lock part alone.
+    if (cmd.action() != v1::COMMAND_ACTION_UNSPECIFIED) {
+      return bad("an MC action must not carry a lock action");
+    }
+    if (cmd.target_case() != v1::Command::TARGET_NOT_SET) {
+      return bad("an MC action must not carry a lock target");
+    }
+    switch (cmd.mc_action_case()) {
+      case v1::Command::kSpeedLimit:
+        mc.kind = McActionKind::kSpeedLimit;
+        // The MC carries limits in one byte (0x5408); the MC's own range is checked later.
+        if (cmd.speed_limit().kmh() > 255) return bad("speed_limit.kmh above 255");
+        mc.speed_limit_kmh = cmd.speed_limit().kmh();
+        break;
+      case v1::Command::kAssistLevel:
+        mc.kind = McActionKind::kAssistLevel;
+        if (cmd.assist_level().level().empty()) return bad("empty assist_level.level");
+        mc.assist_level = cmd.assist_level().level();
+        break;
+      case v1::Command::kHeadlight:
+        mc.kind = McActionKind::kHeadlight;
+        mc.headlight_on = cmd.headlight().on();
+        break;
+      case v1::Command::kClearTrip:
+        mc.kind = McActionKind::kClearTrip;
+        break;
+      case v1::Command::kPowerOff:
+        mc.kind = McActionKind::kPowerOff;
+        break;
+      default:
+        return bad("unknown mc_action");
+    }
+  } else {
+    if (cmd.action() != v1::COMMAND_ACTION_LOCK && cmd.action() != v1::COMMAND_ACTION_UNLOCK) {
+      return bad("action is neither LOCK nor UNLOCK");
+    }
+    switch (cmd.target_case()) {
+      case v1::Command::kLockKind:
+        if (cmd.lock_kind().empty()) return bad("empty lock_kind");
+        break;
+      case v1::Command::kWholeVehicle:
+        if (!cmd.whole_vehicle()) return bad("whole_vehicle must be true when set");
+        break;
+      default:
+        return bad("no target (lock_kind or whole_vehicle)");
+    }
   }
 
   const auto key = keys_.find(signed_cmd.key_id());
@@ -195,7 +261,8 @@ VerifyResult CommandVerifier::authenticate(std::span<const std::uint8_t> payload
   out.target = cmd.action() == v1::COMMAND_ACTION_LOCK ? node::LockTarget::kLocked
                                                        : node::LockTarget::kUnlocked;
   out.whole_vehicle = cmd.target_case() == v1::Command::kWholeVehicle;
-  if (!out.whole_vehicle) out.lock_kind = cmd.lock_kind();
+  if (cmd.target_case() == v1::Command::kLockKind) out.lock_kind = cmd.lock_kind();
+  out.mc = std::move(mc);
   out.command_sha256 = std::move(digest);
   return out;
 }
@@ -230,7 +297,7 @@ std::optional<Rejection> CommandVerifier::check(VerifiedCommand& c, Micros now,
   if (seen && seen(c.command_id, now)) {
     return reject_auth(RejectReason::kReplayed, "command id already seen");
   }
-  if (!c.whole_vehicle) {
+  if (!c.whole_vehicle && c.mc.kind == McActionKind::kNone) {
     c.lock_index = -1;
     for (std::size_t k = 0; k < config_.lock_kinds.size(); ++k) {
       if (!config_.lock_kinds[k].empty() && config_.lock_kinds[k] == c.lock_kind) {

@@ -15,7 +15,9 @@
 //      7. issued_in_future     issued_at > now + clock skew allowance
 //      8. validity_too_long    expires_at - issued_at > max_validity (a standing unlock token)
 //      9. replayed             the command id was already seen (and has not expired)
-//     10. lock_not_fitted      the lock kind is not fitted to this bike
+//     10. lock_not_fitted      the lock kind is not fitted to this bike (lock commands only)
+//    A command carries either a lock action and target or one MC action (Command.mc_action,
+//    issue 13); a mix of both, or an MC action with a missing/absurd value, is malformed.
 //    The clock check comes before the time checks because they are meaningless on an
 //    unsynchronised clock (it would report "issued in the future" instead of the real cause).
 //  * authenticate() runs checks 1-4 only: what the command service needs to recognise a
@@ -75,11 +77,19 @@ enum class RejectReason : std::uint8_t {
   kLockBusy,
   kShuttingDown,
   kStorageError,
+  // MC actions (issue 13; mc_actions.h), before anything is written to the MC
+  kMcOffline,
+  kMcBusy,
+  kMcStateUnknown,
+  kOutOfRange,
+  kUnknownAssistLevel,
+  kLockMoving,
 };
 // The reason as sent in CommandResult.reason: "malformed", "unknown_key", "signature_invalid",
 // "wrong_vehicle", "clock_unsynchronised", "expired", "issued_in_future", "validity_too_long",
 // "replayed", "lock_not_fitted", "lock_offline", "interlock_moving", "interlock_motion_unknown",
-// "lock_busy", "shutting_down", "storage_error".
+// "lock_busy", "shutting_down", "storage_error", "mc_offline", "mc_busy", "mc_state_unknown",
+// "out_of_range", "unknown_assist_level", "lock_moving".
 std::string_view reject_reason_name(RejectReason reason);
 
 // "succeeded", "failed", "timeout", "rejected" or "unspecified": the result names used in logs,
@@ -98,6 +108,25 @@ struct Rejection {
   std::string payload_sha256{};
 };
 
+// The MC actions of issue 13 (Command.mc_action); kNone for a lock command.
+enum class McActionKind : std::uint8_t {
+  kNone,
+  kSpeedLimit,
+  kAssistLevel,
+  kHeadlight,
+  kClearTrip,
+  kPowerOff,
+};
+// "speed_limit", "assist_level", "headlight", "clear_trip", "power_off" ("lock" for kNone).
+std::string_view mc_action_name(McActionKind kind);
+
+struct McRequest {
+  McActionKind kind = McActionKind::kNone;
+  std::uint32_t speed_limit_kmh = 0;  // kSpeedLimit
+  std::string assist_level;           // kAssistLevel: configured name, untrusted until resolved
+  bool headlight_on = false;          // kHeadlight
+};
+
 // A command that passed authentication (and, from verify(), every check).
 struct VerifiedCommand {
   std::string command_id;
@@ -107,7 +136,8 @@ struct VerifiedCommand {
   Micros expires_at{0};
   node::LockTarget target = node::LockTarget::kLocked;  // lock -> kLocked, unlock -> kUnlocked
   bool whole_vehicle = false;
-  std::string lock_kind;  // empty for whole_vehicle
+  std::string lock_kind;  // empty for whole_vehicle and MC actions
+  McRequest mc;           // mc.kind != kNone: an MC action (no lock target)
   int lock_index = -1;    // 0-based LOCK k (node 7 + k); -1 for whole_vehicle or not yet resolved
   // SHA-256 of the signed Command bytes: binds the result to them and tells a redelivery (same
   // bytes) from a reused id (different bytes).

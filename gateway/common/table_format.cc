@@ -132,16 +132,24 @@ void write_table(const Table& t, std::ostream& out) {
   for (const auto& row : text) line([&](std::size_t c) -> const std::string& { return row[c]; });
 }
 
-void write_csv(const Table& t, std::ostream& out) {
-  const std::size_t ncol = t.columns.size();
-  for (std::size_t c = 0; c < ncol; ++c) out << (c ? "," : "") << csv_field(t.columns[c].key);
-  out << "\r\n";
-  for (const auto& row : t.rows) {
-    for (std::size_t c = 0; c < ncol; ++c) {
-      out << (c ? "," : "") << csv_text(c < row.size() ? row[c] : json(), t.columns[c].decimals);
-    }
-    out << "\r\n";
+void write_csv_header(const std::vector<Column>& columns, std::ostream& out) {
+  for (std::size_t c = 0; c < columns.size(); ++c) {
+    out << (c ? "," : "") << csv_field(columns[c].key);
   }
+  out << "\r\n";
+}
+
+void write_csv_record(const std::vector<Column>& columns, const std::vector<json>& row,
+                      std::ostream& out) {
+  for (std::size_t c = 0; c < columns.size(); ++c) {
+    out << (c ? "," : "") << csv_text(c < row.size() ? row[c] : json(), columns[c].decimals);
+  }
+  out << "\r\n";
+}
+
+void write_csv(const Table& t, std::ostream& out) {
+  write_csv_header(t.columns, out);
+  for (const auto& row : t.rows) write_csv_record(t.columns, row, out);
 }
 
 void write_json(const Table& t, std::ostream& out) {

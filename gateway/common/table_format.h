@@ -51,6 +51,11 @@ struct Table {
 
 void write_table(const Table& t, std::ostream& out);
 void write_csv(const Table& t, std::ostream& out);
+// The two halves of write_csv, for writers that stream rows (`db export --format csv`): the
+// header record of the column keys, and one record of `row` (cells as above).
+void write_csv_header(const std::vector<Column>& columns, std::ostream& out);
+void write_csv_record(const std::vector<Column>& columns, const std::vector<nlohmann::json>& row,
+                      std::ostream& out);
 void write_json(const Table& t, std::ostream& out);
 void write_as(OutputFormat format, const Table& t, std::ostream& out);
 

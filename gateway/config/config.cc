@@ -373,6 +373,7 @@ Config parse_root(const toml::table& root, const std::string& name) {
       s.integer("telemetry_qos", c.mqtt.telemetry_qos, 0, 1);
       s.integer("live_telemetry_max_age_ms", c.mqtt.live_telemetry_max_age_ms, 0, 86'400'000);
       s.integer("status_interval_ms", c.mqtt.status_interval_ms, 0, 86'400'000);
+      s.integer("state_interval_ms", c.mqtt.state_interval_ms, 0, 3'600'000);
       s.integer("batch_max_samples", c.mqtt.batch_max_samples, 1, 10'000);
       s.integer("batch_max_ms", c.mqtt.batch_max_ms, 0, 3'600'000);
       s.integer("reconnect_min_ms", c.mqtt.reconnect_min_ms, 10, 3'600'000);
@@ -412,6 +413,19 @@ Config parse_root(const toml::table& root, const std::string& name) {
       s.integer("battery_silent_ms", c.alarms.battery_silent_ms, 1000, 3'600'000);
     }
     {
+      auto s = top.sub("parked");
+      s.boolean("enabled", c.parked.enabled);
+      s.integer("settle_s", c.parked.settle_s, 1, 3600);
+      s.integer("poll_interval_ms", c.parked.poll_interval_ms, 5000, 86'400'000);
+      s.integer("telemetry_batch_ms", c.parked.telemetry_batch_ms, 0, 3'600'000);
+      s.integer("stale_poll_ms", c.parked.stale_poll_ms, 100, 60'000);
+      if (c.parked.stale_poll_ms >= std::min(c.node.fault_stale_ms, c.node.offline_timeout_ms)) {
+        s.invalid("stale_poll_ms",
+                  "must be below node.fault_stale_ms and node.offline_timeout_ms (a node that "
+                  "must be polled would be taken for a silent one)");
+      }
+    }
+    {
       auto s = top.sub("gnss");
       s.boolean("enabled", c.gnss.enabled);
       s.string("gpsd", c.gnss.gpsd);
@@ -429,6 +443,7 @@ Config parse_root(const toml::table& root, const std::string& name) {
       s.integer("interlock_motor_s", c.command.interlock_motor_s, 0, 600);
       s.integer("confirm_timeout_ms", c.command.confirm_timeout_ms, 200, 60'000);
       s.integer("retries", c.command.retries, 0, 10);
+      s.choice("mc_settings_limit", c.command.mc_settings_limit, {"factory", "effective"});
       auto keys = s.sub("trusted_keys");
       keys.string_map(c.command.trusted_keys);
     }

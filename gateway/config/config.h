@@ -100,6 +100,7 @@ struct MqttConfig {
   int telemetry_qos = 0;  // live telemetry (newest sample younger than live_telemetry_max_age_ms)
   int live_telemetry_max_age_ms = 10'000;
   int status_interval_ms = 60'000;  // retained online status refresh; 0 = only on connect
+  int state_interval_ms = 5000;  // retained vehicle state: on a change, at most this often; 0 = off
   int batch_max_samples = 200;
   int batch_max_ms = 5000;
   int reconnect_min_ms = 1000;
@@ -132,6 +133,16 @@ struct AlarmsConfig {
   int battery_silent_ms = 10000;
 };
 
+// [parked] (docs/data-model.md "Parked mode"): the gateway's rates while the vehicle is locked
+// and still; the first movement, unlock or alarm restores the normal rates at once.
+struct ParkedSection {
+  bool enabled = true;
+  int settle_s = 30;                 // locked and still this long before parked
+  int poll_interval_ms = 300'000;    // slow poll blocks (own period >= 5 s) at most this often
+  int telemetry_batch_ms = 300'000;  // an uplink telemetry batch waits up to this long
+  int stale_poll_ms = 1900;  // stale-rule reads (< 5 s) at most this often; < fault_stale_ms
+};
+
 // [gnss]: the position from a GNSS receiver through gpsd (docs/location.md).
 struct GnssConfig {
   bool enabled = false;
@@ -147,6 +158,10 @@ struct CommandConfig {
   int interlock_motor_s = 5;
   int confirm_timeout_ms = 3000;
   int retries = 1;
+  // [G] MC settings report 0x5408 byte 2: "factory" (the factory speed limit, best guess) or
+  // "effective" (the limit in force); remote speed-limit commands compute the 0x3408 offset
+  // from the factory limit.
+  std::string mc_settings_limit = "factory";
 };
 
 struct StatusConfig {
@@ -171,6 +186,7 @@ struct Config {
   RideConfig ride;
   FaultConfig faults;
   AlarmsConfig alarms;
+  ParkedSection parked;
   GnssConfig gnss;
   CommandConfig command;
   StatusConfig status;

@@ -26,6 +26,13 @@ constexpr std::array<std::pair<std::string_view, v1::AlarmKind>, 6> kKinds = {{
 
 }  // namespace
 
+int alarm_kind_number(std::string_view kind) {
+  for (const auto& [name, number] : kKinds) {
+    if (name == kind) return static_cast<int>(number);
+  }
+  return static_cast<int>(v1::ALARM_KIND_UNSPECIFIED);
+}
+
 storage::Bytes alarm_payload(const storage::AlarmRecord& rec, const AlarmExtras& extras) {
   v1::Alarm a;
   for (const auto& [name, kind] : kKinds) {

@@ -7,6 +7,7 @@
 
 #include <optional>
 #include <string>
+#include <string_view>
 
 #include "storage/records.h"
 
@@ -18,6 +19,9 @@ struct AlarmExtras {
   std::optional<double> soh_pct;  // battery_swapped: the new pack's
   std::optional<double> cycles;   // battery_swapped: the new pack's
 };
+
+// The fleetgw.v1.AlarmKind number of a kind text (0, UNSPECIFIED, when unknown).
+int alarm_kind_number(std::string_view kind);
 
 storage::Bytes alarm_payload(const storage::AlarmRecord& rec, const AlarmExtras& extras);
 

@@ -17,6 +17,19 @@ constexpr int kUnlocking = 3;
 constexpr int kLocking = 4;
 constexpr int kLockFailed = 6;
 
+// Why a swap was armed when the gateway restarted: it could not watch the battery lock meanwhile.
+constexpr std::string_view kArmedByRestart = "changed while the gateway was off";
+
+// A serial from the bus is untrusted: it ends up in the store, a log and a protobuf string
+// (which must be UTF-8). Printable ASCII only, bounded.
+std::string printable_serial(std::string_view s) {
+  std::string out(s.substr(0, 32));
+  for (char& c : out) {
+    if (c < 0x20 || c > 0x7E) c = '?';
+  }
+  return out;
+}
+
 std::string format(const char* fmt, double a, double b = 0) {
   std::array<char, 160> buf{};
   std::snprintf(buf.data(), buf.size(), fmt, a, b);
@@ -65,6 +78,22 @@ bool AlarmTracker::active() const {
   if (movement_.active || removed_.active) return true;
   return std::any_of(locks_.begin(), locks_.end(),
                      [](const Lock& l) { return l.forced.active || l.tamper.active; });
+}
+
+std::vector<std::string_view> AlarmTracker::active_kinds() const {
+  std::vector<std::string_view> out;
+  if (movement_.active) out.emplace_back("unauthorised_movement");
+  if (std::any_of(locks_.begin(), locks_.end(), [](const Lock& l) { return l.forced.active; })) {
+    out.emplace_back("lock_forced");
+  }
+  if (std::any_of(locks_.begin(), locks_.end(), [](const Lock& l) { return l.tamper.active; })) {
+    out.emplace_back("lock_tamper");
+  }
+  if (std::find(low_emitted_.begin(), low_emitted_.end(), true) != low_emitted_.end()) {
+    out.emplace_back("low_battery");
+  }
+  if (removed_.active) out.emplace_back("battery_removed");
+  return out;
 }
 
 bool AlarmTracker::locked() const {
@@ -127,6 +156,8 @@ void AlarmTracker::on_message(const motinova::DecodedMessage& msg, Micros now) {
     after_shutdown_ = false;
     update(soh_, msg, "soh_pct", now);
     update(cycles_, msg, "cycles", now);
+    // The first status after a new serial is the new pack's: the swap alarm carries its SOH.
+    if (pending_swap_) raise_swap(now);
     if (removed_.active) {
       removed_.active = false;
       emit(record("battery_removed", storage::AlarmTransition::kCleared, now, removed_.first));
@@ -172,6 +203,7 @@ void AlarmTracker::on_mc_status(const motinova::DecodedMessage& msg, Micros now)
 void AlarmTracker::on_lock_status(std::size_t index, int state, Micros now) {
   Lock& l = locks_.at(index);
   const std::optional<int> before = std::exchange(l.state, state);
+  if (config_.lock_kinds[index] == "battery") on_battery_lock(state);
   const std::string lock_name =
       "lock" + std::to_string(index + 1) + " (" + config_.lock_kinds[index] + ")";
   if (l.forced.active && state == kLocked) {
@@ -250,21 +282,67 @@ void AlarmTracker::on_soc(double soc, Micros now) {
   emit(std::move(rec));
 }
 
+void AlarmTracker::restore_bms_serial(std::string serial) {
+  serial = printable_serial(serial);
+  if (serial.empty()) return;
+  bms_serial_ = std::move(serial);
+  swap_armed_by_ = std::string(kArmedByRestart);
+}
+
+void AlarmTracker::on_battery_lock(int state) {
+  battery_lock_state_ = state;
+  // Opening the battery lock is the only way to take the pack out: the next serial decides.
+  if (state == kUnlocked || state == kUnlocking) swap_armed_by_ = "battery lock opened";
+}
+
+void AlarmTracker::remember_serial(std::string serial) {
+  bms_serial_ = serial;
+  sink_.batch().meta.emplace_back(std::string(kBmsSerialMetaKey), std::move(serial));
+}
+
 void AlarmTracker::on_bms_serial(std::string serial, Micros now) {
-  if (bms_serial_.empty() || serial == bms_serial_) {
-    bms_serial_ = std::move(serial);
+  serial = printable_serial(serial);
+  if (serial.empty()) return;
+  if (bms_serial_.empty()) {  // the first pack this store knows: nothing to compare with
+    swap_armed_by_.reset();
+    remember_serial(std::move(serial));
     return;
   }
+  if (serial == bms_serial_) {
+    // The same pack: a restart's doubt is settled at once, a lock opening once it is closed
+    // again (the pack may still be swapped while the lock is open).
+    if (swap_armed_by_ && (*swap_armed_by_ == kArmedByRestart || battery_lock_state_ == kLocked)) {
+      swap_armed_by_.reset();
+    }
+    return;
+  }
+  if (!swap_armed_by_ && battery_lock_state_) {
+    // A battery lock is fitted and stayed closed: no swap to report (workshop data, a BMS
+    // board replaced); the new serial becomes the reference.
+    remember_serial(std::move(serial));
+    return;
+  }
+  pending_swap_ = PendingSwap{bms_serial_, serial,
+                              swap_armed_by_.value_or("no battery lock heard on this bike"), now};
+  swap_armed_by_.reset();
+  remember_serial(std::move(serial));
+}
+
+void AlarmTracker::raise_swap(Micros now) {
+  const PendingSwap p = std::move(*pending_swap_);
+  pending_swap_.reset();
   ++raised_total_;
-  storage::AlarmRecord rec = record("battery_swapped", storage::AlarmTransition::kRaised, now, now);
-  rec.old_bms_serial = std::exchange(bms_serial_, serial);
-  rec.new_bms_serial = std::move(serial);
-  rec.detail = "battery " + rec.old_bms_serial + " replaced by " + rec.new_bms_serial;
+  storage::AlarmRecord rec =
+      record("battery_swapped", storage::AlarmTransition::kRaised, now, p.at);
+  rec.old_bms_serial = p.old_serial;
+  rec.new_bms_serial = p.new_serial;
+  rec.detail = "battery " + p.old_serial + " replaced by " + p.new_serial + " (" + p.why + ")";
   emit(std::move(rec));
 }
 
 void AlarmTracker::tick(Micros now) {
   if (!config_.enabled) return;
+  if (pending_swap_ && now - pending_swap_->at >= kSwapStatusWait) raise_swap(now);
   if (movement_.active && now - last_evidence_ >= config_.movement_clear) {
     movement_.active = false;
     evidence_since_.reset();
@@ -311,9 +389,10 @@ void AlarmTracker::emit(storage::AlarmRecord rec) {
       extras.lock_kind = config_.lock_kinds[static_cast<std::size_t>(index)];
   }
   if (rec.kind == "battery_swapped") {
-    const Micros now(rec.ts_us);
-    if (const auto v = fresh(soh_, now, std::chrono::seconds(5))) extras.soh_pct = *v;
-    if (const auto v = fresh(cycles_, now, std::chrono::seconds(5))) extras.cycles = *v;
+    // Only what the BMS said since the new serial was read: the new pack's, not the old one's.
+    const Micros since(rec.first_evidence_us);
+    if (soh_ && soh_->at >= since) extras.soh_pct = soh_->value;
+    if (cycles_ && cycles_->at >= since) extras.cycles = cycles_->value;
   }
   storage::Bytes payload = alarm_payload(rec, extras);
   sink_.batch().alarms.push_back({std::move(rec), std::move(payload)});

@@ -20,8 +20,14 @@
 //    several are crossed at once); cleared when SOC is back at threshold + hysteresis.
 //  * BATTERY_REMOVED: BMS heard before, silent for battery_silent while parked (locked, no
 //    movement evidence) and not after a system SHUTDOWN; cleared when the BMS talks again.
-//  * BATTERY_SWAPPED: the BMS model info reports a serial different from the one seen before
-//    (one-shot: raised only), with the new pack's SOH and cycles when fresh.
+//  * BATTERY_SWAPPED (one-shot: raised only): the BMS model info reports a serial different
+//    from the last known one AFTER the battery lock (a lock of kind "battery") opened, or first
+//    thing after a restart (restore_bms_serial(): the lock could not be watched while the gateway
+//    was off), or on a bike where no battery lock was ever heard. A different serial without any
+//    of these is adopted silently (no lock opened: not a swap the operator must act on). The
+//    alarm waits for the first BMS status after the new serial (at most kSwapStatusWait) so its
+//    SOH and cycles are the new pack's. Every change of the known serial is appended to the
+//    sink's meta (kBmsSerialMetaKey), so the store keeps the last known serial across restarts.
 //  * active() (an alarm other than low battery is raised) and moving_while_locked() drive the
 //    telemetry's riding rate (DomainTrackers).
 #pragma once
@@ -30,6 +36,7 @@
 #include <cstdint>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "gateway/domain/alarm_config.h"
@@ -48,9 +55,21 @@ class AlarmTracker {
   void tick(Micros now);
   // The gateway is about to drive `lock` (kBroadcast: every lock): its next changes are commanded.
   void expect_command(motinova::Node lock, Micros now);
+  // Call once, before the first message, with the serial stored by a previous run (the store's
+  // meta kBmsSerialMetaKey); an empty string is ignored.
+  void restore_bms_serial(std::string serial);
 
+  static constexpr std::string_view kBmsSerialMetaKey = "domain.last_bms_serial";
+  // How long a detected swap waits for the new pack's BMS status (SOH, cycles).
+  static constexpr Micros kSwapStatusWait{5'000'000};
+
+  // The vehicle counts as locked: 0x760 LOCK since the last UNLOCK, or a frame-kind lock locked.
+  bool locked() const;
   bool moving_while_locked() const { return evidence_since_.has_value() || movement_.active; }
   bool active() const;
+  // Kinds of the alarms raised and not cleared ("lock_forced", "low_battery"...), each once, in
+  // a fixed order (the retained vehicle state lists them). battery_swapped is one-shot: never.
+  std::vector<std::string_view> active_kinds() const;
   uint64_t raised_total() const { return raised_total_; }
 
  private:
@@ -65,12 +84,14 @@ class AlarmTracker {
     Episode tamper;
   };
 
-  bool locked() const;
   void on_mc_status(const motinova::DecodedMessage& msg, Micros now);
   void on_lock_status(std::size_t index, int state, Micros now);
   void on_lock_faults(std::size_t index, uint32_t bits, Micros now);
   void on_soc(double soc, Micros now);
   void on_bms_serial(std::string serial, Micros now);
+  void on_battery_lock(int state);
+  void raise_swap(Micros now);
+  void remember_serial(std::string serial);
   storage::AlarmRecord record(std::string_view kind, storage::AlarmTransition t, Micros now,
                               Micros first) const;
   void emit(storage::AlarmRecord rec);
@@ -93,6 +114,15 @@ class AlarmTracker {
   std::vector<bool> low_fired_;    // per threshold (config order): crossed, not re-armed
   std::vector<bool> low_emitted_;  // per threshold: a raised record was sent for it
   std::string bms_serial_;
+  // Battery swap: armed (with why) by the battery lock opening or a restart; pending while the
+  // alarm waits for the new pack's status.
+  struct PendingSwap {
+    std::string old_serial, new_serial, why;
+    Micros at{0};
+  };
+  std::optional<std::string> swap_armed_by_;
+  std::optional<PendingSwap> pending_swap_;
+  std::optional<int> battery_lock_state_;
   uint64_t raised_total_ = 0;
 };
 

@@ -36,6 +36,9 @@ class DomainTrackers {
   DomainTrackers(DomainConfig config, DomainSink& sink);
 
   void restore(std::span<const storage::Ride> open_rides, Micros now);
+  // The last BMS serial a previous run stored (meta AlarmTracker::kBmsSerialMetaKey), so a
+  // battery swapped while the gateway was off is still reported. Before the first message.
+  void restore_bms_serial(std::string serial) { alarms_.restore_bms_serial(std::move(serial)); }
   void on_message(const motinova::DecodedMessage& msg, Micros now);
   void tick(Micros now);
   // The current GNSS fix, or nullopt when the position is unknown (the owner calls this on

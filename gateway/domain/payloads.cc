@@ -66,6 +66,10 @@ v1::LockState lock_state_of(int raw) {
 
 }  // namespace
 
+int lock_state_number(int raw) {
+  return static_cast<int>(lock_state_of(raw));
+}
+
 storage::Bytes ride_payload(const storage::Ride& r, const RideExtras& extras) {
   v1::RideRecord m;
   m.set_ride_id(r.ride_id);

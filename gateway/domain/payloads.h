@@ -22,6 +22,9 @@
 
 namespace fleetgw::domain {
 
+// The fleetgw.v1.LockState number of a U19 lock state code (the LockEvent mapping, lock.proto).
+int lock_state_number(int raw);
+
 struct RideExtras {
   std::string partial_reason;                  // "gateway_restart", "bus_lost", ... or empty
   std::map<std::string, unsigned> assist_raw;  // assist name -> raw bus value, when known

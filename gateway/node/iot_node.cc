@@ -94,4 +94,12 @@ bool IotNode::start_shutdown(Micros now, ShutdownProcedure::AccOff acc_off) {
                          acc_off ? std::move(acc_off) : hooks_.acc_off);
 }
 
+bool IotNode::start_shutdown_observed(Micros now, ShutdownProcedure::AccOff observer) {
+  return start_shutdown(
+      now, [hook = hooks_.acc_off, observer = std::move(observer)](const ShutdownOutcome& outcome) {
+        if (hook) hook(outcome);
+        if (observer) observer(outcome);
+      });
+}
+
 }  // namespace fleetgw::node

@@ -78,6 +78,10 @@ class IotNode {
   // §3.8.2. Waits for READY from the MC and the OBC if they are online. `acc_off` defaults to
   // hooks.acc_off. False if a shutdown is already running.
   bool start_shutdown(Micros now, ShutdownProcedure::AccOff acc_off = nullptr);
+  // The same, but the ACC still goes off through hooks.acc_off and `observer` is told the
+  // outcome afterwards (a remote power-off command confirms from the READY replies without
+  // taking the hardware hook away).
+  bool start_shutdown_observed(Micros now, ShutdownProcedure::AccOff observer);
 
   void set_poll_result_callback(Poller::ResultCallback cb) {
     poller_.set_result_callback(std::move(cb));
@@ -86,6 +90,8 @@ class IotNode {
   NodeRegistry& registry() { return registry_; }
   const NodeRegistry& registry() const { return registry_; }
   const Poller& poller() const { return poller_; }
+  // The runtime's parked mode slows the poller down (Poller::set_parked_period).
+  Poller& poller() { return poller_; }
   // Commands of other areas (MC settings, assist, CLEAR) submit here so that they queue behind
   // polls on the same ID instead of overlapping them.
   RequestEngine& requests() { return engine_; }

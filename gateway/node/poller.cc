@@ -55,7 +55,32 @@ void Poller::record_answer(std::size_t index, Micros now) {
   if (table_[index].period == Micros{0}) {
     s.done = true;
   } else {
-    s.next_due = now + table_[index].period;
+    s.next_due = now + period(index);
+  }
+}
+
+Micros Poller::period(std::size_t index) const {
+  const Micros own = table_[index].period;
+  if (!parked_ || own == Micros{0}) return own;
+  return std::max(own, own >= kSlowEntryPeriod ? parked_->slow_min : parked_->fast_min);
+}
+
+void Poller::set_parked(std::optional<ParkedPolling> parked, Micros now) {
+  last_now_ = now;
+  if (parked_.has_value() == parked.has_value() &&
+      (!parked ||
+       (parked_->slow_min == parked->slow_min && parked_->fast_min == parked->fast_min))) {
+    return;
+  }
+  parked_ = parked;
+  for (std::size_t i = 0; i < table_.size(); ++i) {
+    PollEntryStatus& s = status_[i];
+    // Entries in flight, backing off or never answered keep their schedule.
+    if (table_[i].period == Micros{0} || s.in_flight || s.consecutive_failures > 0 ||
+        !s.last_answer) {
+      continue;
+    }
+    s.next_due = *s.last_answer + period(i);
   }
 }
 

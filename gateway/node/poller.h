@@ -13,6 +13,13 @@
 //  * rearm(node) makes the once-entries of that node due again (the node came back online,
 //    possibly as a different unit after a battery swap) and cuts the back-off of its periodic
 //    entries short (due within min(period, startup_grace)).
+//  * Parked mode (set_parked): while set, every periodic entry whose own period is at least
+//    kSlowEntryPeriod (pack statistics, odometer, MC settings: blocks that are read, not
+//    broadcast) waits at least `slow_min`, and every faster one (the stale-rule reads of
+//    broadcast blocks) at least `fast_min`, which the configuration keeps below the node's
+//    offline and fault-stale timeouts so that a node that must be polled is never taken for a
+//    silent one. Clearing it restores the table's periods at once: an entry overdue by its own
+//    period is due immediately. Answers are recorded the same way in both modes.
 //  * Every completed read is reported through the result callback (answered / timed out,
 //    latency, transmissions). Reads go through the RequestEngine, which enforces one outstanding
 //    request per target ID.
@@ -28,6 +35,11 @@
 #include "gateway/node/request_engine.h"
 
 namespace fleetgw::node {
+
+struct ParkedPolling {
+  Micros slow_min{0};  // entries of >= Poller::kSlowEntryPeriod
+  Micros fast_min{0};  // the others
+};
 
 struct PollResult {
   const PollEntry* entry = nullptr;  // valid as long as the Poller lives
@@ -61,6 +73,11 @@ class Poller {
   // The earliest time an entry is due (Micros::max(): none, or not started).
   Micros next_event() const;
   void rearm(motinova::Node node, Micros now);
+  // See the contract; nullopt = the table's own periods.
+  void set_parked(std::optional<ParkedPolling> parked, Micros now);
+  static constexpr Micros kSlowEntryPeriod{5'000'000};
+  // The period entry `index` is read with now (the table's, or the parked minimum).
+  Micros period(std::size_t index) const;
 
   std::span<const PollEntry> table() const { return table_; }
   const PollEntryStatus& status(std::size_t index) const { return status_[index]; }
@@ -78,6 +95,7 @@ class Poller {
   RequestEngine& engine_;
   ResultCallback on_result_;
   bool started_ = false;
+  std::optional<ParkedPolling> parked_;
   Micros last_now_{0};  // latest time seen, for cancelling requests in the destructor
 };
 

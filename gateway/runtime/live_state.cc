@@ -18,11 +18,15 @@ void LiveState::update(const motinova::DecodedMessage& m, const motinova::Decode
     speed_kmh = m.number("speed_kmh");
     if (const auto* f = m.find("assist"); f && f->valid) {
       assist = f->text.empty() ? fmt::format("0x{:02X}", f->raw) : std::string(f->text);
+      assist_raw = f->raw;
     }
+    if (auto r = m.number("range_km")) range_km = r;
     if (auto h = m.number("headlight")) headlight = *h != 0.0;
     if (!pack_voltage_v) pack_voltage_v = m.number("voltage_v");
     if (auto t = m.number("motor_temp_c")) motor_temp_c = t;
     if (auto o = m.number("odo_km"); o && !odo_km) odo_km = o;
+  } else if (name == "mc_settings") {
+    if (auto l = m.number("speed_limit_kmh")) speed_limit_kmh = l;
   } else if (name == "mc_odometer") {
     odo_km = m.number("odo_km");
   } else if (name == "bms_status") {

@@ -5,6 +5,7 @@
 #pragma once
 
 #include <array>
+#include <cstdint>
 #include <optional>
 #include <string>
 #include <vector>
@@ -30,6 +31,9 @@ struct LockView {
 struct LiveState {
   std::optional<double> speed_kmh;
   std::optional<std::string> assist;
+  std::optional<int64_t> assist_raw;
+  std::optional<double> range_km;         // MC estimate (mc_status)
+  std::optional<double> speed_limit_kmh;  // as the MC's settings report (0x5408) gives it
   std::optional<bool> headlight;
   std::optional<double> soc_pct;
   std::optional<double> pack_voltage_v;

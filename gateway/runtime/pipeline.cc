@@ -63,6 +63,9 @@ Pipeline::Pipeline(asio::io_context& io, const config::Config& config, BusTransp
           }),
       outbox_(store),
       device_info_(core_.node().config().identity),
+      state_throttle_(
+          std::chrono::milliseconds(config.mqtt.enabled ? config.mqtt.state_interval_ms : 0)),
+      parked_config_(make_parked_config(config)),
       timer_(io) {
   bus_.transport->start([this](const motinova::CanFrame& frame, Micros ts) { on_frame(frame, ts); },
                         [this](const can::BusHealth& h) {
@@ -124,6 +127,8 @@ Pipeline::Pipeline(asio::io_context& io, const config::Config& config, BusTransp
     });
   }
   core_.add_listener(*recorder_);
+  parked_batch_delay_ = std::chrono::milliseconds(config.parked.telemetry_batch_ms);
+  attach_parked_feed();  // after the recorder: it reads what the trackers just concluded
   // Node identities go to the backend at start (our own) and whenever one is heard or changes.
   core_.node().registry().add_observer(device_info_);
   queue_device_info();
@@ -184,6 +189,7 @@ void Pipeline::on_frame(const motinova::CanFrame& frame, Micros ts) {
   if (first_ts_.count() < 0) first_ts_ = ts;
   last_frame_ts_ = ts;
   core_.on_can_frame(frame, ts);
+  state_throttle_.touch();  // the live values may have changed: a check at the next allowed time
   // Model blocks heard in one burst of frames become one DeviceInfo (queued in settle()).
   if (device_info_.due()) request_settle();
   // Measured on the frames actually delivered: a paced simulator's clock can run ahead of a
@@ -218,6 +224,7 @@ void Pipeline::settle() {
     bool more = false;
     if (device_info_.due()) queue_device_info();
     if (gnss_ && gnss_->changed()) apply_gnss();
+    if (uplink_ && state_throttle_.due(Clock::now())) update_vehicle_state();
     const auto due = recorder_->flush_deadline();
     const bool urgent = recorder_->urgent();
     // The deadline is "at the latest": pending telemetry rides along with a wake-up that
@@ -295,6 +302,7 @@ void Pipeline::arm_timer() {
   consider(recorder_->flush_deadline());
   if (uplink_) consider(uplink_->next_deadline());
   if (gnss_) consider(gnss_->next_deadline());
+  consider(state_throttle_.deadline());
   consider(next_live_);
   consider(stop_at_);
   if (!at) {
@@ -331,6 +339,7 @@ void Pipeline::on_timer() {
     if (t >= core_.next_event()) core_.tick(t);
   }
   if (gnss_) gnss_->on_timer();
+  state_throttle_.touch();  // a tick may have raised or cleared an alarm
   if (next_live_ && wall >= *next_live_) {
     std::ostream& out = options_.live_out ? *options_.live_out : std::cout;
     out << core_.live().line() << std::endl;
@@ -361,6 +370,7 @@ void Pipeline::queue_device_info() {
 
 void Pipeline::apply_gnss() {
   gnss_->take_changed();
+  state_throttle_.touch();
   const auto wall = gnss_->wall_now();
   const auto position = gnss_->state().current(wall);
   recorder_->trackers().on_position(position);
@@ -404,6 +414,12 @@ void Pipeline::finish() {
   if (device_info_.due()) queue_device_info();
   recorder_->flush(bus_.replay ? last_frame_ts_ : bus_now());
   if (!uplink_) return;
+  // The state the clean stop leaves retained (online = false) is the current one, not the last
+  // one the throttle let through.
+  if (state_throttle_.enabled()) {
+    state_throttle_.touch();
+    update_vehicle_state();
+  }
   uplink_->drain_for_stop();
   const auto deadline = Clock::now() + std::chrono::seconds(5);
   while (Clock::now() < deadline && outbox_.stats().depth > 0 &&

@@ -21,8 +21,9 @@
 //    next deadline (exact; bus timeline converted to the wall clock; not for replays, whose
 //    clock only moves with their frames), the listeners' idle tick (1 s, only when the bus is
 //    silent), the recorder's flush deadline, the uplink's next deadline, the live view, the
-//    run's duration. Nothing else wakes the loop: a replay as fast as possible is paced by its
-//    transport alone, and an idle bus costs only the node's own schedule.
+//    run's duration, the retained vehicle state's next check (only after something changed,
+//    at most every mqtt.state_interval_ms). Nothing else wakes the loop: a replay as fast as
+//    possible is paced by its transport alone, and an idle bus costs only the node's own schedule.
 //  * The simulated bus is read in batches (SimTransport::set_batch_window, 500 ms) except while
 //    a command or the shutdown waits for the bus; it is flushed before the core acts on a
 //    deadline and before a command is handled, so batching delays telemetry, never decisions.
@@ -52,8 +53,10 @@
 #include "gateway/node/transport_sender.h"
 #include "gateway/runtime/device_info_reporter.h"
 #include "gateway/runtime/gateway_core.h"
+#include "gateway/runtime/parked_mode.h"
 #include "gateway/runtime/recorder.h"
 #include "gateway/runtime/store_outbox.h"
+#include "gateway/runtime/vehicle_state.h"
 #include "gateway/sim/sim_transport.h"
 #include "gateway/uplink/uplink.h"
 #include "storage/store.h"
@@ -82,6 +85,8 @@ struct PipelineOptions {
 };
 
 // A stage could not be built from the configuration; what() names the section.
+ParkedConfig make_parked_config(const config::Config& config);
+
 class PipelineError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
@@ -121,6 +126,8 @@ class Pipeline {
   const gnss::GnssFeed* gnss() const { return gnss_.get(); }
   const Recorder& recorder() const { return *recorder_; }
   const PipelineCounters& counters() const { return counters_; }
+  // Parked (locked and still) or riding; nullopt before the first evaluation.
+  std::optional<bool> parked() const { return parked_ ? parked_->parked() : std::nullopt; }
   // Bus time covered by the frames delivered so far (0 before the first frame).
   double bus_seconds() const;
 
@@ -135,6 +142,9 @@ class Pipeline {
   std::optional<std::chrono::steady_clock::time_point> core_deadline() const;
   void queue_device_info();
   void apply_gnss();
+  void update_vehicle_state();
+  void attach_parked_feed();
+  void apply_parked_rates(bool parked);
   fleetgw::v1::BusState bus_state() const;
 
   asio::io_context& io_;
@@ -152,6 +162,10 @@ class Pipeline {
   DeviceInfoReporter device_info_;
   std::unique_ptr<gnss::GnssFeed> gnss_;
   std::optional<bool> gnss_fault_;  // last value given to the node's fault bit
+  StateThrottle state_throttle_;  // when the retained vehicle state is rebuilt (pipeline_state.cc)
+  ParkedConfig parked_config_;
+  std::unique_ptr<ParkedController> parked_;         // parked/riding (pipeline_state.cc)
+  std::chrono::milliseconds parked_batch_delay_{0};  // [parked] telemetry_batch_ms
 
   asio::steady_timer timer_;
   std::optional<std::chrono::steady_clock::time_point> armed_for_;

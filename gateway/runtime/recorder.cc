@@ -128,6 +128,9 @@ Recorder::Recorder(const config::Config& config, storage::Store& store, Micros n
     spdlog::info("resuming {} open ride(s) from the previous run", open.size());
   }
   trackers_.restore(open, now);
+  if (auto serial = store_.meta(domain::AlarmTracker::kBmsSerialMetaKey)) {
+    trackers_.restore_bms_serial(std::move(*serial));
+  }
   note_pending();
   last_now_ = now;
 }

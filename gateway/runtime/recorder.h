@@ -23,8 +23,9 @@
 //    (health().dropped_records). On a full disk the records that are never evicted are written
 //    without the telemetry, so they do not wait behind it. Repeated identical errors are
 //    logged once per 10 s with a count; recovery (space back) is automatic and logged.
-//  * Opening restores an open ride of a previous run (DomainTrackers::restore) before the first
-//    message. The destructor flushes, so a clean stop loses nothing that can be written.
+//  * Opening restores an open ride of a previous run (DomainTrackers::restore) and the last
+//    known BMS serial (store meta, for the battery-swap alarm) before the first message. The
+//    destructor flushes, so a clean stop loses nothing that can be written.
 #pragma once
 
 #include <chrono>
@@ -89,6 +90,7 @@ class Recorder final : public MessageListener {
   void set_retry_memory_bytes(std::size_t bytes) { retry_memory_bytes_ = bytes; }
 
   domain::DomainTrackers& trackers() { return trackers_; }
+  const domain::DomainTrackers& trackers() const { return trackers_; }
   uint64_t batches_written() const { return batches_; }
   uint64_t write_failures() const { return failures_; }
   std::size_t pending_records() const { return retry_.size() + sink_.batch().size(); }

@@ -176,6 +176,8 @@ int run_service(const config::Config& config, const ServiceOptions& options,
                     pipeline->bus_now()};
     in.storage_health = pipeline->recorder().health();
     in.gnss = pipeline->gnss();
+    in.open_ride = pipeline->recorder().trackers().rides().current(pipeline->bus_now());
+    in.parked = pipeline->parked();
     if (const uplink::Uplink* up = pipeline->uplink()) {
       const auto s = up->stats();
       in.uplink_failure =

@@ -9,6 +9,32 @@ double seconds(Micros d) {
   return static_cast<double>(d.count()) / 1e6;
 }
 
+template <typename T>
+nlohmann::json or_null(const std::optional<T>& v) {
+  return v ? nlohmann::json(*v) : nlohmann::json(nullptr);
+}
+
+// What the bike is doing: the latest decoded values (null until heard) and the open ride, its
+// distance as `fleetgw db rides` reports it (odometer when known, else integrated speed).
+nlohmann::json vehicle_json(const LiveState& live, const std::optional<storage::Ride>& ride,
+                            std::optional<bool> parked) {
+  nlohmann::json v = {{"speed_kmh", or_null(live.speed_kmh)}, {"soc_pct", or_null(live.soc_pct)},
+                      {"odo_km", or_null(live.odo_km)},       {"assist", or_null(live.assist)},
+                      {"riding", ride.has_value()},           {"ride", nullptr}};
+  v["mode"] = parked ? nlohmann::json(*parked ? "parked" : "riding") : nlohmann::json(nullptr);
+  if (ride) {
+    const bool odometer = ride->start_odo_km && ride->end_odo_km;
+    v["ride"] = {{"ride_id", ride->ride_id},
+                 {"start_us", ride->start_us},
+                 {"duration_s", ride->duration_s},
+                 {"moving_s", ride->moving_s},
+                 {"distance_km", odometer ? ride->distance_km : ride->distance_integrated_km},
+                 {"max_speed_kmh", ride->max_speed_kmh},
+                 {"soc_start_pct", or_null(ride->soc_start_pct)}};
+  }
+  return v;
+}
+
 }  // namespace
 
 nlohmann::json make_status_json(const StatusInputs& in) {
@@ -78,6 +104,7 @@ nlohmann::json make_status_json(const StatusInputs& in) {
     locks.push_back({{"kind", kind}, {"state", l.state_raw < 0 ? "unknown" : l.state}});
   }
   j["locks"] = std::move(locks);
+  j["vehicle"] = vehicle_json(in.core.live(), in.open_ride, in.parked);
 
   json broker = {
       {"enabled", in.uplink != nullptr}, {"connected", false}, {"uri", ""}, {"last_error", ""}};

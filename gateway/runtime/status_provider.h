@@ -42,6 +42,12 @@ struct StatusInputs {
   const gnss::GnssFeed* gnss = nullptr;  // nullptr when [gnss] is disabled
   // Wall clock for the ages of wall-clock times (failing_since_us...); 0 = system_clock::now().
   Micros wall_now{0};
+  // The ride in progress as the ride tracker would checkpoint it now (RideTracker::current);
+  // nullopt when parked or unknown. Shown in the "vehicle" section.
+  std::optional<storage::Ride> open_ride = std::nullopt;
+  // Parked mode (Pipeline::parked()): "mode" in the "vehicle" section is "parked" or "riding",
+  // null before the first evaluation.
+  std::optional<bool> parked = std::nullopt;
 };
 
 nlohmann::json make_status_json(const StatusInputs& in);

@@ -92,6 +92,11 @@ bool Bike::Impl::assist_allowed() const {
 
 void Bike::Impl::handle_mc_command(const AppFrame& f, bool from_obc) {
   if (!alive(Node::kMc)) return;
+  // Scenario: a firmware that takes no remote writes (reads and READY still work).
+  if (sc_.mc_ignores_writes && f.mode == motinova::Mode::kWrite) {
+    ++stats_.ignored_messages;
+    return;
+  }
   auto ack = [this, from_obc] {
     // U26: the MC confirms OBC writes; IOT writes are not acknowledged (verify by read-back).
     if (from_obc) after(reply_latency(), [this] { send_keyword(Node::kMc, 0x713, 0x53); });
@@ -373,6 +378,14 @@ void Bike::Impl::apply(const ScenarioEvent& ev) {
       ride_.charger_a = 0;
       ride_.charge_longest_s = std::max(ride_.charge_longest_s, ride_.charge_session_s);
       ride_.charge_session_s = 0;
+      break;
+    case Action::kSwapBattery:
+      // The model info (0x720/0x15) and the status blocks read the scenario's values, so the
+      // next answers come from the new pack.
+      sc_.bms.serial = ev.serial;
+      if (ev.soh_pct) sc_.soh_pct = *ev.soh_pct;
+      if (ev.cycles) sc_.cycles = *ev.cycles;
+      if (ev.soc_pct) ride_.remaining_mah = *ev.soc_pct / 100 * ride_.full_mah;
       break;
   }
 }

@@ -254,7 +254,7 @@ bool is_sim_node(motinova::Node n) {
          motinova::is_lock(n);
 }
 
-constexpr std::array<std::pair<std::string_view, Action>, 15> kActions{{
+constexpr std::array<std::pair<std::string_view, Action>, 16> kActions{{
     {"fault", Action::kFault},
     {"clear", Action::kClear},
     {"jam_lock", Action::kJamLock},
@@ -270,6 +270,7 @@ constexpr std::array<std::pair<std::string_view, Action>, 15> kActions{{
     {"unlock", Action::kUnlock},
     {"plug_charger", Action::kPlugCharger},
     {"unplug_charger", Action::kUnplugCharger},
+    {"swap_battery", Action::kSwapBattery},
 }};
 
 motinova::Node read_node(TableReader& r, bool required, bool locks_only, const Scenario& scenario) {
@@ -366,6 +367,15 @@ ScenarioEvent read_event(TableReader& r, const Scenario& scenario) {
       ev.current_a = *a;
       break;
     }
+    case Action::kSwapBattery: {
+      const auto serial = r.ascii("serial", 16);
+      if (!serial || serial->empty()) r.fail(nullptr, "serial", "missing key (the new BMS serial)");
+      ev.serial = *serial;
+      if (auto v = r.integer("soh_pct", 0, 100)) ev.soh_pct = static_cast<uint8_t>(*v);
+      if (auto v = r.integer("cycles", 0, 65535)) ev.cycles = static_cast<uint16_t>(*v);
+      if (auto v = r.number("soc_pct", 0, 100)) ev.soc_pct = *v;
+      break;
+    }
     case Action::kPowerOff:
     case Action::kPowerOn:
     case Action::kBmsAutoOff:
@@ -396,6 +406,7 @@ void read_bike(TableReader& r, Scenario& s) {
   if (auto v = r.boolean("vehicle_locked")) s.vehicle_locked = *v;
   if (auto v = r.boolean("locks_locked")) s.locks_locked = *v;
   if (auto v = r.boolean("iot_controls_acc")) s.iot_controls_acc = *v;
+  if (auto v = r.boolean("mc_ignores_writes")) s.mc_ignores_writes = *v;
   if (const toml::array* kinds = r.array("lock_kinds")) {
     if (kinds->size() != kSimLocks) {
       r.fail(r.table().get("lock_kinds"), "lock_kinds",

@@ -77,6 +77,7 @@ enum class Action : uint8_t {
   kUnlock,         // idem
   kPlugCharger,    // charger connected with current_a
   kUnplugCharger,  // charger removed
+  kSwapBattery,    // another pack in the frame: BMS serial (+ SOH, cycles, SOC) change at once
 };
 std::string_view action_name(Action a);
 
@@ -94,6 +95,11 @@ struct ScenarioEvent {
   Corruption corruption = Corruption::kBitFlip;
   uint32_t count = 1;    // kCorrupt: messages, kGarbage: CAN frames
   double current_a = 0;  // kPlugCharger
+  // kSwapBattery: the new pack's serial, and what it reports (absent: unchanged).
+  std::string serial{};
+  std::optional<uint8_t> soh_pct{};
+  std::optional<uint16_t> cycles{};
+  std::optional<double> soc_pct{};
   std::size_t line = 0;
 };
 
@@ -121,6 +127,9 @@ struct Scenario {
   bool vehicle_locked = false;   // initial one-touch vehicle lock state (0x760 LOCK/UNLOCK)
   bool locks_locked = true;      // initial state of every fitted physical lock
   bool iot_controls_acc = true;  // after an IOT SHUTDOWN the IOT cuts ACC ~1 s later
+  // The MC ignores every write (assist/light, settings, CLEAR...; reads are still answered):
+  // a firmware that does not take remote commands, so a test can show `failed`.
+  bool mc_ignores_writes = false;
   // Kind of lock fitted at LOCK 1..5 (node 7..B); empty = not fitted.
   std::array<std::string, kSimLocks> lock_kinds{"seat", "frame", "steering", "battery", "other"};
   DeviceStrings mc{"MNV-M510", "MC24060100123", "HW1.2", "V4.6.2_20240115"};

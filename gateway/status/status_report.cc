@@ -55,6 +55,24 @@ std::string bytes_text(double b) {
   return fmt::format("{:.2f} GiB", b / (1024.0 * 1024 * 1024));
 }
 
+// "21.3 km/h  SOC 63 %  riding: 2.10 km in 6.0 min (ride R)" / "... parked"; unknown values
+// are "?" (the service has not heard them yet).
+std::string vehicle_text(const json& v) {
+  const auto speed = num(v, "speed_kmh");
+  const auto soc = num(v, "soc_pct");
+  std::string text = fmt::format("{} km/h  SOC {} %", speed ? fmt::format("{:.1f}", *speed) : "?",
+                                 soc ? fmt::format("{:.0f}", *soc) : "?");
+  const json* ride = member(v, "ride");
+  if (ride && ride->is_object()) {
+    text += fmt::format("  riding: {:.2f} km in {:.1f} min (ride {})",
+                        num(*ride, "distance_km").value_or(0),
+                        num(*ride, "duration_s").value_or(0) / 60, str(*ride, "ride_id"));
+  } else {
+    text += "  parked";
+  }
+  return text;
+}
+
 }  // namespace
 
 std::vector<Attention> evaluate(const json& status, const AttentionRules& rules) {
@@ -206,6 +224,7 @@ std::string format_summary(const json& s, const std::vector<Attention>& findings
     }
   }
   line("locks", locks_text.empty() ? "none" : locks_text);
+  if (const json* v = member(s, "vehicle"); v && v->is_object()) line("vehicle", vehicle_text(*v));
 
   const json& broker = sec("broker");
   if (!boolean(broker, "enabled").value_or(true)) {

@@ -11,6 +11,11 @@
 //                 "firmware": "V1.2" | null}],          // every node the bike is expected to have
 //     "faults": [{"node": "bms", "code": 12, "name": "...", "severity": "critical"}],  // active
 //     "locks":  [{"kind": "seat", "state": "locked"}],
+//     "vehicle": {"speed_kmh": 21.3 | null, "soc_pct": 63.0 | null, "odo_km": 880.1 | null,
+//                 "assist": "eco" | null, "riding": true,     // null: not heard yet
+//                 "ride": {"ride_id": "...", "start_us": 1717263000000000, "duration_s": 361.0,
+//                          "moving_s": 350.2, "distance_km": 2.1, "max_speed_kmh": 24.0,
+//                          "soc_start_pct": 64 | null} | null},  // optional section
 //     "broker": {"enabled": true, "connected": false, "uri": "ssl://...", "last_error": "",
 //                "last_connect_error": "TLS: ...", "last_connect_error_age_s": 3.2 | null,
 //                "tls_failures": 2},                     // the last three: optional

@@ -19,6 +19,7 @@ struct Topics {
 
   std::string base;  // <prefix>/<vehicle_id>
   std::string telemetry, ride, fault, pack, lock, info, status, eviction, alarm;
+  std::string state;       // retained fleetgw.v1.VehicleState
   std::string cmd;         // subscribed
   std::string cmd_result;  // <base>/cmd/result
 };

@@ -59,7 +59,9 @@ Uplink::Impl::Impl(UplinkConfig c, OutboxSource& o)
       connect_listener(events),
       publish_listener(events),
       subscribe_listener(events),
-      client(make_client()) {}
+      client(make_client()) {
+  batch_delay = config.telemetry_batch_max_delay;
+}
 
 std::unique_ptr<mqtt::async_client> Uplink::Impl::make_client() {
   auto c = std::make_unique<mqtt::async_client>(normalise_broker_uri(config.broker_uri),
@@ -234,6 +236,8 @@ void Uplink::Impl::on_connected(Micros now) {
     spdlog::error("uplink: subscribe to {} failed: {}", topics.cmd, e.what());
   }
   publish_status(now);
+  // The broker may hold an older state (published before an outage, or by the previous run).
+  vehicle_state_due = !vehicle_state.empty();
 }
 
 void Uplink::Impl::on_connection_lost(Micros now, const std::string& cause) {
@@ -278,6 +282,7 @@ void Uplink::Impl::poll(Micros now) {
                            now - last_status >= duration_cast<Micros>(config.status_interval))) {
       publish_status(now);
     }
+    if (vehicle_state_due) publish_vehicle_state(now, true);
     drain(now);
   }
 }
@@ -318,6 +323,8 @@ void Uplink::Impl::stop(Micros now, milliseconds timeout) {
   state = UplinkState::kStopped;
   try {
     if (was_connected) {
+      // The retained state says "offline" too (a lost connection cannot: docs/uplink.md).
+      if (!vehicle_state.empty()) publish_vehicle_state(now, false);
       // A clean DISCONNECT suppresses the last will, so say "offline" ourselves.
       auto tok = client->publish(mqtt::make_message(
           topics.status,
@@ -349,13 +356,12 @@ Micros Uplink::Impl::next_due(Micros now) const {
     due = std::min(due, Micros(counters.next_connect_at_us));
   }
   if (!batch.empty()) {
-    due = std::min(due, Micros(batch.oldest_created_us) +
-                            duration_cast<Micros>(config.telemetry_batch_max_delay));
+    due = std::min(due, Micros(batch.oldest_created_us) + duration_cast<Micros>(batch_delay));
   }
   if (state == UplinkState::kConnected && config.status_interval.count() > 0) {
     due = std::min(due, last_status + duration_cast<Micros>(config.status_interval));
   }
-  if (state == UplinkState::kConnected && status_changed) due = now;
+  if (state == UplinkState::kConnected && (status_changed || vehicle_state_due)) due = now;
   if (draining && !batch.empty()) due = now;
   if (state == UplinkState::kConnected) {
     const bool stale_possible = std::any_of(in_flight.begin(), in_flight.end(), [&](auto& f) {

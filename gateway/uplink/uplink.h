@@ -132,6 +132,15 @@ class Uplink {
   // body message. False when not connected, when the payload does not decode as the kind's
   // message, or when the client refused it; true once handed to MQTT.
   bool publish_direct(std::string_view kind, std::string payload, Micros now);
+  // The vehicle's last known state (a serialized fleetgw.v1.VehicleState body; `online` is set
+  // here): published retained (QoS 1) on <prefix>/<vehicle>/state at the next poll while
+  // connected, again after every (re)connect, and with online = false by stop(). Only the
+  // latest one is kept: a state replaced before it could leave is never sent.
+  void set_vehicle_state(std::string body);
+  // Parked mode: telemetry batches wait up to `delay` instead of telemetry_batch_max_delay
+  // (nullopt restores it; a batch already older than the restored delay leaves at the next
+  // poll). Alarms and every other record are not batched and are not affected.
+  void set_telemetry_batch_delay(std::optional<std::chrono::milliseconds> delay);
   // Latest time by which poll() should run again even without a wake-up, on the `now` timeline.
   Micros next_poll_due(Micros now) const;
   // The same as a steady_clock deadline (reconnect due, telemetry batch due, status refresh,

@@ -88,6 +88,9 @@ struct Uplink::Impl {
   bool publish_record(const OutgoingRecord& e);
   void drain(Micros now);
 
+  // ---- owner's thread: the retained vehicle state (state_publish.cc) ----
+  void publish_vehicle_state(Micros now, bool online);
+
   UplinkConfig config;
   OutboxSource& outbox;
   Topics topics;
@@ -95,8 +98,11 @@ struct Uplink::Impl {
   UplinkState state = UplinkState::kStopped;
   UplinkStats counters;
   v1::BusState bus_state = v1::BUS_STATE_UNSPECIFIED;
-  bool status_changed = false;  // bus_state changed since the last status publish
-  bool draining = false;        // drain_for_stop(): telemetry batches leave without waiting
+  bool status_changed = false;     // bus_state changed since the last status publish
+  std::string vehicle_state;       // latest VehicleState body from the owner; empty = none
+  bool vehicle_state_due = false;  // not yet published on this connection
+  std::chrono::milliseconds batch_delay{0};  // telemetry_batch_max_delay, or the parked one
+  bool draining = false;  // drain_for_stop(): telemetry batches leave without waiting
   std::function<void(v1::Status&)> status_decorator;
   std::vector<std::string> commands;  // waiting for take_commands()
   std::uint64_t connect_attempt = 0;

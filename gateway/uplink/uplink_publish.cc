@@ -182,8 +182,7 @@ void Uplink::Impl::flush_batch(Micros now) {
 
 bool Uplink::Impl::batch_due(Micros now) const {
   return !batch.empty() &&
-         (draining ||
-          batch.oldest_created_us + config.telemetry_batch_max_delay.count() * 1000 <= now.count());
+         (draining || batch.oldest_created_us + batch_delay.count() * 1000 <= now.count());
 }
 
 // Adds a telemetry record to the batch; false if the window is full and it was not taken.

@@ -68,6 +68,25 @@ class BusSender final : public node::FrameSender {
     }
     return n;
   }
+  // Writes to the MC (0x761, mode write: 0x30 assist/light, 0x34 settings, 0x36 CLEAR; 0 = any).
+  std::size_t mc_writes(uint8_t function = 0, Micros since = Micros{-1}) const {
+    std::size_t n = 0;
+    for (const auto& s : sent) {
+      if (s.frame.can_id != 0x761 || s.frame.mode != motinova::Mode::kWrite || s.at < since) {
+        continue;
+      }
+      if (function == 0 || s.frame.function == function) ++n;
+    }
+    return n;
+  }
+  // Frames the gateway sent with this (ID, function) since `since`.
+  std::size_t frames(uint16_t can_id, uint8_t function, Micros since = Micros{-1}) const {
+    std::size_t n = 0;
+    for (const auto& s : sent) {
+      if (s.frame.can_id == can_id && s.frame.function == function && s.at >= since) ++n;
+    }
+    return n;
+  }
   // Anything at all to a lock ID or a vehicle LOCK/UNLOCK since `since`.
   std::size_t command_frames_since(Micros since) const {
     return lock_writes(-1, since) + vehicle_broadcasts(0x11, since) +
@@ -183,6 +202,16 @@ struct Rig {
     auto cmd = make_command(kVehicle, lock, action, issued.value_or(now), now + expires_in,
                             id.empty() ? random_command_id() : id);
     return sign_command(*cmd, key, kKeyId);
+  }
+
+  // An MC action (signing.h make_mc_command: "speed_limit" 15, "assist_level" eco, ...).
+  std::string mc_payload(std::string_view action, std::string_view value = {}, std::string id = {},
+                         Micros expires_in = 60s, std::optional<Micros> issued = std::nullopt) {
+    const Micros now = bus.now();
+    auto cmd = make_mc_command(kVehicle, action, value, issued.value_or(now), now + expires_in,
+                               id.empty() ? random_command_id() : id);
+    EXPECT_TRUE(cmd.has_value()) << action << " " << value;
+    return cmd ? sign_command(*cmd, key, kKeyId) : std::string();
   }
 
   // The result with this id (first one), if any.

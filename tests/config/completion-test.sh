@@ -61,7 +61,9 @@ contains() {
 }
 
 expect "decode db" fleetgw d
-expect "stats export rides faults commands alarms" fleetgw db ""
+expect "stats export summary rides faults commands alarms" fleetgw db ""
+expect "jsonl csv" fleetgw db export --format ""
+expect "table json csv" fleetgw db summary --format ""
 expect "be le auto" fleetgw decode --crc-order ""
 expect "auto" fleetgw decode --crc-order a
 expect "be le auto" fleetgw decode --crc-order = ""  # COMP_WORDBREAKS splits --crc-order=
@@ -69,6 +71,7 @@ expect "--crc-order=le" fleetgw decode --crc-order=l  # ... or does not
 expect "table json csv" fleetgw decode --format ""
 expect "table json csv" fleetgw db rides --format ""
 expect "lock unlock" fleetgw command --action ""
+expect "on off" fleetgw command --lights ""
 expect "--crc-order" fleetgw decode --crc
 expect "--since" fleetgw db faults --si
 # After an option's value and a flag, still the decode options; the subcommand is still decode.

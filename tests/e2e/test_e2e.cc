@@ -95,7 +95,7 @@ class Subscriber {
         ++undecodable_;
         return;
       }
-      if (e.has_status()) return;  // retained, unsequenced
+      if (e.has_status() || e.has_state()) return;  // retained, unsequenced
       if (e.has_telemetry()) {
         for (const auto& s : e.telemetry().samples()) ++seqs_[s.sequence()];
       } else {

@@ -4,12 +4,7 @@
 // the service tests and by bench/bench_service.cc.
 #pragma once
 
-#include <fcntl.h>
 #include <mqtt/async_client.h>
-#include <signal.h>
-#include <spawn.h>
-#include <sys/wait.h>
-#include <unistd.h>
 
 #include <chrono>
 #include <condition_variable>
@@ -28,47 +23,22 @@
 #include "gateway/command/ed25519.h"
 #include "gateway/command/signing.h"
 #include "gateway/uplink/tcp_nodelay.h"
-
-extern char** environ;
+#include "tests/support/process.h"
 
 namespace fleetgw::testing {
 
 using SteadyClock = std::chrono::steady_clock;
 
-// `fleetgw run --config <file>`, stopped with SIGTERM (and reaped) on destruction.
-class ServiceProcess {
+// `fleetgw run --config <file>` (tests/support/process.h), its output in `log`; stopped with
+// SIGTERM (and reaped) on destruction, so the service shuts down as it does in the field.
+class ServiceProcess : public ChildProcess {
  public:
   ServiceProcess(const std::filesystem::path& binary, const std::filesystem::path& config,
-                 const std::filesystem::path& log) {
-    std::vector<std::string> args{binary.string(), "run", "--config", config.string()};
-    std::vector<char*> argv;
-    for (auto& a : args) argv.push_back(a.data());
-    argv.push_back(nullptr);
-    posix_spawn_file_actions_t fa;
-    posix_spawn_file_actions_init(&fa);
-    posix_spawn_file_actions_addopen(&fa, 1, log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    posix_spawn_file_actions_adddup2(&fa, 1, 2);
-    const int rc = posix_spawn(&pid_, argv[0], &fa, nullptr, argv.data(), environ);
-    posix_spawn_file_actions_destroy(&fa);
-    if (rc != 0) throw std::runtime_error("cannot start " + binary.string());
-  }
+                 const std::filesystem::path& log)
+      : ChildProcess({binary.string(), "run", "--config", config.string()}, log) {}
   ~ServiceProcess() { stop(); }
   ServiceProcess(const ServiceProcess&) = delete;
   ServiceProcess& operator=(const ServiceProcess&) = delete;
-
-  pid_t pid() const { return pid_; }
-  // SIGTERM and wait; the exit status (-1 if it was already reaped).
-  int stop() {
-    if (pid_ <= 0) return -1;
-    ::kill(pid_, SIGTERM);
-    int status = 0;
-    ::waitpid(pid_, &status, 0);
-    pid_ = -1;
-    return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-  }
-
- private:
-  pid_t pid_ = -1;
 };
 
 // Signs lock commands and waits for the CommandResult bound to each command id.

@@ -338,6 +338,27 @@ TEST(Sim, WritesTakeEffect) {
   EXPECT_GT(before, 20);
 }
 
+// Scenario `mc_ignores_writes` (issue 13): the remote commands' `failed` path. Reads are still
+// answered, so the gateway sees the unchanged state.
+TEST(Sim, McThatIgnoresWritesStillAnswersReads) {
+  Scenario s = parse_scenario("[bike]\nmc_ignores_writes = true\n", "ignore.toml");
+  ASSERT_TRUE(s.mc_ignores_writes);
+  s.vehicle_locked = false;
+  Harness h(s);
+  h.gateway.at(h.t(5), ScriptedGateway::write(0x761, 0x34, {0x00, 0x02, 0, 0, 0xF3, 0, 0, 0}));
+  h.gateway.at(h.t(6), ScriptedGateway::read(0x761, 0x33));
+  h.gateway.at(h.t(7), ScriptedGateway::write(0x761, 0x30, {0x03, 0xF1}));
+  h.bus.run_until(h.t(9));
+  const Message* settings = h.probe.first(0x713, 0x54, h.t(6));
+  ASSERT_NE(settings, nullptr);
+  EXPECT_EQ(*h.probe.decode(*settings).raw("speed_limit_offset_kmh"), 0);
+  const Message* status = h.probe.first(0x710, 0x10, h.t(8));
+  ASSERT_NE(status, nullptr);
+  EXPECT_NE(*h.probe.decode(*status).raw("assist"), 3);
+  EXPECT_FALSE(*h.probe.decode(*status).number("headlight"));
+  EXPECT_EQ(h.bus.bike().state().speed_limit_offset_kmh, 0);
+}
+
 TEST(Sim, ObcWritesAreAcked) {
   Harness h(parked());
   h.gateway.at(h.t(5), ScriptedGateway::write(0x731, 0x36, "CLEAR"));

@@ -135,6 +135,25 @@ TEST(Summary, ShowsEverySection) {
   }
 }
 
+TEST(Summary, VehicleLineShowsSpeedSocAndTheOpenRide) {
+  json d = healthy_status();
+  EXPECT_EQ(format_summary(d, {}).find("\nvehicle "), std::string::npos) << "older service";
+  d["vehicle"] = {{"speed_kmh", 21.34},
+                  {"soc_pct", 63.0},
+                  {"riding", true},
+                  {"ride", {{"ride_id", "r1"}, {"distance_km", 2.1}, {"duration_s", 361.0}}}};
+  EXPECT_NE(format_summary(d, {}).find("\nvehicle  21.3 km/h  SOC 63 %  riding: 2.10 km in 6.0 "
+                                       "min (ride r1)\n"),
+            std::string::npos)
+      << format_summary(d, {});
+  d["vehicle"] = {{"speed_kmh", nullptr}, {"soc_pct", nullptr}, {"ride", nullptr}};
+  EXPECT_NE(format_summary(d, {}).find("\nvehicle  ? km/h  SOC ? %  parked\n"), std::string::npos)
+      << format_summary(d, {});
+  d["vehicle"] = "garbage";
+  EXPECT_NO_THROW(format_summary(d, evaluate(d)));
+  EXPECT_TRUE(evaluate(d).empty()) << "the vehicle section is information, never attention";
+}
+
 TEST(Summary, ListsFindings) {
   json d = healthy_status();
   d["broker"]["connected"] = false;

@@ -1,0 +1,165 @@
+// MC actions end to end (issue 13): the real `fleetgw command` -> a real mosquitto -> the real
+// `fleetgw run` (child process) on the simulated bike -> the settings read, the 0x3408 write
+// and the read-back on its bus -> the result over MQTT -> the tool's JSON line and exit code.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "gateway/command/ed25519.h"
+#include "tests/runtime/service_process.h"
+#include "tests/support/mosquitto_fixture.h"
+#include "tests/support/process.h"
+#include "tests/support/temp_dir.h"
+#include "tests/support/wait.h"
+
+namespace fleetgw::command::testing {
+namespace {
+
+using namespace std::chrono_literals;
+
+std::filesystem::path mc_e2e_scenario() {
+  // tests/command/ -> the source root.
+  return std::filesystem::path(__FILE__).parent_path().parent_path().parent_path() / "config" /
+         "scenarios" / "parked.toml";
+}
+
+std::string mc_e2e_read(const std::filesystem::path& p) {
+  std::ifstream in(p);
+  std::ostringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+struct McE2e {
+  McE2e() {
+    broker.start();
+    fleetgw::testing::ServiceConfigText c;
+    c.scenario = mc_e2e_scenario();
+    c.speed = 1;  // bus time = wall time: the round trip is what an operator would see
+    c.db = dir.path() / "fleetgw.db";
+    c.broker_uri = broker.uri();
+    c.vehicle = "rt-mc";
+    c.key_id = "ops";
+    c.public_key_b64 = key.public_key().base64();
+    std::ofstream(dir.path() / "fleetgw.toml") << c.text();
+    std::ofstream(dir.path() / "ops.pem") << key.pem();
+    service.emplace(FLEETGW_BIN, dir.path() / "fleetgw.toml", dir.path() / "service.log");
+    ready = fleetgw::testing::wait_for_text(dir.path() / "service.log", "uplink: connected", 30s);
+  }
+
+  struct Run {
+    int exit_code = -1;
+    nlohmann::json result;  // the tool's JSON line, null when none
+    std::string err;
+  };
+  // `fleetgw command --vehicle rt-mc <args> ...` as an operator types it.
+  Run tool(const std::vector<std::string>& args) {
+    std::vector<std::string> argv{FLEETGW_BIN, "command",    "--vehicle",
+                                  "rt-mc",     "--key",      (dir.path() / "ops.pem").string(),
+                                  "--broker",  broker.uri(), "--timeout-s",
+                                  "20"};
+    argv.insert(argv.end(), args.begin(), args.end());
+    const auto out = dir.path() / ("tool-" + std::to_string(++runs) + ".out");
+    const auto err = dir.path() / ("tool-" + std::to_string(runs) + ".err");
+    Run r;
+    r.exit_code = fleetgw::testing::run_for_exit_code(argv, out, err);
+    r.err = mc_e2e_read(err);
+    const std::string text = mc_e2e_read(out);
+    if (!text.empty()) r.result = nlohmann::json::parse(text, nullptr, false);
+    return r;
+  }
+  // Polls until the gateway has heard the MC (an early command is refused mc_offline).
+  Run until_mc_known(const std::vector<std::string>& args) {
+    Run r;
+    fleetgw::testing::wait_until(
+        [&] {
+          r = tool(args);
+          const std::string reason =
+              r.result.is_object() ? r.result.value("reason", std::string()) : std::string();
+          return reason.rfind("mc_offline", 0) != 0 && reason.rfind("mc_state_unknown", 0) != 0;
+        },
+        30s, 200ms);
+    return r;
+  }
+  std::string log() const { return mc_e2e_read(dir.path() / "service.log"); }
+
+  fleetgw::testing::TempDir dir{"fleetgw-mc-e2e"};
+  fleetgw::testing::MosquittoBroker broker;
+  Ed25519PrivateKey key = Ed25519PrivateKey::generate();
+  std::optional<fleetgw::testing::ServiceProcess> service;
+  bool ready = false;
+  int runs = 0;
+};
+
+TEST(CommandMqttMc, SpeedLimitIsConfirmedEndToEndThroughFleetgwRun) {
+  McE2e rig;
+  ASSERT_TRUE(rig.ready) << rig.log();
+  const auto first = rig.until_mc_known({"--speed-limit", "15"});
+  ASSERT_TRUE(first.result.is_object()) << first.err << rig.log();
+  EXPECT_EQ(first.exit_code, 0) << first.err;
+  EXPECT_EQ(first.result["result"], "succeeded") << first.result.dump();
+  ASSERT_TRUE(first.result.contains("mc")) << first.result.dump();
+  EXPECT_EQ(first.result["mc"]["action"], "speed_limit");
+  EXPECT_EQ(first.result["mc"]["speed_limit_kmh"], 15);
+  EXPECT_EQ(first.result["mc"]["factory_speed_limit_kmh"], 25);
+  EXPECT_EQ(first.result["mc"]["writes_sent"], 1);
+  EXPECT_TRUE(first.result["stored"].get<bool>());
+
+  // Round trips (tool publish -> result), alternating limits so each one really writes.
+  std::vector<std::int64_t> rt;
+  for (int i = 0; i < 5; ++i) {
+    const auto r = rig.tool({"--speed-limit", i % 2 == 0 ? "20" : "15"});
+    ASSERT_EQ(r.exit_code, 0) << r.err << r.result.dump();
+    EXPECT_EQ(r.result["mc"]["speed_limit_kmh"], i % 2 == 0 ? 20 : 15);
+    rt.push_back(r.result["round_trip_ms"].get<std::int64_t>());
+  }
+  std::sort(rt.begin(), rt.end());
+  RecordProperty("speed_limit_round_trip_median_ms", std::to_string(rt[rt.size() / 2]));
+  std::cout << "speed-limit round trip through fleetgw run: median " << rt[rt.size() / 2]
+            << " ms, max " << rt.back() << " ms\n";
+
+  // Outside the MC's range: rejected, exit 1, nothing written (the MC keeps 15).
+  const auto high = rig.tool({"--speed-limit", "40"});
+  EXPECT_EQ(high.exit_code, 1) << high.err;
+  EXPECT_EQ(high.result["result"], "rejected");
+  EXPECT_EQ(high.result["reason"].get<std::string>().rfind("out_of_range", 0), 0u)
+      << high.result.dump();
+  const auto check = rig.tool({"--speed-limit", "15"});
+  EXPECT_EQ(check.exit_code, 0);
+  EXPECT_EQ(check.result["mc"]["speed_limit_kmh"], 15);
+
+  // The other actions through the same path.
+  const auto lights = rig.tool({"--lights", "on"});
+  EXPECT_EQ(lights.exit_code, 0) << lights.err << lights.result.dump();
+  EXPECT_EQ(lights.result["mc"]["headlight_on"], true);
+  const auto assist = rig.tool({"--assist", "eco"});
+  EXPECT_EQ(assist.exit_code, 0) << assist.err << assist.result.dump();
+  EXPECT_EQ(assist.result["mc"]["assist_level"], "eco");
+  EXPECT_EQ(rig.service->stop(), 0) << rig.log();
+}
+
+TEST(CommandMqttMc, UsageErrorsExitTwoWithoutPublishing) {
+  McE2e rig;
+  ASSERT_TRUE(rig.ready) << rig.log();
+  for (const auto& args : std::vector<std::vector<std::string>>{
+           {"--speed-limit", "15", "--clear-trip"},  // two actions
+           {"--speed-limit", "300"},                 // beyond one byte
+           {"--lights", "dim"},                      // not on/off
+           {"--assist", "Eco; rm"},                  // not a level name
+           {"--lock", "seat"},                       // --lock without --action
+           {},                                       // no action at all
+       }) {
+    const auto r = rig.tool(args);
+    std::string line;
+    for (const auto& a : args) line += a + " ";
+    EXPECT_EQ(r.exit_code, 2) << line << r.err;
+    EXPECT_TRUE(r.result.is_null()) << line;
+  }
+  EXPECT_EQ(rig.log().find("command received"), std::string::npos) << rig.log();
+}
+
+}  // namespace
+}  // namespace fleetgw::command::testing

@@ -1,0 +1,57 @@
+#!/usr/bin/env bash
+# demo.story: runs scripts/demo.sh on an already built tree (--build-dir: no packages, no build)
+# with a real mosquitto, and checks that the story was told: each step's line as it happened and
+# the summary sentence naming the ride, the fault, the succeeded unlock, the interlock refusal
+# and the theft alarm.
+#   demo-test.sh BUILD_DIR OUT_DIR       exit 0 pass, 1 fail, 77 skipped (no mosquitto)
+set -uo pipefail
+build=${1:?usage: demo-test.sh BUILD_DIR OUT_DIR}
+out=${2:?usage: demo-test.sh BUILD_DIR OUT_DIR}
+here=$(cd "$(dirname "$0")" && pwd)
+root=$(cd "$here/../.." && pwd)
+if ! command -v mosquitto >/dev/null && [ ! -x /usr/sbin/mosquitto ]; then
+  echo "SKIP: mosquitto is not installed"
+  exit 77
+fi
+rm -rf "$out"  # the test's own directory: a fresh demo every run
+mkdir -p "$out"
+log=$out.log
+start=$(date +%s)
+"$root/scripts/demo.sh" --build-dir "$build" --out "$out" > "$log" 2>&1
+rc=$?
+took=$(($(date +%s) - start))
+cat "$log"
+echo "== demo.sh exit $rc after $took s"
+failures=0
+check() {  # check WHAT PATTERN FILE
+  if grep -qE -- "$2" "$3"; then
+    echo "ok: $1"
+  else
+    echo "FAIL: $1 (no line matching /$2/ in $3)"
+    failures=$((failures + 1))
+  fi
+}
+[ "$rc" = 0 ] || { echo "FAIL: demo.sh exited $rc"; failures=$((failures + 1)); }
+check "unlock succeeded" '^  \[ *[0-9]+ s\] remote unlock \(frame lock\): succeeded in [0-9.]+ s$' "$log"
+check "lock refused while riding" \
+  '^  \[ *[0-9]+ s\] remote lock \(frame lock\) at [0-9.]+ km/h: refused \(interlock_moving\)' "$log"
+check "lock succeeded when parked" '^  \[ *[0-9]+ s\] remote lock \(frame lock\): succeeded' "$log"
+check "fault raised" 'fault: mc over_heat_protect raised' "$log"
+check "fault cleared" 'fault: mc over_heat_protect cleared' "$log"
+check "status shows the open ride" 'status: [0-9.]+ km/h, SOC [0-9.]+ %, open ride [0-9.]+ km' "$log"
+check "ride reached the broker" 'ride: ended by the lock and reached the broker: [0-9.]+ km' "$log"
+check "theft alarm" 'theft alarm: .*unauthorised_movement raised' "$log"
+# The summary sentence: one ride of several km, one fault raised and cleared, the three
+# commands (two succeeded, the interlock refusal), the theft.
+summary=$out/summary.txt
+check "summary: the ride" '^1 ride, [3-9]\.[0-9] km, [0-9]+ min; ' "$summary"
+check "summary: the fault" '; 1 fault raised, 1 cleared; ' "$summary"
+check "summary: the commands" \
+  '; 3 commands: 2 succeeded, 1 refused \(interlock_moving\); ' "$summary"
+check "summary: the alarm" '; 1 alarm \(theft\)$' "$summary"
+if [ "$took" -gt 110 ]; then
+  echo "FAIL: the demo took $took s (the story should take about a minute)"
+  failures=$((failures + 1))
+fi
+echo "== $failures failure(s)"
+[ "$failures" -eq 0 ]
