@@ -5,13 +5,18 @@
 // the simulated seat lock that is already locked is confirmed by its next status broadcast
 // (3-20 ms of bus time; the simulator runs at speed 20, so 0.15-1 ms of wall time).
 //
-//   build/bench/bench_service                       # 1,000 commands: median, p99, max
+// BM_ServiceSpeedLimitRoundTrip (issue 13): the same path for a speed-limit command, which the
+// gateway confirms from the bus: read the MC settings (0x3300 -> 0x5408), write the limit
+// (0x3408), read back; the limit alternates 15 / 20 km/h so every command really changes it.
+//
+//   build/bench/bench_service                       # both: median, p99, max
 //   build/bench/bench_service --benchmark_filter=x  # (Google Benchmark flags)
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
 #include <cstdlib>
 #include <fstream>
+#include <optional>
 
 #include "tests/runtime/service_process.h"
 #include "tests/support/mosquitto_fixture.h"
@@ -20,35 +25,54 @@ namespace {
 
 using namespace std::chrono_literals;
 
-void BM_ServiceCommandRoundTrip(benchmark::State& state) {
-  fleetgw::testing::TempDir dir("fleetgw-bench-svc");
-  fleetgw::testing::MosquittoBroker broker;
-  broker.start();
-  auto key = fleetgw::command::Ed25519PrivateKey::generate();
-  fleetgw::testing::ServiceConfigText c;
-  c.scenario = std::filesystem::path(FLEETGW_SOURCE_DIR) / "config/scenarios/parked.toml";
-  // SIM_SPEED overrides: the simulated lock's own reply time is bus time / speed.
-  c.speed = std::getenv("SIM_SPEED") ? std::atof(std::getenv("SIM_SPEED")) : 20.0;
-  c.db = dir.path() / "fleetgw.db";
-  c.broker_uri = broker.uri();
-  c.vehicle = "bench-svc";
-  c.key_id = "ops";
-  c.public_key_b64 = key.public_key().base64();
-  // A 600 s parked scenario at speed 20 lasts 30 s of wall time; repeat it as needed.
-  std::ofstream(dir.path() / "fleetgw.toml") << c.text();
-  fleetgw::testing::ServiceProcess service(FLEETGW_BIN, dir.path() / "fleetgw.toml",
-                                           dir.path() / "service.log");
-  if (!fleetgw::testing::wait_for_text(dir.path() / "service.log", "uplink: connected", 30s)) {
+// One `fleetgw run` on the parked simulated bike with a real mosquitto, and its operator.
+class ServiceRig {
+ public:
+  ServiceRig() {
+    broker_.start();
+    auto key = fleetgw::command::Ed25519PrivateKey::generate();
+    fleetgw::testing::ServiceConfigText c;
+    c.scenario = std::filesystem::path(FLEETGW_SOURCE_DIR) / "config/scenarios/parked.toml";
+    // SIM_SPEED overrides: the simulated nodes' own reply times are bus time / speed.
+    c.speed = std::getenv("SIM_SPEED") ? std::atof(std::getenv("SIM_SPEED")) : 20.0;
+    c.db = dir_.path() / "fleetgw.db";
+    c.broker_uri = broker_.uri();
+    c.vehicle = "bench-svc";
+    c.key_id = "ops";
+    c.public_key_b64 = key.public_key().base64();
+    // A 600 s parked scenario at speed 20 lasts 30 s of wall time; repeat it as needed.
+    std::ofstream(dir_.path() / "fleetgw.toml") << c.text();
+    service_.emplace(FLEETGW_BIN, dir_.path() / "fleetgw.toml", dir_.path() / "service.log");
+    ready_ = fleetgw::testing::wait_for_text(dir_.path() / "service.log", "uplink: connected", 30s);
+    // The MC has answered its first polls (settings included) before the first command.
+    std::this_thread::sleep_for(1500ms);
+    op_.emplace(broker_.uri(), "bench-svc", std::move(key), "ops");
+  }
+  bool ready() const { return ready_; }
+  fleetgw::testing::CommandOperator& op() { return *op_; }
+
+ private:
+  fleetgw::testing::TempDir dir_{"fleetgw-bench-svc"};
+  fleetgw::testing::MosquittoBroker broker_;
+  std::optional<fleetgw::testing::ServiceProcess> service_;
+  std::optional<fleetgw::testing::CommandOperator> op_;
+  bool ready_ = false;
+};
+
+// Runs `send(i)` once per iteration; reports median, p99 and max round trip, and how many
+// commands did not succeed.
+template <class Send>
+void round_trips(benchmark::State& state, Send send) {
+  ServiceRig rig;
+  if (!rig.ready()) {
     state.SkipWithError("the service did not connect");
     return;
   }
-  std::this_thread::sleep_for(1500ms);
-  fleetgw::testing::CommandOperator op(broker.uri(), "bench-svc", std::move(key), "ops");
   std::vector<double> us;
   std::size_t failures = 0;
   int i = 0;
   for (auto _ : state) {
-    const auto o = op.send("svc-" + std::to_string(i++), "seat", "lock", 10s);
+    const auto o = send(rig.op(), i++);
     us.push_back(static_cast<double>(o.round_trip.count()));
     if (!o.answered || o.result != fleetgw::v1::COMMAND_RESULT_CODE_SUCCEEDED) ++failures;
   }
@@ -59,8 +83,23 @@ void BM_ServiceCommandRoundTrip(benchmark::State& state) {
   state.counters["max_us"] = us.back();
   state.counters["not_succeeded"] = static_cast<double>(failures);
 }
+
+void BM_ServiceCommandRoundTrip(benchmark::State& state) {
+  round_trips(state, [](fleetgw::testing::CommandOperator& op, int i) {
+    return op.send("svc-" + std::to_string(i), "seat", "lock", 10s);
+  });
+}
+void BM_ServiceSpeedLimitRoundTrip(benchmark::State& state) {
+  round_trips(state, [](fleetgw::testing::CommandOperator& op, int i) {
+    return op.send_mc("limit-" + std::to_string(i), "speed_limit", i % 2 == 0 ? "15" : "20", 10s);
+  });
+}
 BENCHMARK(BM_ServiceCommandRoundTrip)
     ->Iterations(1000)
+    ->Unit(benchmark::kMicrosecond)
+    ->UseRealTime();
+BENCHMARK(BM_ServiceSpeedLimitRoundTrip)
+    ->Iterations(200)
     ->Unit(benchmark::kMicrosecond)
     ->UseRealTime();
 

@@ -254,11 +254,35 @@ else
   missed "ride: the bike did not start riding within 30 s"
 fi
 
-# --- remote speed limit: HERE once `fleetgw command --speed-limit 15` exists (another branch).
-# Not called yet on purpose: the demo must not depend on it. When it lands, e.g.:
-#   speed_limit_step() { ... "$FLEETGW" command --vehicle demo-bike-01 --speed-limit 15 ...
-#     say "remote speed limit 15 km/h: <result> in <s> s"; }
-# and call speed_limit_step here, while the bike rides; add its count to the test's checks.
+# A city caps the speed: the MC's speed-limit setting is written and read back (the result is
+# `succeeded` only once the MC reports the new limit), and the bike then rides under it.
+speed_limit_step() {  # KMH
+  local out result reason rtt applied
+  out=$("$FLEETGW" command --vehicle demo-bike-01 --speed-limit "$1" \
+    --key "$OUT/operator.pem" --broker "$BROKER_URI" --timeout-s 10 2>> "$OUT/command.log" || true)
+  echo "$out" >> "$OUT/commands.jsonl"
+  { read -r result; read -r reason; read -r rtt; read -r applied; } < <(echo "$out" |
+    q get result reason round_trip_ms mc.speed_limit_kmh) || true
+  if [ -z "$result" ]; then
+    missed "remote speed limit: no answer (see $OUT/command.log)"
+    return
+  fi
+  local text="remote speed limit $1 km/h: $result, the MC reads back ${applied:-?} km/h,"
+  [ "$result" = succeeded ] || text="remote speed limit $1 km/h: $result (${reason%%:*})"
+  say "$text in $(awk -v ms="$rtt" 'BEGIN { printf "%.2f", ms / 1000 }') s"
+  [ "$result" = succeeded ] || missed "remote speed limit: expected succeeded"
+}
+under_the_cap() {  # riding, and not faster than the cap (+0.5 km/h of quantisation)
+  read_status
+  awk -v v="${S_SPEED:-0}" -v cap="$SPEED_CAP" 'BEGIN { exit !(v >= 5 && v <= cap + 0.5) }'
+}
+SPEED_CAP=15
+speed_limit_step $SPEED_CAP
+if wait_for 20 under_the_cap; then
+  say "status: the bike rides at ${S_SPEED} km/h, under the ${SPEED_CAP} km/h cap"
+else
+  missed "speed limit: the bike did not slow under ${SPEED_CAP} km/h within 20 s"
+fi
 
 if wait_for 40 fault_event raised; then
   say "fault: $FAULT_NODE $FAULT_NAME raised ($FAULT_SEV) on the climb"

@@ -60,8 +60,11 @@ int run_summary(storage::Store& store, const DbCommand& db, std::optional<std::i
       {"faults", &rows.faults},
       {"commands", &rows.commands},
       {"alarms", &rows.alarms}};
-  for (const auto& [name, into] : listings) {
-    store.list_recent(name, from, 0, [into](const nlohmann::json& row) { into->push_back(row); });
+  for (const auto& listing : listings) {
+    // (A lambda cannot capture a structured binding before C++20 as clang 14 implements it.)
+    auto* into = listing.second;
+    store.list_recent(listing.first, from, 0,
+                      [into](const nlohmann::json& row) { into->push_back(row); });
   }
   const DbSummary summary = summarize(rows, since_us);
   switch (parse_output_format(db.format).value_or(OutputFormat::kTable)) {

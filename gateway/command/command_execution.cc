@@ -42,24 +42,28 @@ int severity(v1::CommandResultCode c) {
 
 }  // namespace
 
-Disposition CommandService::Impl::start(VerifiedCommand cmd, Micros now) {
-  // The journal entry is on disk before anything is written to the bus: after a crash from
-  // here on, recover() knows this command may have acted and never acts on it again.
+std::optional<Disposition> CommandService::Impl::journal_executing(const VerifiedCommand& cmd,
+                                                                   Micros now) {
   storage::Batch b;
   b.now_us = now.count();
   b.commands.push_back({cmd.command_id, now.count(), std::string(kExecuting),
                         cmd.expires_at.count(), cmd.command_sha256});
+  remember(cmd, std::max(cmd.expires_at, wall(now) + config.rejected_retention));
   if (const auto error = write_batch(context.store, b)) {
     ++stats.storage_errors;
     spdlog::error("command {}: journal write failed: {}", cmd.command_id, *error);
-    remember(cmd, std::max(cmd.expires_at, wall(now) + config.rejected_retention));
     // Journaled as rejected once the store accepts writes again (see store_result).
     return reject({RejectReason::kStorageError, "journal write failed: " + *error, cmd.command_id,
                    true, cmd.command_sha256},
                   now, cmd.expires_at, /*always_answer=*/true);
   }
   ++stats.accepted;
-  remember(cmd, std::max(cmd.expires_at, wall(now) + config.rejected_retention));
+  return std::nullopt;
+}
+
+Disposition CommandService::Impl::start(VerifiedCommand cmd, Micros now) {
+  // The journal entry is on disk before anything is written to the bus.
+  if (const auto rejected = journal_executing(cmd, now)) return *rejected;
   auto run = std::make_unique<Running>();
   run->received = now;
   for (const int k : lock_indices(cmd)) {

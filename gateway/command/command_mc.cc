@@ -18,20 +18,7 @@ Disposition CommandService::Impl::on_mc_command(VerifiedCommand cmd, Micros now)
     return reject(*rej, now, cmd.expires_at);
   }
   // Journal first: after a crash from here on, recover() answers without acting again.
-  storage::Batch b;
-  b.now_us = now.count();
-  b.commands.push_back({cmd.command_id, now.count(), std::string(kExecuting),
-                        cmd.expires_at.count(), cmd.command_sha256});
-  if (const auto error = write_batch(context.store, b)) {
-    ++stats.storage_errors;
-    spdlog::error("command {}: journal write failed: {}", cmd.command_id, *error);
-    remember(cmd, std::max(cmd.expires_at, wall_now + config.rejected_retention));
-    return reject({RejectReason::kStorageError, "journal write failed: " + *error, cmd.command_id,
-                   true, cmd.command_sha256},
-                  now, cmd.expires_at, /*always_answer=*/true);
-  }
-  ++stats.accepted;
-  remember(cmd, std::max(cmd.expires_at, wall_now + config.rejected_retention));
+  if (const auto rejected = journal_executing(cmd, now)) return *rejected;
   // The action and key id were matched against the schema and the configuration.
   spdlog::info("command {}: {} accepted (key {})", cmd.command_id, mc_action_name(cmd.mc.kind),
                cmd.key_id);

@@ -108,6 +108,11 @@ struct CommandService::Impl : std::enable_shared_from_this<CommandService::Impl>
 
   // command_execution.cc
   Disposition start(VerifiedCommand cmd, Micros now);
+  // Writes the command's "executing" journal entry, which must be on disk before the first CAN
+  // write (after a crash from there on, recover() answers without acting again), and counts it
+  // accepted. When the store refuses, the command is answered storage_error and that rejection
+  // is returned: the caller must not act.
+  std::optional<Disposition> journal_executing(const VerifiedCommand& cmd, Micros now);
   void advance(Running& r, Micros now);
   bool attempt(Running& r, Step& s, Micros now);
   void on_lock_result(const std::string& id, const node::LockResult& res);

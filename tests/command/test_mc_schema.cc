@@ -20,23 +20,12 @@ namespace {
 namespace pb = google::protobuf;
 
 pb::FileDescriptorSet mc_schema_snapshot() {
-  std::ifstream in(FLEETGW_PROTO_SNAPSHOT);
-  std::ostringstream s;
-  s << in.rdbuf();
-  return fleetgw::testing::from_snapshot_text(s.str());
+  return fleetgw::testing::load_snapshot(FLEETGW_PROTO_SNAPSHOT);
 }
 
 const pb::FieldDescriptorProto* mc_schema_field(const pb::FileDescriptorSet& set,
                                                 std::string_view message, std::string_view name) {
-  for (const auto& f : set.file()) {
-    for (const auto& m : f.message_type()) {
-      if (m.name() != message) continue;
-      for (const auto& fd : m.field()) {
-        if (fd.name() == name) return &fd;
-      }
-    }
-  }
-  return nullptr;
+  return fleetgw::testing::find_field(set, message, name);
 }
 
 // The schema before issue 13: Command without 8-12, CommandResult without 11.
@@ -65,22 +54,8 @@ pb::FileDescriptorSet mc_schema_before() {
 class McSchemaOldPool {
  public:
   explicit McSchemaOldPool(const pb::FileDescriptorSet& set) {
-    std::vector<const pb::FileDescriptorProto*> pending;
-    for (const auto& f : set.file()) pending.push_back(&f);
-    while (!pending.empty()) {
-      const std::size_t before = pending.size();
-      std::erase_if(pending, [&](const pb::FileDescriptorProto* f) {
-        for (const auto& dep : f->dependency()) {
-          if (pool_.FindFileByName(dep) == nullptr) return false;
-        }
-        EXPECT_NE(pool_.BuildFile(*f), nullptr) << f->name();
-        return true;
-      });
-      if (pending.size() == before) {
-        ADD_FAILURE() << "unresolvable imports in " << pending.front()->name();
-        return;
-      }
-    }
+    const std::string error = fleetgw::testing::build_pool(set, pool_);
+    EXPECT_TRUE(error.empty()) << error;
   }
   const pb::Descriptor* type(const std::string& name) const {
     return pool_.FindMessageTypeByName(name);

@@ -102,29 +102,14 @@ TEST(ResultBinding, EveryResultOfAnAuthenticCommandCarriesTheDigestOfItsSignedBy
 
 // --- schema ---------------------------------------------------------------------------------
 
-std::string read_text(const std::string& path) {
-  std::ifstream in(path);
-  std::ostringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
-
 const pb::FieldDescriptorProto* field(const pb::FileDescriptorSet& set, std::string_view message,
                                       std::string_view name) {
-  for (const auto& f : set.file()) {
-    for (const auto& m : f.message_type()) {
-      if (m.name() != message) continue;
-      for (const auto& fd : m.field()) {
-        if (fd.name() == name) return &fd;
-      }
-    }
-  }
-  return nullptr;
+  return fleetgw::testing::find_field(set, message, name);
 }
 
 TEST(ResultBindingSchema, NewFieldsAreACompatibleAdditionRecordedInTheSnapshot) {
   const auto current = fleetgw::testing::current_fleetgw_descriptors();
-  const auto snapshot = fleetgw::testing::from_snapshot_text(read_text(FLEETGW_PROTO_SNAPSHOT));
+  const auto snapshot = fleetgw::testing::load_snapshot(FLEETGW_PROTO_SNAPSHOT);
   EXPECT_TRUE(fleetgw::testing::compare(snapshot, current).empty());
   for (const auto& [name, number] : std::vector<std::pair<std::string, int>>{
            {"command_sha256", 8}, {"stored", 9}, {"payload_sha256", 10}}) {
@@ -150,20 +135,8 @@ TEST(ResultBindingSchema, AReaderOfTheOldSchemaParsesANewResult) {
     }
   }
   pb::DescriptorPool pool;
-  // Build in dependency order: a file after every file it imports.
-  std::vector<const pb::FileDescriptorProto*> pending;
-  for (const auto& f : old_set.file()) pending.push_back(&f);
-  while (!pending.empty()) {
-    const std::size_t before = pending.size();
-    std::erase_if(pending, [&](const pb::FileDescriptorProto* f) {
-      for (const auto& dep : f->dependency()) {
-        if (pool.FindFileByName(dep) == nullptr) return false;
-      }
-      EXPECT_NE(pool.BuildFile(*f), nullptr) << f->name();
-      return true;
-    });
-    ASSERT_LT(pending.size(), before) << "unresolvable imports in " << pending.front()->name();
-  }
+  const std::string error = fleetgw::testing::build_pool(old_set, pool);
+  ASSERT_TRUE(error.empty()) << error;
   const auto* old_type = pool.FindMessageTypeByName("fleetgw.v1.CommandResult");
   ASSERT_NE(old_type, nullptr);
   ASSERT_EQ(old_type->FindFieldByName("command_sha256"), nullptr);

@@ -36,18 +36,21 @@ check "unlock succeeded" '^  \[ *[0-9]+ s\] remote unlock \(frame lock\): succee
 check "lock refused while riding" \
   '^  \[ *[0-9]+ s\] remote lock \(frame lock\) at [0-9.]+ km/h: refused \(interlock_moving\)' "$log"
 check "lock succeeded when parked" '^  \[ *[0-9]+ s\] remote lock \(frame lock\): succeeded' "$log"
+check "speed limit confirmed by the MC" \
+  '^  \[ *[0-9]+ s\] remote speed limit 15 km/h: succeeded, the MC reads back 15 km/h' "$log"
+check "the bike rides under the cap" 'status: the bike rides at [0-9.]+ km/h, under the 15 km/h cap' "$log"
 check "fault raised" 'fault: mc over_heat_protect raised' "$log"
 check "fault cleared" 'fault: mc over_heat_protect cleared' "$log"
 check "status shows the open ride" 'status: [0-9.]+ km/h, SOC [0-9.]+ %, open ride [0-9.]+ km' "$log"
 check "ride reached the broker" 'ride: ended by the lock and reached the broker: [0-9.]+ km' "$log"
 check "theft alarm" 'theft alarm: .*unauthorised_movement raised' "$log"
-# The summary sentence: one ride of several km, one fault raised and cleared, the three
-# commands (two succeeded, the interlock refusal), the theft.
+# The summary sentence: one ride of several km, one fault raised and cleared, the four
+# commands (unlock, speed limit and lock succeeded, the interlock refusal), the theft.
 summary=$out/summary.txt
 check "summary: the ride" '^1 ride, [3-9]\.[0-9] km, [0-9]+ min; ' "$summary"
 check "summary: the fault" '; 1 fault raised, 1 cleared; ' "$summary"
 check "summary: the commands" \
-  '; 3 commands: 2 succeeded, 1 refused \(interlock_moving\); ' "$summary"
+  '; 4 commands: 3 succeeded, 1 refused \(interlock_moving\); ' "$summary"
 check "summary: the alarm" '; 1 alarm \(theft\)$' "$summary"
 if [ "$took" -gt 110 ]; then
   echo "FAIL: the demo took $took s (the story should take about a minute)"

@@ -84,10 +84,26 @@ class CommandOperator {
   Outcome send(const std::string& id, std::string_view lock, std::string_view action,
                std::chrono::milliseconds timeout,
                const command::Ed25519PrivateKey* signer = nullptr) {
+    const auto wall = now();
+    return send(
+        *command::make_command(vehicle_, lock, action, wall, wall + std::chrono::seconds(60), id),
+        timeout, signer);
+  }
+  // An MC action (command::make_mc_command: "speed_limit" with "15", "headlight" with "on", ...).
+  Outcome send_mc(const std::string& id, std::string_view action, std::string_view value,
+                  std::chrono::milliseconds timeout) {
+    const auto wall = now();
+    return send(*command::make_mc_command(vehicle_, action, value, wall,
+                                          wall + std::chrono::seconds(60), id),
+                timeout);
+  }
+
+  // Signs and publishes `c`, then waits up to `timeout` for the result bound to its id.
+  Outcome send(const v1::Command& c, std::chrono::milliseconds timeout,
+               const command::Ed25519PrivateKey* signer = nullptr) {
     using namespace std::chrono;
-    const auto wall = duration_cast<motinova::Micros>(system_clock::now().time_since_epoch());
-    auto c = command::make_command(vehicle_, lock, action, wall, wall + seconds(60), id);
-    const std::string payload = command::sign_command(*c, signer ? *signer : key_, key_id_);
+    const std::string& id = c.command_id();
+    const std::string payload = command::sign_command(c, signer ? *signer : key_, key_id_);
     Outcome out;
     const auto t0 = SteadyClock::now();
     const auto deadline = t0 + timeout;
@@ -115,6 +131,11 @@ class CommandOperator {
   std::string vehicle_;
   command::Ed25519PrivateKey key_;
   std::string key_id_;
+  static motinova::Micros now() {
+    return std::chrono::duration_cast<motinova::Micros>(
+        std::chrono::system_clock::now().time_since_epoch());
+  }
+
   std::mutex mu_;
   std::condition_variable cv_;
   std::deque<mqtt::const_message_ptr> inbox_;

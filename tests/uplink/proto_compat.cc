@@ -4,8 +4,10 @@
 #include <google/protobuf/text_format.h>
 
 #include <algorithm>
+#include <fstream>
 #include <map>
 #include <set>
+#include <sstream>
 #include <stdexcept>
 
 #include "proto/schema_reflection.h"
@@ -210,6 +212,46 @@ std::vector<std::string> compare(const pb::FileDescriptorSet& before,
   c.messages("fleetgw.v1", all_before.nested_type(), all_after.nested_type());
   c.enums("fleetgw.v1", enums_before, enums_after);
   return c.problems;
+}
+
+pb::FileDescriptorSet load_snapshot(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw std::runtime_error("cannot read the schema snapshot " + path);
+  std::ostringstream text;
+  text << in.rdbuf();
+  return from_snapshot_text(text.str());
+}
+
+const pb::FieldDescriptorProto* find_field(const pb::FileDescriptorSet& set,
+                                           std::string_view message, std::string_view name) {
+  for (const auto& f : set.file()) {
+    for (const auto& m : f.message_type()) {
+      if (m.name() != message) continue;
+      for (const auto& field : m.field()) {
+        if (field.name() == name) return &field;
+      }
+    }
+  }
+  return nullptr;
+}
+
+std::string build_pool(const pb::FileDescriptorSet& set, pb::DescriptorPool& pool) {
+  std::vector<const pb::FileDescriptorProto*> pending;
+  for (const auto& f : set.file()) pending.push_back(&f);
+  std::string errors;
+  while (!pending.empty()) {
+    const std::size_t before = pending.size();
+    std::erase_if(pending, [&](const pb::FileDescriptorProto* f) {
+      for (const auto& dep : f->dependency()) {
+        if (pool.FindFileByName(dep) == nullptr) return false;
+      }
+      if (pool.BuildFile(*f) == nullptr) errors += "cannot build " + f->name() + "; ";
+      return true;
+    });
+    if (pending.size() == before)
+      return errors + "unresolvable imports in " + pending.front()->name();
+  }
+  return errors;
 }
 
 }  // namespace fleetgw::testing

@@ -18,23 +18,12 @@ namespace {
 namespace pb = google::protobuf;
 
 pb::FileDescriptorSet committed_snapshot() {
-  std::ifstream in(FLEETGW_PROTO_SNAPSHOT);
-  std::ostringstream s;
-  s << in.rdbuf();
-  return testing::from_snapshot_text(s.str());
+  return testing::load_snapshot(FLEETGW_PROTO_SNAPSHOT);
 }
 
 const pb::FieldDescriptorProto* find_field(const pb::FileDescriptorSet& set,
                                            const std::string& message, const std::string& name) {
-  for (const auto& f : set.file()) {
-    for (const auto& m : f.message_type()) {
-      if (m.name() != message) continue;
-      for (const auto& field : m.field()) {
-        if (field.name() == name) return &field;
-      }
-    }
-  }
-  return nullptr;
+  return testing::find_field(set, message, name);
 }
 
 int enum_number(const pb::FileDescriptorSet& set, const std::string& e, const std::string& value) {

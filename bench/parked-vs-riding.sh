@@ -1,0 +1,101 @@
+#!/usr/bin/env bash
+# Parked against riding (issue 13, figures): CPU and bytes on the wire per hour of the shipped
+# `fleetgw run` on the simulator at speed 1 (real time: the uplink's batching and status timers
+# run on the wall clock, so an accelerated simulation would squeeze an hour of them into a
+# minute), uplink on to a local mosquitto. Three services run side by side for MINUTES each:
+#   parked      config/scenarios/parked.toml (locked, still), parked mode on (the default);
+#   parked-off  the same bike with [parked] enabled = false: what parked mode saves;
+#   riding      config/scenarios/ride.toml (a ride from the first seconds).
+# Each has its own broker, so the broker's $SYS/broker/bytes/received is what that gateway sent
+# (MQTT framing, pings and reconnects included; the counter's own subscriber adds one CONNECT
+# and one SUBSCRIBE, < 100 bytes). CPU is user + sys of the process (start-up included). Per-hour
+# figures are the measured ones scaled by 60 / MINUTES. A benchmark, not a test.
+# Environment: FLEETGW (binary, default build/gateway/app/fleetgw), MINUTES (10: the parked
+#   scenario lasts 10 minutes), KEEP=1 keeps the work directory.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+FLEETGW=$(realpath "${FLEETGW:-build/gateway/app/fleetgw}")
+MINUTES=${MINUTES:-10}
+[[ -x $FLEETGW ]] || { echo "parked-vs-riding: no binary $FLEETGW" >&2; exit 1; }
+command -v mosquitto_sub >/dev/null || { echo "parked-vs-riding: needs mosquitto-clients" >&2; exit 1; }
+(( MINUTES >= 1 && MINUTES <= 10 )) || { echo "parked-vs-riding: MINUTES must be 1-10" >&2; exit 2; }
+
+WORK=$(mktemp -d /tmp/fleetgw-parked-XXXXXX)
+PIDS=()
+cleanup() {
+  for p in "${PIDS[@]}"; do kill "$p" 2>/dev/null || true; done
+  [[ ${KEEP:-0} == 1 ]] && echo "work directory: $WORK" || rm -rf "$WORK"
+}
+trap cleanup EXIT
+
+free_port() {
+  /usr/bin/python3 -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])'
+}
+
+declare -A PORT
+start_broker() {  # name
+  local port
+  port=$(free_port)
+  printf 'listener %s 127.0.0.1\nallow_anonymous true\nsys_interval 1\nset_tcp_nodelay true\n' \
+    "$port" >"$WORK/$1-mosquitto.conf"
+  mosquitto -c "$WORK/$1-mosquitto.conf" 2>"$WORK/$1-mosquitto.log" &
+  PIDS+=($!)
+  for _ in $(seq 100); do  # until the broker accepts a connection
+    mosquitto_sub -h 127.0.0.1 -p "$port" -t '$SYS/broker/version' -C 1 -W 1 >/dev/null 2>&1 && break
+    sleep 0.05
+  done
+  PORT[$1]=$port
+}
+
+bytes_received() {  # name: the broker's received-bytes counter
+  mosquitto_sub -h 127.0.0.1 -p "${PORT[$1]}" -t '$SYS/broker/bytes/received' -C 1 -W 5
+}
+
+write_config() {  # name scenario parked-enabled
+  cat >"$WORK/$1.toml" <<TOML
+[vehicle]
+id = "bench-$1"
+[log]
+level = "warn"
+[can]
+transport = "sim"
+[sim]
+scenario = "$PWD/config/scenarios/$2.toml"
+speed = 1
+[storage]
+path = "$WORK/$1.db"
+[mqtt]
+enabled = true
+uri = "tcp://127.0.0.1:${PORT[$1]}"
+[parked]
+enabled = $3
+TOML
+}
+
+NAMES=(parked parked-off riding)
+for n in "${NAMES[@]}"; do start_broker "$n"; done
+write_config parked parked true
+write_config parked-off parked false
+write_config riding ride true
+declare -A BASE
+for n in "${NAMES[@]}"; do BASE[$n]=$(bytes_received "$n"); done
+
+echo "parked-vs-riding: three services for $MINUTES min at speed 1 ($FLEETGW)"
+RUNS=()
+for n in "${NAMES[@]}"; do
+  /usr/bin/time -f '%U %S' -o "$WORK/$n.time" \
+    "$FLEETGW" run --config "$WORK/$n.toml" --duration $((MINUTES * 60)) >"$WORK/$n.log" 2>&1 &
+  RUNS+=($!)
+done
+for i in "${!RUNS[@]}"; do
+  wait "${RUNS[$i]}" || { echo "parked-vs-riding: ${NAMES[$i]} failed" >&2; tail -20 "$WORK/${NAMES[$i]}.log" >&2; exit 1; }
+done
+sleep 2  # $SYS counters are published every second (sys_interval 1)
+
+printf '%-11s %12s %16s %14s %16s\n' run "CPU s" "CPU s / hour" "bytes" "bytes / hour"
+for n in "${NAMES[@]}"; do
+  cpu=$(awk '{ print $1 + $2 }' "$WORK/$n.time")
+  bytes=$(( $(bytes_received "$n") - BASE[$n] ))
+  awk -v n="$n" -v c="$cpu" -v b="$bytes" -v m="$MINUTES" 'BEGIN {
+    printf "%-11s %12.2f %16.1f %14d %16d\n", n, c, c * 60 / m, b, b * 60 / m }'
+done
