@@ -12,6 +12,7 @@
 #include "tests/runtime/service_process.h"
 #include "tests/support/mosquitto_fixture.h"
 #include "tests/support/process.h"
+#include "tests/support/sqlite_query.h"
 #include "tests/support/temp_dir.h"
 #include "tests/support/wait.h"
 
@@ -20,10 +21,10 @@ namespace {
 
 using namespace std::chrono_literals;
 
-std::filesystem::path mc_e2e_scenario() {
+std::filesystem::path mc_e2e_scenario(const std::string& name = "parked") {
   // tests/command/ -> the source root.
   return std::filesystem::path(__FILE__).parent_path().parent_path().parent_path() / "config" /
-         "scenarios" / "parked.toml";
+         "scenarios" / (name + ".toml");
 }
 
 std::string mc_e2e_read(const std::filesystem::path& p) {
@@ -34,11 +35,13 @@ std::string mc_e2e_read(const std::filesystem::path& p) {
 }
 
 struct McE2e {
-  McE2e() {
+  // Default: the parked bike at speed 1 (bus time = wall time: the round trip is what an
+  // operator would see).
+  explicit McE2e(const std::string& scenario = "parked", double speed = 1) {
     broker.start();
     fleetgw::testing::ServiceConfigText c;
-    c.scenario = mc_e2e_scenario();
-    c.speed = 1;  // bus time = wall time: the round trip is what an operator would see
+    c.scenario = mc_e2e_scenario(scenario);
+    c.speed = speed;
     c.db = dir.path() / "fleetgw.db";
     c.broker_uri = broker.uri();
     c.vehicle = "rt-mc";
@@ -139,6 +142,46 @@ TEST(CommandMqttMc, SpeedLimitIsConfirmedEndToEndThroughFleetgwRun) {
   EXPECT_EQ(assist.exit_code, 0) << assist.err << assist.result.dump();
   EXPECT_EQ(assist.result["mc"]["assist_level"], "eco");
   EXPECT_EQ(rig.service->stop(), 0) << rig.log();
+}
+
+TEST(CommandMqttMc, ClearTripIsConfirmedAndPowerOffRefusedWhileRiding) {
+  McE2e rig("ride", 20);  // 20x: the trip counter passes 500 m within seconds
+  ASSERT_TRUE(rig.ready) << rig.log();
+  // Riding: power off is refused by the motion interlock and nothing is shut down.
+  const auto refused = rig.until_mc_known({"--power-off"});
+  ASSERT_TRUE(refused.result.is_object()) << refused.err << rig.log();
+  EXPECT_EQ(refused.exit_code, 1) << refused.err;
+  EXPECT_EQ(refused.result["result"], "rejected") << refused.result.dump();
+  EXPECT_EQ(refused.result["reason"].get<std::string>().rfind("interlock_moving", 0), 0u)
+      << refused.result.dump();
+  // Until the trip counter has passed ~500 m: 100 s of telemetry at 20 km/h (after 40 s at 8).
+  ASSERT_TRUE(fleetgw::testing::wait_until(
+      [&] {
+        const std::string n = fleetgw::testing::query_text(
+            rig.dir.path() / "fleetgw.db", "SELECT count(*) FROM telemetry WHERE speed_kmh > 15");
+        return !n.empty() && std::stoi(n) >= 100;
+      },
+      60s, 200ms))
+      << rig.log();
+  // Clear trip is confirmed only by the MC's running data showing the trip back near zero.
+  const auto cleared = rig.tool({"--clear-trip"});
+  EXPECT_EQ(cleared.exit_code, 0) << cleared.err << cleared.result.dump();
+  EXPECT_EQ(cleared.result["result"], "succeeded") << cleared.result.dump();
+  EXPECT_EQ(cleared.result["mc"]["action"], "clear_trip");
+  EXPECT_LT(cleared.result["mc"].value("trip_m", 999999), 100) << cleared.result.dump();
+  EXPECT_TRUE(rig.service->running()) << rig.log();
+}
+
+TEST(CommandMqttMc, PowerOffOfAParkedBikeIsConfirmedByTheReadyReplies) {
+  McE2e rig;
+  ASSERT_TRUE(rig.ready) << rig.log();
+  const auto off = rig.until_mc_known({"--power-off"});
+  ASSERT_TRUE(off.result.is_object()) << off.err << rig.log();
+  EXPECT_EQ(off.exit_code, 0) << off.err << off.result.dump();
+  EXPECT_EQ(off.result["result"], "succeeded") << off.result.dump();
+  EXPECT_EQ(off.result["mc"]["action"], "power_off");
+  EXPECT_EQ(off.result["mc"]["mc_ready"], true) << off.result.dump();
+  EXPECT_EQ(off.result["mc"]["obc_ready"], true) << off.result.dump();
 }
 
 TEST(CommandMqttMc, UsageErrorsExitTwoWithoutPublishing) {
