@@ -10,6 +10,7 @@
 
 #include "storage/store.h"
 #include "tests/config/cli_test_util.h"
+#include "tests/config/store_fixture.h"
 #include "tests/support/temp_dir.h"
 
 namespace fleetgw::testing::db_cli {
@@ -25,23 +26,7 @@ const std::string kHostileReason = "lock_failed: \"jammed\", said\r\nline two";
 const std::string kHostileDetail = "detail\twith\nnewline";
 
 storage::Ride ride(const std::string& id, std::int64_t start, double km) {
-  storage::Ride r;
-  r.ride_id = id;
-  r.state = storage::RideState::kClosed;
-  r.start_us = start;
-  r.end_us = start + 28 * 60 * kSec;
-  r.duration_s = 28 * 60;
-  r.moving_s = 25 * 60;
-  r.start_odo_km = 100;
-  r.end_odo_km = 100 + km;
-  r.distance_km = km;
-  r.max_speed_kmh = 25.3;
-  r.avg_speed_kmh = 17.4;
-  r.energy_wh = 92.5;
-  r.soc_start_pct = 90;
-  r.soc_end_pct = 81;
-  r.fault_count = 1;
-  return r;
+  return closed_ride(id, start, km);
 }
 
 // A store with 3 rides (9:00, 10:00, 11:00 on 2024-11-27), a raised and a cleared fault,

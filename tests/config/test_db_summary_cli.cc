@@ -7,6 +7,7 @@
 
 #include "storage/store.h"
 #include "tests/config/cli_test_util.h"
+#include "tests/config/store_fixture.h"
 #include "tests/support/temp_dir.h"
 
 namespace fleetgw::testing::db_summary_cli {
@@ -20,19 +21,9 @@ constexpr std::int64_t kT0 = 1732701600LL * kSec;  // 2024-11-27T10:00:00Z
 const std::string kHostileReason = "evil\nreason\x1b[2J: \"quoted\", detail\r\nline two";
 const std::string kHostileName = "name,with \"quotes\"\nand\x1b[31m";
 
-storage::Ride closed_ride(const std::string& id, std::int64_t start, double km) {
-  storage::Ride r;
-  r.ride_id = id;
-  r.state = storage::RideState::kClosed;
-  r.start_us = start;
-  r.end_us = start + 28 * 60 * kSec;
-  r.duration_s = 28 * 60;
-  r.moving_s = 25 * 60;
-  r.start_odo_km = 100;
-  r.end_odo_km = 100 + km;
-  r.distance_km = km;
+storage::Ride summary_ride(const std::string& id, std::int64_t start, double km) {
+  storage::Ride r = closed_ride(id, start, km);
   r.distance_integrated_km = km + 0.5;  // not used: the ride has odometer readings
-  r.energy_wh = 50;
   return r;
 }
 
@@ -51,8 +42,8 @@ void make_store(const fs::path& path) {
   storage::Store store(o);
   storage::Batch b;
   b.now_us = kT0;
-  b.rides.push_back({closed_ride("ride-0900", kT0 - 3600 * kSec, 8.1), std::nullopt});
-  b.rides.push_back({closed_ride("ride-1000", kT0, 3.0), std::nullopt});
+  b.rides.push_back({summary_ride("ride-0900", kT0 - 3600 * kSec, 8.1), std::nullopt});
+  b.rides.push_back({summary_ride("ride-1000", kT0, 3.0), std::nullopt});
   storage::Ride open;
   open.ride_id = "ride-1100";
   open.start_us = kT0 + 3600 * kSec;
