@@ -80,13 +80,6 @@ void make_store(const fs::path& path) {
   ASSERT_TRUE(r.ok()) << r.error->message;
 }
 
-std::vector<std::string> lines_of(const std::string& text) {
-  std::vector<std::string> out;
-  std::istringstream in(text);
-  for (std::string l; std::getline(in, l);) out.push_back(l);
-  return out;
-}
-
 class DbCli : public ::testing::Test {
  protected:
   void SetUp() override { make_store(db_); }

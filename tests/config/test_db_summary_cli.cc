@@ -99,13 +99,6 @@ void make_store(const fs::path& path) {
   ASSERT_TRUE(r.ok()) << r.error->message;
 }
 
-std::vector<std::string> lines_of(const std::string& text) {
-  std::vector<std::string> out;
-  std::istringstream in(text);
-  for (std::string l; std::getline(in, l);) out.push_back(l);
-  return out;
-}
-
 // RFC 4180 records: quoted fields with doubled quotes, CR LF inside quotes kept, CR LF between
 // records. Returns nullopt for input that is not valid CSV (the test then fails).
 std::optional<std::vector<std::vector<std::string>>> parse_csv(const std::string& text) {
