@@ -14,8 +14,9 @@
 #             files, real gpsd); alongside it, at low priority, what mostly waits or can use the
 #             suite's idle time: the arm64 cross build with its emulated tests, and in the
 #             product tree the SocketCAN tests inside a QEMU VM (a stock Debian kernel with vcan),
-#             the deployment tests (the Debian package installed and purged, the systemd unit)
-#             and the `memory` tests (resident memory means nothing under ASan's quarantine);
+#             the deployment tests (the Debian package installed and purged, the systemd unit),
+#             the `memory` tests (resident memory means nothing under ASan's quarantine) and the
+#             demo's story (scripts/demo.sh on the binary it ships);
 #   arm64     the result of the cross build of the protocol and storage unit tests, run under
 #             qemu-aarch64-static (tests/deploy/arm64-cross.sh: -O1, no debug info);
 #   fuzz      every libFuzzer target of FUZZ_TARGETS for FUZZ_SECONDS each, side by side.
@@ -23,7 +24,7 @@
 # Environment: JOBS (default: nproc), FUZZ_SECONDS (default 30), FUZZ_TARGETS (default
 #   "fuzz_reassembler fuzz_command"; a target the tree does not define yet is skipped and said
 #   so), SKIP_ASAN=1 (the test tree without sanitizers; fuzzing then skipped too), SKIP_FUZZ=1,
-#   SKIP_VM=1, SKIP_ARM64=1, SKIP_PRODUCT=1 (no product tree: no VM, deploy or memory tests),
+#   SKIP_VM=1, SKIP_ARM64=1, SKIP_PRODUCT=1 (no product tree: no VM, deploy, memory or demo tests),
 #   ARM64_FIGURES=1 (the release arm64 binary with its size, and the emulated protocol
 #   benchmark), ARM64_TESTS (the emulated test executables; default "protocol_tests
 #   storage_tests").
@@ -163,6 +164,8 @@ if [ -n "$product_pid" ]; then
     echo "$rc" >deploy-tests.rc
     rc=0; ctest --output-on-failure --timeout 900 -L memory >memory-tests.log 2>&1 || rc=$?
     echo "$rc" >memory-tests.rc
+    rc=0; ctest --output-on-failure --timeout 900 -L demo >demo-tests.log 2>&1 || rc=$?
+    echo "$rc" >demo-tests.rc
   ) &
   product_tests_pid=$!
 fi
@@ -171,7 +174,7 @@ if [ "${SKIP_ASAN:-0}" != 1 ]; then
   export ASAN_OPTIONS=detect_leaks=1:abort_on_error=1:suppressions=$ROOT/tests/sanitizer/asan.supp
   export UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
 fi
-run_ctest build-san -j "$((JOBS + 1))" -LE "vm|deploy|arm64" || status=1
+run_ctest build-san -j "$((JOBS + 1))" -LE "vm|deploy|arm64|demo" || status=1
 unset ASAN_OPTIONS UBSAN_OPTIONS
 phase_end
 
@@ -185,13 +188,18 @@ if [ -n "$product_pid" ]; then
     FAILED=$((FAILED + 1))
     status=1
   else
-    for t in vm deploy memory; do
+    for t in vm deploy memory demo; do
       [ -f "build/$t-tests.rc" ] || continue
       echo "== $t tests (product tree, ran alongside)"
       cat "build/$t-tests.log"
       rc=$(cat "build/$t-tests.rc")
       account_ctest "build/$t-tests.log" "$rc" "build -L $t (alongside)"
-      [ "$rc" = 0 ] || status=1
+      if [ "$rc" != 0 ]; then
+        status=1
+        # What failed, where the end of the run shows it (the summary).
+        while IFS= read -r line; do SUMMARY+=("  $t: $line"); done \
+          < <(grep -E "MISSED|^FAIL|demo.sh exit" "build/$t-tests.log" | head -n 12)
+      fi
     done
   fi
   phase_end
