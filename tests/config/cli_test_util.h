@@ -1,12 +1,9 @@
 // Test helpers for tests that run the real `fleetgw` binary: a child process with its stdout and
-// stderr in files, waited for with a deadline (never a fixed sleep), and polling helpers.
+// stderr in files (tests/support/process.h underneath), waited for with a deadline (never a
+// fixed sleep), and polling helpers.
 #pragma once
 
-#include <fcntl.h>
 #include <signal.h>
-#include <spawn.h>
-#include <sys/wait.h>
-#include <unistd.h>
 
 #include <chrono>
 #include <filesystem>
@@ -19,7 +16,7 @@
 #include <thread>
 #include <vector>
 
-extern char** environ;
+#include "tests/support/process.h"
 
 namespace fleetgw::testing {
 
@@ -52,62 +49,20 @@ inline bool wait_for(const std::function<bool()>& done, std::chrono::millisecond
   }
 }
 
-// A child process; killed (SIGKILL) on destruction if still running.
-class Child {
+// A child process with stdout and stderr in their own files: tests/support/process.h's
+// ChildProcess (killed and reaped on destruction), with the names these CLI tests read best.
+class Child : public ChildProcess {
  public:
   Child(const std::vector<std::string>& argv, const std::filesystem::path& out,
         const std::filesystem::path& err)
-      : out_(out), err_(err) {
-    std::vector<char*> args;
-    for (const auto& a : argv) args.push_back(const_cast<char*>(a.c_str()));
-    args.push_back(nullptr);
-    posix_spawn_file_actions_t fa;
-    posix_spawn_file_actions_init(&fa);
-    posix_spawn_file_actions_addopen(&fa, 1, out.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    posix_spawn_file_actions_addopen(&fa, 2, err.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    const int rc = posix_spawn(&pid_, args[0], &fa, nullptr, args.data(), environ);
-    posix_spawn_file_actions_destroy(&fa);
-    if (rc != 0) throw std::runtime_error("posix_spawn " + argv[0] + " failed");
-  }
-  ~Child() {
-    if (pid_ > 0) {
-      ::kill(pid_, SIGKILL);
-      int st = 0;
-      waitpid(pid_, &st, 0);
-    }
-  }
-  Child(const Child&) = delete;
-  Child& operator=(const Child&) = delete;
-
-  pid_t pid() const { return pid_; }
+      : ChildProcess(argv, out, err), err_(err) {}
   // Exit code once the child has exited within `timeout` (128 + signal for a signal), or nullopt.
-  std::optional<int> wait(std::chrono::milliseconds timeout) {
-    if (pid_ <= 0) return code_;
-    std::optional<int> code;
-    wait_for(
-        [&] {
-          int st = 0;
-          if (waitpid(pid_, &st, WNOHANG) != pid_) return false;
-          code = WIFEXITED(st) ? WEXITSTATUS(st) : 128 + WTERMSIG(st);
-          return true;
-        },
-        timeout);
-    if (code) {
-      pid_ = -1;
-      code_ = code;
-    }
-    return code;
-  }
-  void signal(int sig) const {
-    if (pid_ > 0) ::kill(pid_, sig);
-  }
-  std::string out() const { return slurp(out_); }
+  std::optional<int> wait(std::chrono::milliseconds timeout) { return wait_exit(timeout); }
+  std::string out() const { return log(); }
   std::string err() const { return slurp(err_); }
 
  private:
-  std::filesystem::path out_, err_;
-  pid_t pid_ = -1;
-  std::optional<int> code_;
+  std::filesystem::path err_;
 };
 
 struct Result {
