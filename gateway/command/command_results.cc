@@ -289,9 +289,10 @@ void CommandService::Impl::finish_interrupted(const storage::CommandJournalEntry
   r.set_command_id(entry.command_id);
   r.set_command_sha256(sha.empty() ? entry.command_sha256 : sha);
   r.set_result(v1::COMMAND_RESULT_CODE_TIMEOUT);
+  // Lock and MC commands alike: the bus never confirmed it, and it is not sent again.
   r.set_reason(
-      "interrupted_by_restart: the gateway stopped before the lock confirmed; not actuated "
-      "again");
+      "interrupted_by_restart: the gateway stopped before the bus confirmed the command; not "
+      "sent again");
   r.set_duration_ms(static_cast<std::uint64_t>(to_ms(now - Micros(entry.received_us))));
   count(r);
   ++stats.recovered;

@@ -7,7 +7,8 @@
 // Invariants beyond "no crash, no sanitizer report":
 //  * every result serializes (valid UTF-8 everywhere) and has a one-line reason;
 //  * a result with a command id is bound: command_sha256 (authentic) or payload_sha256;
-//  * no LOCK/UNLOCK frame reaches the bus for a payload that was rejected.
+//  * no frame of the IoT node's (lock actuation, MC write, SHUTDOWN) reaches the bus while a
+//    payload that is rejected is handled.
 #include <spdlog/spdlog.h>
 #include <unistd.h>
 
@@ -142,8 +143,38 @@ struct Harness {
 
 const char* const kLocks[] = {"seat", "battery", "frame", "steering", "wheel", "vehicle", ""};
 
+const char* const kAssistNames[] = {"off", "eco", "norm", "sport", "turbo", "walk", "boost", ""};
+
+// Makes `c` an MC command (issue 13's actions): bits 2-4 of `mode` pick the action, the rest of
+// the input its value, so speed limits in and out of the MC's range, unknown assist names and
+// actions mixed with a lock target all reach the service.
+void set_mc_action(v1::Command& c, std::uint8_t mode, const std::string& rest) {
+  const std::uint8_t value = rest.empty() ? 0 : static_cast<std::uint8_t>(rest.back());
+  switch (((mode >> 2) & 0x07) % 6) {
+    case 0:
+      c.mutable_speed_limit()->set_kmh(value % 80);
+      break;
+    case 1:
+      c.mutable_assist_level()->set_level(kAssistNames[value % 8]);
+      break;
+    case 2:
+      c.mutable_headlight()->set_on((value & 1) != 0);
+      break;
+    case 3:
+      c.mutable_clear_trip();
+      break;
+    case 4:
+      c.mutable_power_off();
+      break;
+    default:
+      c.mutable_speed_limit()->set_kmh(value * 1000u);
+      break;  // far out of range
+  }
+}
+
 // Builds the payload for this input. Byte 0 steers: bit 0 sign a Command made of the rest,
-// bit 1 make it fresh and for this vehicle, bits 2-4 pick a lock kind, bit 5 deliver twice.
+// bit 1 make it fresh and for this vehicle, bits 2-4 pick a lock kind (or, with bit 6, an MC
+// action), bit 5 deliver twice.
 std::string payload_of(Harness& h, const std::uint8_t* data, std::size_t size, bool& twice) {
   const std::uint8_t mode = size > 0 ? data[0] : 0;
   const std::string rest(reinterpret_cast<const char*>(data) + (size > 0 ? 1 : 0),
@@ -157,12 +188,16 @@ std::string payload_of(Harness& h, const std::uint8_t* data, std::size_t size, b
     c.set_vehicle_id(kVehicle);
     c.set_issued_at_us(now.count());
     c.set_expires_at_us((now + 60s).count());
-    if (c.action() == v1::COMMAND_ACTION_UNSPECIFIED) c.set_action(v1::COMMAND_ACTION_UNLOCK);
-    const std::string_view lock = kLocks[((mode >> 2) & 0x07) % 7];
-    if (lock == "vehicle") {
-      c.set_whole_vehicle(true);
-    } else if (!lock.empty()) {
-      c.set_lock_kind(std::string(lock));
+    if ((mode & 0x40) != 0) {
+      set_mc_action(c, mode, rest);
+    } else {
+      if (c.action() == v1::COMMAND_ACTION_UNSPECIFIED) c.set_action(v1::COMMAND_ACTION_UNLOCK);
+      const std::string_view lock = kLocks[((mode >> 2) & 0x07) % 7];
+      if (lock == "vehicle") {
+        c.set_whole_vehicle(true);
+      } else if (!lock.empty()) {
+        c.set_lock_kind(std::string(lock));
+      }
     }
   }
   return command::sign_command(c, h.key, kKeyId);
