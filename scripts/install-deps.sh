@@ -16,6 +16,7 @@ BUILD_PACKAGES=(
   libgtest-dev libgmock-dev libbenchmark-dev
   libtomlplusplus-dev libcli11-dev nlohmann-json3-dev libasio-dev
   libsystemd-dev libgps-dev help2man
+  libpq-dev
   clang libclang-rt-14-dev
 )
 if [ "${1:-}" = --build ]; then
@@ -27,11 +28,16 @@ else
     mosquitto mosquitto-clients
     can-utils iproute2
     gpsd gpsd-clients
+    postgresql
     qemu-system-x86 busybox-static cpio xz-utils kmod
     dpkg-dev file systemd adduser lintian
     chromium
+    nodejs  # test-side: aedes, a second MQTT broker (tests/support/aedes, fetched by npm)
     "$@"
   )
+  # Debian's npm is its own package; a nodejs from elsewhere (NodeSource) brings npm with it,
+  # and Debian's npm would conflict with it.
+  command -v npm >/dev/null || PACKAGES+=(npm)
 fi
 
 missing=()

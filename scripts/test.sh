@@ -173,12 +173,14 @@ if [ -n "$product_pid" ]; then
   product_tests_pid=$!
 fi
 if [ "${SKIP_ASAN:-0}" != 1 ]; then
-  # One documented suppression: a race inside Paho C itself (tests/sanitizer/asan.supp).
+  # One documented ASan suppression: a race inside Paho C itself (tests/sanitizer/asan.supp).
   export ASAN_OPTIONS=detect_leaks=1:abort_on_error=1:suppressions=$ROOT/tests/sanitizer/asan.supp
   export UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
+  # And one for LeakSanitizer: memory Paho C itself does not free (tests/sanitizer/lsan.supp).
+  export LSAN_OPTIONS=suppressions=$ROOT/tests/sanitizer/lsan.supp
 fi
 run_ctest build-san -j "$((JOBS + 1))" -LE "vm|deploy|arm64|demo" || status=1
-unset ASAN_OPTIONS UBSAN_OPTIONS
+unset ASAN_OPTIONS UBSAN_OPTIONS LSAN_OPTIONS
 phase_end
 
 if [ -n "$product_pid" ]; then

@@ -8,7 +8,7 @@
 namespace fleetgw::storage {
 namespace {
 
-constexpr std::array<std::pair<OutboxKind, std::string_view>, 10> kKindNames = {{
+constexpr std::array<std::pair<OutboxKind, std::string_view>, 11> kKindNames = {{
     {OutboxKind::kTelemetry, "telemetry"},
     {OutboxKind::kRide, "ride"},
     {OutboxKind::kFault, "fault"},
@@ -19,6 +19,7 @@ constexpr std::array<std::pair<OutboxKind, std::string_view>, 10> kKindNames = {
     {OutboxKind::kCommandResult, "command_result"},
     {OutboxKind::kEvictionReport, "eviction_report"},
     {OutboxKind::kAlarm, "alarm"},
+    {OutboxKind::kZone, "zone"},
 }};
 
 }  // namespace

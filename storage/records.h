@@ -135,6 +135,22 @@ struct AlarmRecord {
   friend bool operator==(const AlarmRecord&, const AlarmRecord&) = default;
 };
 
+// One geofence event (gateway/geofence/zone_engine.h ZoneEvent): a zone entered or left, or a
+// lock in a no-parking zone. The position is absent when the event had none (never "0,0").
+struct ZoneEventRecord {
+  std::int64_t id = 0;
+  std::int64_t ts_us = 0;  // when the engine decided it
+  std::string zone_id;
+  std::string zone_name;
+  std::string kind;        // "operating_area", "slow", "no_ride", "no_parking"
+  std::string transition;  // "enter", "exit", "locked_in_no_parking", "lock_refused"
+  std::uint64_t bundle_version = 0;
+  std::optional<double> lat_deg;
+  std::optional<double> lon_deg;
+  std::optional<int> speed_limit_kmh;  // slow zones
+  friend bool operator==(const ZoneEventRecord&, const ZoneEventRecord&) = default;
+};
+
 struct CommandResult {
   std::int64_t id = 0;
   std::string command_id;
@@ -171,6 +187,7 @@ enum class OutboxKind : std::uint8_t {
   kCommandResult,
   kEvictionReport,
   kAlarm,
+  kZone,
 };
 
 // Lower value = more urgent. Alarms share the top priority with command results (both are
@@ -179,6 +196,7 @@ enum class OutboxPriority : std::uint8_t {
   kAlarm = 0,
   kCommandResult = 0,
   kFault = 1,
+  kZone = 1,
   kRide = 2,
   kLock = 3,
   kPack = 4,

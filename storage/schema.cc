@@ -158,7 +158,24 @@ CREATE TABLE alarms (
 CREATE INDEX alarms_by_time ON alarms (ts_us);
 )sql";
 
-constexpr std::array<std::string_view, kSchemaVersion> kSteps = {kV1, kV2, kV3, kV4};
+// v5: geofence events (gateway/geofence/zone_engine.h ZoneEvent), never evicted.
+constexpr std::string_view kV5 = R"sql(
+CREATE TABLE zone_events (
+  id INTEGER PRIMARY KEY,
+  ts_us INTEGER NOT NULL,
+  zone_id TEXT NOT NULL,
+  zone_name TEXT NOT NULL DEFAULT '',
+  kind TEXT NOT NULL,
+  transition TEXT NOT NULL,
+  bundle_version INTEGER NOT NULL,
+  lat_deg REAL,
+  lon_deg REAL,
+  speed_limit_kmh INTEGER
+);
+CREATE INDEX zone_events_by_time ON zone_events (ts_us);
+)sql";
+
+constexpr std::array<std::string_view, kSchemaVersion> kSteps = {kV1, kV2, kV3, kV4, kV5};
 
 }  // namespace
 

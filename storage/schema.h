@@ -22,6 +22,8 @@
 //   v4  alarms table: operator alarms (unauthorised movement, lock forced/tamper, low battery,
 //       battery removed/swapped), raised/cleared with their evidence; queued as outbox kind
 //       "alarm" at priority 0
+//   v5  zone_events table: geofence enter/exit and no-parking lock events (issue 14); queued
+//       as outbox kind "zone" at priority 1
 #pragma once
 
 #include <stdexcept>
@@ -31,7 +33,7 @@
 
 namespace fleetgw::storage {
 
-inline constexpr int kSchemaVersion = 4;
+inline constexpr int kSchemaVersion = 5;
 
 class SchemaTooNewError : public std::runtime_error {
  public:

@@ -88,7 +88,8 @@ StoreError to_store_error(const std::exception& e) {
 
 std::size_t Batch::size() const {
   return telemetry.size() + rides.size() + faults.size() + packs.size() + locks.size() +
-         alarms.size() + command_results.size() + commands.size() + messages.size() + meta.size();
+         alarms.size() + zone_events.size() + command_results.size() + commands.size() +
+         messages.size() + meta.size();
 }
 
 void Batch::clear() {
@@ -98,6 +99,7 @@ void Batch::clear() {
   packs.clear();
   locks.clear();
   alarms.clear();
+  zone_events.clear();
   command_results.clear();
   commands.clear();
   messages.clear();

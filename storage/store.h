@@ -131,6 +131,7 @@ struct Batch {
   std::vector<Pending<PackSnapshot>> packs;
   std::vector<Pending<LockEvent>> locks;
   std::vector<Pending<AlarmRecord>> alarms;
+  std::vector<Pending<ZoneEventRecord>> zone_events;
   std::vector<Pending<CommandResult>> command_results;
   std::vector<CommandJournalEntry> commands;
   std::vector<UplinkMessage> messages;

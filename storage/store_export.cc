@@ -17,13 +17,14 @@ struct ExportSpec {
   std::string_view table;
   std::string_view time_column;  // empty: the table has no time column
 };
-constexpr std::array<ExportSpec, 12> kExportSpecs = {{
+constexpr std::array<ExportSpec, 13> kExportSpecs = {{
     {"rides", "start_us"},
     {"fault_events", "first_seen_us"},
     {"pack_snapshots", "ts_us"},
     {"telemetry", "ts_us"},
     {"lock_events", "ts_us"},
     {"alarms", "ts_us"},
+    {"zone_events", "ts_us"},
     {"command_results", "ts_us"},
     {"commands", "received_us"},
     {"seen_command_ids", "expires_at_us"},

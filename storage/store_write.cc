@@ -46,6 +46,9 @@ constexpr std::string_view kInsertAlarm =
     "INSERT INTO alarms (ts_us, first_evidence_us, kind, transition, lock_node, speed_kmh, "
     "max_speed_kmh, motor_rpm, soc_pct, threshold_pct, lock_fault_bits, old_bms_serial, "
     "new_bms_serial, detail) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)";
+constexpr std::string_view kInsertZoneEvent =
+    "INSERT INTO zone_events (ts_us, zone_id, zone_name, kind, transition, bundle_version, "
+    "lat_deg, lon_deg, speed_limit_kmh) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)";
 constexpr std::string_view kInsertCommandResult =
     "INSERT INTO command_results (command_id, ts_us, result, reason, final_state, duration_ms) "
     "VALUES (?, ?, ?, ?, ?, ?)";
@@ -103,6 +106,7 @@ void validate(const Batch& b) {
   check_uplink(b.packs, "packs");
   check_uplink(b.locks, "locks");
   check_uplink(b.alarms, "alarms");
+  check_uplink(b.zone_events, "zone_events");
   check_uplink(b.command_results, "command_results");
   for (std::size_t i = 0; i < b.telemetry.size(); ++i) {
     check_time(b.telemetry[i].record.ts_us, "telemetry", i, "ts_us");
@@ -139,6 +143,16 @@ void validate(const Batch& b) {
     if (to_string(a.transition) == "invalid") reject("alarms", i, "transition", "invalid value");
     check_time(a.ts_us, "alarms", i, "ts_us");
     check_time(a.first_evidence_us, "alarms", i, "first_evidence_us");
+  }
+  for (std::size_t i = 0; i < b.zone_events.size(); ++i) {
+    const ZoneEventRecord& z = b.zone_events[i].record;
+    if (z.zone_id.empty()) reject("zone_events", i, "zone_id", "empty");
+    if (z.kind.empty()) reject("zone_events", i, "kind", "empty");
+    if (z.transition.empty()) reject("zone_events", i, "transition", "empty");
+    if (z.lat_deg.has_value() != z.lon_deg.has_value()) {
+      reject("zone_events", i, "lat_deg", "latitude and longitude must come together");
+    }
+    check_time(z.ts_us, "zone_events", i, "ts_us");
   }
   for (std::size_t i = 0; i < b.command_results.size(); ++i) {
     if (b.command_results[i].record.command_id.empty()) {
@@ -300,6 +314,18 @@ WriteResult Store::Impl::write_once(const Batch& b) {
       st->run();
       st->reset();
       queue(uplink, OutboxKind::kAlarm, OutboxPriority::kAlarm, db.last_insert_rowid());
+    }
+  }
+  if (!b.zone_events.empty()) {
+    auto st = db.cached(kInsertZoneEvent);
+    for (const auto& [z, uplink] : b.zone_events) {
+      // SQLite integers are signed: a version past INT64_MAX is stored as its bit pattern.
+      st->bind_all(z.ts_us, z.zone_id, z.zone_name, z.kind, z.transition,
+                   static_cast<std::int64_t>(z.bundle_version), z.lat_deg, z.lon_deg,
+                   z.speed_limit_kmh);
+      st->run();
+      st->reset();
+      queue(uplink, OutboxKind::kZone, OutboxPriority::kZone, db.last_insert_rowid());
     }
   }
   if (!b.command_results.empty()) {

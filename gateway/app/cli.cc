@@ -12,12 +12,15 @@
 #include "gateway/app/command_tool.h"
 #include "gateway/app/completion.h"
 #include "gateway/app/db_command.h"
+#include "gateway/app/fleet_sim_command.h"
+#include "gateway/app/ingest_command.h"
 #include "gateway/app/logging.h"
 #include "gateway/app/ride_command.h"
 #include "gateway/app/table_format.h"
 #include "gateway/app/watch_command.h"
 #include "gateway/config/config.h"
 #include "gateway/decode/decode_command.h"
+#include "gateway/geofence/zone_tool.h"
 #include "gateway/runtime/recorder.h"
 #include "gateway/runtime/service.h"
 #include "gateway/sim/sim_command.h"
@@ -270,6 +273,18 @@ int run_cli(int argc, char** argv) {
   WatchOptions watch_options;
   add_watch_options(*watch_cmd, watch_options);
 
+  // ingest: validated here, run by fleetgw-ingest (libpq stays out of this binary)
+  auto* ingest_cmd = app.add_subcommand(
+      "ingest", "write the fleet's Envelopes from an MQTT 5 shared subscription into PostgreSQL");
+  ingest::IngestOptions ingest_options;
+  add_ingest_options(*ingest_cmd, ingest_options);
+
+  // fleet-sim
+  auto* fleet_sim_cmd = app.add_subcommand(
+      "fleet-sim", "N simulated vehicles, each with its own MQTT 5 session, against a broker");
+  FleetSimOptions fleet_sim_options;
+  add_fleet_sim_options(*fleet_sim_cmd, fleet_sim_options);
+
   // status
   auto* status_cmd = app.add_subcommand(
       "status", "health of the running service (exit 1: needs attention, 3: no answer)");
@@ -298,6 +313,31 @@ int run_cli(int argc, char** argv) {
   keygen_cmd
       ->add_option("prefix", keygen_prefix, "writes PREFIX.pem (private, 0600) and PREFIX.pub")
       ->required();
+
+  // zones (issue 14): signed geofence bundles from GeoJSON, and their check
+  auto* zones_cmd =
+      app.add_subcommand("zones", "sign a geofence bundle from GeoJSON, or check one");
+  zones_cmd->require_subcommand(1);
+  auto* zones_sign_cmd =
+      zones_cmd->add_subcommand("sign", "GeoJSON zones -> a signed zone bundle file");
+  geofence::ZonesSignOptions zones_sign;
+  zones_sign_cmd->add_option("geojson", zones_sign.geojson, "GeoJSON FeatureCollection of zones")
+      ->required();
+  zones_sign_cmd->add_option("--version", zones_sign.version, "bundle version (> the one in force)")
+      ->required();
+  zones_sign_cmd->add_option("--key", zones_sign.key_pem, "Ed25519 private key (PEM)")->required();
+  zones_sign_cmd->add_option("--key-id", zones_sign.key_id,
+                             "key id (default: the key file's stem)");
+  zones_sign_cmd->add_option("--out", zones_sign.out, "signed bundle file to write")->required();
+  auto* zones_check_cmd = zones_cmd->add_subcommand(
+      "check", "judge a signed zone bundle as a gateway would (keys from --config)");
+  geofence::ZonesCheckOptions zones_check;
+  std::string zones_config, zones_in_force;
+  zones_check_cmd->add_option("bundle", zones_check.bundle, "signed zone bundle file")->required();
+  zones_check_cmd->add_option("--config", zones_config, "configuration with [command.trusted_keys]")
+      ->required();
+  zones_check_cmd->add_option("--in-force", zones_in_force,
+                              "the bundle in force (a gateway's stored file) to compare with");
 
   // command
   auto* command_cmd = app.add_subcommand(
@@ -336,6 +376,10 @@ int run_cli(int argc, char** argv) {
       ->check(CLI::Range(1, 3600));
   command_cmd->add_option("--expires-in-s", cmd_expires_s, "command validity")
       ->check(CLI::Range(1, 86400));
+  command_cmd
+      ->add_option("--mqtt-version", cmd_options.mqtt_version,
+                   "MQTT protocol: 5 (the broker drops the command when it expires) or 3.1.1")
+      ->check(CLI::IsMember({"5", "3.1.1"}));
 
   // completion (hidden): the bash completion script, from every definition above
   auto* completion_cmd = add_completion_command(app);
@@ -406,6 +450,16 @@ int run_cli(int argc, char** argv) {
       while (first < argc && std::string_view(argv[first]) != "watch") ++first;
       return exec_watch(first < argc ? argc - first - 1 : 0, argv + first + 1);
     }
+    if (fleet_sim_cmd->parsed()) {
+      setup_logging("info");
+      return run_fleet_sim(fleet_sim_options);
+    }
+    if (ingest_cmd->parsed()) {
+      int first = 1;
+      while (first < argc && std::string_view(argv[first]) != "ingest") ++first;
+      return exec_sibling("fleetgw-ingest", "ingest", first < argc ? argc - first - 1 : 0,
+                          argv + first + 1);
+    }
     if (status_cmd->parsed()) {
       if (!status_config.empty()) {
         status_options.socket_path = config::load_config(status_config).status.socket;
@@ -418,6 +472,16 @@ int run_cli(int argc, char** argv) {
       return run_status(status_options, status_format, std::cout, std::cerr);
     }
     if (keygen_cmd->parsed()) return command::run_keygen(keygen_prefix, std::cout);
+    if (zones_sign_cmd->parsed()) {
+      zones_sign.issued_at = std::chrono::duration_cast<std::chrono::microseconds>(
+          std::chrono::system_clock::now().time_since_epoch());
+      return geofence::run_zones_sign(zones_sign, std::cout, std::cerr);
+    }
+    if (zones_check_cmd->parsed()) {
+      zones_check.trusted_keys = config::load_config(zones_config).command.trusted_keys;
+      if (!zones_in_force.empty()) zones_check.in_force = zones_in_force;
+      return geofence::run_zones_check(zones_check, std::cout, std::cerr);
+    }
     if (command_cmd->parsed()) {
       cmd_options.timeout = std::chrono::seconds(cmd_timeout_s);
       cmd_options.expires_in = std::chrono::seconds(cmd_expires_s);

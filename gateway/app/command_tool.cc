@@ -16,11 +16,15 @@
 #include "gateway/command/sha256.h"
 #include "gateway/command/verifier.h"
 #include "gateway/common/untrusted_text.h"
+#include "gateway/uplink/mqtt5.h"
 #include "gateway/uplink/mqtt_connection.h"
 #include "gateway/uplink/tcp_nodelay.h"
 
 namespace fleetgw::command {
 namespace {
+
+constexpr std::string_view kSignedCommandContentType =
+    "application/x-protobuf; proto=fleetgw.v1.SignedCommand";
 
 std::string hex(std::span<const std::uint8_t> bytes) {
   static constexpr char kDigits[] = "0123456789abcdef";
@@ -206,6 +210,11 @@ int run_command_tool(const CommandToolOptions& o) {
   if (o.topic_prefix.empty() || o.topic_prefix.find_first_of("#+") != std::string::npos) {
     return usage("--topic-prefix: no wildcards");
   }
+  if (o.mqtt_version != "5" && o.mqtt_version != "3.1.1") {
+    return usage("--mqtt-version: 5 or 3.1.1");
+  }
+  const auto protocol =
+      o.mqtt_version == "5" ? uplink::MqttProtocol::kV5 : uplink::MqttProtocol::kV311;
   std::string key_id = o.key_id.empty() ? o.key.stem().string() : o.key_id;
   if (!is_valid_tool_id(key_id)) return usage("--key-id: 1..64 characters of [A-Za-z0-9._-]");
   std::optional<Ed25519PrivateKey> key;
@@ -223,9 +232,9 @@ int run_command_tool(const CommandToolOptions& o) {
   const std::string status_topic = base + "/status";  // retained by the gateway's uplink
 
   try {
-    mqtt::async_client client(uplink::normalise_broker_uri(o.broker),
-                              "fleetgw-cmd-" + hex(random_bytes(6)),
-                              mqtt::create_options(MQTTVERSION_3_1_1));
+    const auto client_ptr = uplink::make_client(uplink::normalise_broker_uri(o.broker),
+                                                "fleetgw-cmd-" + hex(random_bytes(6)), protocol);
+    mqtt::async_client& client = *client_ptr;
     Inbox inbox;
     client.set_message_callback([&inbox](mqtt::const_message_ptr m) { inbox.push(std::move(m)); });
     uplink::ConnectionSettings settings;  // the uplink's builder: TLS verification on
@@ -234,6 +243,7 @@ int run_command_tool(const CommandToolOptions& o) {
     settings.username = o.username;
     settings.password = o.password;
     settings.connect_timeout = std::chrono::seconds(std::max<std::int64_t>(1, o.timeout.count()));
+    settings.protocol = protocol;
     const mqtt::connect_options opts = uplink::make_connect_options(settings);
     const auto t0 = std::chrono::steady_clock::now();
     const auto deadline = t0 + o.timeout;
@@ -272,11 +282,30 @@ int run_command_tool(const CommandToolOptions& o) {
                          : make_mc_command(o.vehicle, mc_action, mc_value, now, expires, id);
     const SentCommand sent = sign_for_sending(*cmd, *key, key_id);
     const std::string& payload = sent.payload;
+    auto msg = mqtt::make_message(cmd_topic, payload.data(), payload.size(), 1, false);
+    if (protocol == uplink::MqttProtocol::kV5) {
+      // The broker drops the command once it is no longer valid (a vehicle offline for longer
+      // would refuse it as expired anyway); the gateway still checks expires_at itself.
+      mqtt::properties props;
+      props.add(mqtt::property(mqtt::property::MESSAGE_EXPIRY_INTERVAL,
+                               static_cast<std::int32_t>(o.expires_in.count())));
+      props.add(
+          mqtt::property(mqtt::property::CONTENT_TYPE, std::string(kSignedCommandContentType)));
+      msg->set_properties(std::move(props));
+    }
     const auto sent_at = std::chrono::steady_clock::now();
-    if (!client.publish(cmd_topic, payload.data(), payload.size(), 1, false)
-             ->wait_for(remaining())) {
-      err << "command: publish to " << cmd_topic << " not acknowledged in time\n";
-      client.disconnect()->wait_for(std::chrono::seconds(1));
+    try {
+      if (!client.publish(msg)->wait_for(remaining())) {
+        err << "command: publish to " << cmd_topic << " not acknowledged in time\n";
+        client.disconnect()->wait_for(std::chrono::seconds(1));
+        return kExitNoAnswer;
+      }
+    } catch (const mqtt::exception& e) {
+      // MQTT 5: the broker answered the publish with a refusal (e.g. an ACL's 0x87).
+      const int reason = e.get_reason_code();
+      err << "command: the broker refused the command on " << cmd_topic << ": "
+          << (uplink::is_refusal(reason) ? uplink::reason_text(reason) : std::string(e.what()))
+          << '\n';
       return kExitNoAnswer;
     }
     err << "command: " << id << " published to " << cmd_topic << "; waiting for the result\n";

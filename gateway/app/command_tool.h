@@ -24,6 +24,13 @@
 //    "vehicle V offline: its connection was lost (last will); it had connected at <time>",
 //    "vehicle V online (status of <time>) but it did not answer", or "vehicle V never seen (no
 //    retained status on <topic>)". Exit status stays 3.
+//  * MQTT 5 by default (`mqtt_version` "5"; "3.1.1" for a broker without it): the command's
+//    publish carries a message expiry interval equal to its own validity (`expires_in`), so a
+//    broker holding it for an offline vehicle drops it once the gateway would refuse it anyway,
+//    and content type "application/x-protobuf; proto=fleetgw.v1.SignedCommand". A publish the
+//    broker refuses (PUBACK reason code >= 0x80, e.g. an ACL) is reported with its reason code
+//    and name, exit 3. Under 3.1.1 neither exists: a stale command reaches the gateway, which
+//    rejects it as expired.
 //  * This is an edge tool, not a gateway component: it reads the system clock (issued_at,
 //    expiry, its own deadline) unless `wall_clock` is given.
 #pragma once
@@ -72,6 +79,7 @@ struct CommandToolOptions {
   std::string topic_prefix = "fleet/v1";     // --topic-prefix
   std::chrono::seconds timeout{10};          // --timeout-s: wait for the result
   std::chrono::seconds expires_in{60};       // --expires-in-s: command validity
+  std::string mqtt_version = "5";            // --mqtt-version 5|3.1.1
   std::string command_id;       // empty: fresh random id (tests and scripted retries may set it)
   std::ostream* out = nullptr;  // default std::cout
   std::ostream* err = nullptr;  // default std::cerr

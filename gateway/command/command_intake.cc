@@ -108,6 +108,14 @@ std::optional<Rejection> CommandService::Impl::preflight(const VerifiedCommand& 
       return rej;
     }
   }
+  // Last: only a lock that would otherwise run is judged (and reported) by the geofence.
+  if (lock_guard && cmd.target == LockTarget::kLocked) {
+    const bool ride_ending = cmd.whole_vehicle || kind_of(cmd.lock_index) == "frame" ||
+                             kind_of(cmd.lock_index) == "wheel";
+    if (auto detail = lock_guard(ride_ending, now)) {
+      return fail(RejectReason::kNoParkingZone, std::move(*detail));
+    }
+  }
   return std::nullopt;
 }
 

@@ -1,6 +1,7 @@
 // MC actions (issue 13) inside the command service: the pre-flight refusal, the journal entry
 // before the first CAN frame, and the one result -- the same guarantees as a lock command. The
-// bus side is McActionRunner (mc_actions.cc).
+// bus side is McActionRunner (mc_actions.cc). Also the gateway's own MC actions (geofences,
+// issue 14): the same pre-flight and confirmation, no journal, no result message.
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
@@ -47,6 +48,22 @@ void CommandService::Impl::finish_mc(McOutcome outcome, Micros now) {
                out.reason().empty() ? "" : ": " + out.reason());
   store_result(std::move(out), now, std::max(run.cmd.expires_at, now + config.rejected_retention),
                run.received);
+}
+
+std::optional<Rejection> CommandService::start_own_mc_action(const McRequest& request, Micros now,
+                                                             OwnMcDone done) {
+  Impl& s = *impl_;
+  if (s.mc_run || s.mc.busy()) {
+    Rejection busy;
+    busy.reason = RejectReason::kMcBusy;
+    busy.detail = "another MC action is running";
+    return busy;
+  }
+  if (auto rej = s.mc.preflight(request, !s.running.empty(), now)) return rej;
+  s.mc.start(request, now, [done = std::move(done)](McOutcome outcome, Micros at) {
+    done(outcome.code == v1::COMMAND_RESULT_CODE_SUCCEEDED, std::move(outcome.reason), at);
+  });
+  return std::nullopt;
 }
 
 }  // namespace fleetgw::command

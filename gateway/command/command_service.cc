@@ -206,6 +206,10 @@ void CommandService::set_result_observer(ResultObserver observer) {
   impl_->observer = std::move(observer);
 }
 
+void CommandService::set_lock_guard(LockGuard guard) {
+  impl_->lock_guard = std::move(guard);
+}
+
 bool CommandService::busy() const {
   return !impl_->running.empty() || impl_->mc.busy();
 }

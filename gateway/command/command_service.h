@@ -199,7 +199,20 @@ class CommandService {
   void tick(Micros now);
 
   void set_result_observer(ResultObserver observer);
+  // Issue 14: asked before a lock command that locks touches the bus (after the interlocks),
+  // with ride_ending true for a whole-vehicle lock or a frame or wheel lock. A returned detail
+  // refuses the command (rejected, no_parking_zone: <detail>); nullopt lets it run.
+  using LockGuard = std::function<std::optional<std::string>(bool ride_ending, Micros now)>;
+  void set_lock_guard(LockGuard guard);
   bool busy() const;
+  // An MC action on the gateway's own behalf (issue 14: a geofence's speed limit or assist
+  // cap): the same pre-flight and bus confirmation as a remote MC command, but no journal and
+  // no CommandResult. Returns the refusal when it cannot start now (another MC action or a lock
+  // command running, the MC offline...); otherwise `done` runs once with the outcome. A remote
+  // MC command arriving meanwhile is refused as mc_busy, as during any MC action.
+  using OwnMcDone = std::function<void(bool succeeded, std::string reason, Micros now)>;
+  std::optional<Rejection> start_own_mc_action(const McRequest& request, Micros now,
+                                               OwnMcDone done);
   // Results the store refused that still wait for their journal write.
   std::size_t unjournaled() const;
   const CommandStats& stats() const;

@@ -77,6 +77,7 @@ struct CommandService::Impl : std::enable_shared_from_this<CommandService::Impl>
   std::vector<std::unique_ptr<Running>> running;
   CommandStats stats;
   ResultObserver observer;
+  LockGuard lock_guard;  // geofence no-parking zones; empty: every lock may run
   // Rate limit for results not tied to a new authenticated command (token bucket per minute).
   double tokens = 0;
   Micros tokens_at{0};

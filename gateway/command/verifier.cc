@@ -86,6 +86,8 @@ std::string_view reject_reason_name(RejectReason reason) {
       return "unknown_assist_level";
     case RejectReason::kLockMoving:
       return "lock_moving";
+    case RejectReason::kNoParkingZone:
+      return "no_parking_zone";
   }
   return "unknown";
 }

@@ -84,12 +84,14 @@ enum class RejectReason : std::uint8_t {
   kOutOfRange,
   kUnknownAssistLevel,
   kLockMoving,
+  // Geofence (issue 14): a ride-ending lock inside a no-parking zone, refused by configuration
+  kNoParkingZone,
 };
 // The reason as sent in CommandResult.reason: "malformed", "unknown_key", "signature_invalid",
 // "wrong_vehicle", "clock_unsynchronised", "expired", "issued_in_future", "validity_too_long",
 // "replayed", "lock_not_fitted", "lock_offline", "interlock_moving", "interlock_motion_unknown",
 // "lock_busy", "shutting_down", "storage_error", "mc_offline", "mc_busy", "mc_state_unknown",
-// "out_of_range", "unknown_assist_level", "lock_moving".
+// "out_of_range", "unknown_assist_level", "lock_moving", "no_parking_zone".
 std::string_view reject_reason_name(RejectReason reason);
 
 // "succeeded", "failed", "timeout", "rejected" or "unspecified": the result names used in logs,

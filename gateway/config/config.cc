@@ -378,6 +378,10 @@ Config parse_root(const toml::table& root, const std::string& name) {
       s.integer("batch_max_ms", c.mqtt.batch_max_ms, 0, 3'600'000);
       s.integer("reconnect_min_ms", c.mqtt.reconnect_min_ms, 10, 3'600'000);
       s.integer("reconnect_max_ms", c.mqtt.reconnect_max_ms, 10, 3'600'000);
+      s.choice("protocol", c.mqtt.protocol, {"5", "3.1.1"});
+      // MQTT 5 carries both as four-byte intervals (0xFFFFFFFF = the session never expires).
+      s.integer("session_expiry_s", c.mqtt.session_expiry_s, 0, 4'294'967'295);
+      s.integer("will_delay_s", c.mqtt.will_delay_s, 0, 4'294'967'295);
       if (c.mqtt.uri.rfind("tcp://", 0) != 0 && c.mqtt.uri.rfind("ssl://", 0) != 0 &&
           c.mqtt.uri.rfind("mqtts://", 0) != 0 && c.mqtt.uri.rfind("mqtt://", 0) != 0) {
         s.invalid("uri", "must start with tcp://, mqtt://, ssl:// or mqtts://");
@@ -431,6 +435,24 @@ Config parse_root(const toml::table& root, const std::string& name) {
       s.string("gpsd", c.gnss.gpsd);
       s.integer("max_age_ms", c.gnss.max_age_ms, 200, 600'000);
       s.integer("reconnect_max_ms", c.gnss.reconnect_max_ms, 1000, 3'600'000);
+    }
+    {
+      auto s = top.sub("geofence");
+      s.boolean("enabled", c.geofence.enabled);
+      s.string("bundle_file", c.geofence.bundle_file);
+      s.number("margin_m", c.geofence.margin_m, 0, 500);
+      s.integer("min_dwell_ms", c.geofence.min_dwell_ms, 0, 600'000);
+      s.integer("speed_ramp_ms", c.geofence.speed_ramp_ms, 0, 600'000);
+      s.integer("assist_fade_ms", c.geofence.assist_fade_ms, 0, 600'000);
+      s.integer("restore_ramp_ms", c.geofence.restore_ramp_ms, 0, 600'000);
+      s.integer("own_limit_kmh", c.geofence.own_limit_kmh, 1, 255);
+      s.boolean("refuse_ride_ending_locks", c.geofence.refuse_ride_ending_locks);
+      if (c.geofence.enabled && !c.gnss.enabled) {
+        s.invalid("enabled", "geofences need a position: enable [gnss]");
+      }
+      if (c.geofence.enabled && c.geofence.bundle_file.empty()) {
+        s.invalid("bundle_file", "must name the file that keeps the zones across restarts");
+      }
     }
     {
       auto s = top.sub("status");

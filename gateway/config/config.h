@@ -105,6 +105,10 @@ struct MqttConfig {
   int batch_max_ms = 5000;
   int reconnect_min_ms = 1000;
   int reconnect_max_ms = 60000;
+  // MQTT 5 (docs/uplink.md, "MQTT 5"): "5" (refused publishes are seen) or "3.1.1" (fallback).
+  std::string protocol = "5";
+  std::int64_t session_expiry_s = 86'400;  // MQTT 5: the broker keeps the session this long
+  std::int64_t will_delay_s = 15;          // MQTT 5: last will only after this long offline
 };
 
 struct TelemetryConfig {
@@ -151,6 +155,21 @@ struct GnssConfig {
   int reconnect_max_ms = 30000;         // backoff cap while gpsd is unreachable
 };
 
+// [geofence]: zones enforced on the bike (issue 14, docs/location.md "Geofences"); needs [gnss].
+// Bundles are verified with [command.trusted_keys].
+struct GeofenceConfig {
+  bool enabled = false;
+  // The bundle in force, kept as received (signature included).
+  std::string bundle_file = "/var/lib/fleetgw/zones.pb";
+  double margin_m = 10.0;                 // hysteresis: this far past a boundary...
+  int min_dwell_ms = 3000;                // ...for this long without interruption
+  int speed_ramp_ms = 10'000;             // slow zone: down from the limit in force
+  int assist_fade_ms = 8000;              // no-ride zone: assistance down to off
+  int restore_ramp_ms = 5000;             // after a zone: back up
+  int own_limit_kmh = 25;                 // the bike's own limit (MC's unknown)
+  bool refuse_ride_ending_locks = false;  // no-parking zones: refuse, not only report
+};
+
 struct CommandConfig {
   std::map<std::string, std::string> trusted_keys;  // key id -> base64 Ed25519 public key
   int clock_skew_s = 30;
@@ -188,6 +207,7 @@ struct Config {
   AlarmsConfig alarms;
   ParkedSection parked;
   GnssConfig gnss;
+  GeofenceConfig geofence;
   CommandConfig command;
   StatusConfig status;
 

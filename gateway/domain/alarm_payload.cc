@@ -15,13 +15,14 @@ namespace {
 
 using wire::u32;
 
-constexpr std::array<std::pair<std::string_view, v1::AlarmKind>, 6> kKinds = {{
+constexpr std::array<std::pair<std::string_view, v1::AlarmKind>, 7> kKinds = {{
     {"unauthorised_movement", v1::ALARM_KIND_UNAUTHORISED_MOVEMENT},
     {"lock_forced", v1::ALARM_KIND_LOCK_FORCED},
     {"lock_tamper", v1::ALARM_KIND_LOCK_TAMPER},
     {"low_battery", v1::ALARM_KIND_LOW_BATTERY},
     {"battery_removed", v1::ALARM_KIND_BATTERY_REMOVED},
     {"battery_swapped", v1::ALARM_KIND_BATTERY_SWAPPED},
+    {"outside_operating_area", v1::ALARM_KIND_OUTSIDE_OPERATING_AREA},
 }};
 
 }  // namespace

@@ -160,6 +160,7 @@ Pipeline::Pipeline(asio::io_context& io, const config::Config& config, BusTransp
                                              [this] { request_settle(); });
     gnss_->start();
   }
+  start_zones(config);
   request_settle();
 }
 
@@ -224,6 +225,7 @@ void Pipeline::settle() {
     bool more = false;
     if (device_info_.due()) queue_device_info();
     if (gnss_ && gnss_->changed()) apply_gnss();
+    if (zones_) tick_zones();
     if (uplink_ && state_throttle_.due(Clock::now())) update_vehicle_state();
     const auto due = recorder_->flush_deadline();
     const bool urgent = recorder_->urgent();
@@ -302,6 +304,7 @@ void Pipeline::arm_timer() {
   consider(recorder_->flush_deadline());
   if (uplink_) consider(uplink_->next_deadline());
   if (gnss_) consider(gnss_->next_deadline());
+  if (zones_) consider(zones_deadline());
   consider(state_throttle_.deadline());
   consider(next_live_);
   consider(stop_at_);
@@ -374,6 +377,7 @@ void Pipeline::apply_gnss() {
   const auto wall = gnss_->wall_now();
   const auto position = gnss_->state().current(wall);
   recorder_->trackers().on_position(position);
+  if (zones_) apply_zones(wall, position);
   const bool fault = !position;
   if (gnss_fault_ != fault) {
     if (fault) {

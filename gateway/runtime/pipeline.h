@@ -49,6 +49,7 @@
 #include "gateway/can/transport.h"
 #include "gateway/command/command_service.h"
 #include "gateway/config/config.h"
+#include "gateway/geofence/zone_controller.h"
 #include "gateway/gnss/gnss_feed.h"
 #include "gateway/node/transport_sender.h"
 #include "gateway/runtime/device_info_reporter.h"
@@ -142,6 +143,15 @@ class Pipeline {
   std::optional<std::chrono::steady_clock::time_point> core_deadline() const;
   void queue_device_info();
   void apply_gnss();
+  // Geofences (issue 14; pipeline_zones.cc): built from [geofence], fed by apply_gnss(), their
+  // MC writes started at each settle through the command service.
+  void start_zones(const config::Config& config);
+  void apply_zones(Micros wall, const std::optional<gnss::Position>& position);
+  void tick_zones();
+  void record_zone_event(const geofence::ZoneEvent& e);  // log, store, queue for the uplink
+  // Raises / clears the outside_operating_area alarm when the engine's demand changes.
+  void update_area_alarm(Micros wall, const std::optional<gnss::Position>& position);
+  std::optional<std::chrono::steady_clock::time_point> zones_deadline() const;
   void update_vehicle_state();
   void attach_parked_feed();
   void apply_parked_rates(bool parked);
@@ -162,6 +172,12 @@ class Pipeline {
   DeviceInfoReporter device_info_;
   std::unique_ptr<gnss::GnssFeed> gnss_;
   std::optional<bool> gnss_fault_;  // last value given to the node's fault bit
+  // nullptr when [geofence] is disabled.
+  std::unique_ptr<geofence::ZoneController> zones_;
+  bool zone_write_running_ = false;      // an MC write of the zones is under way
+  bool outside_operating_area_ = false;  // the alarm is raised
+  Micros area_alarm_since_{0};           // when it was raised
+  std::string zone_refusal_;      // the last reason a zone write could not start (logged once)
   StateThrottle state_throttle_;  // when the retained vehicle state is rebuilt (pipeline_state.cc)
   ParkedConfig parked_config_;
   std::unique_ptr<ParkedController> parked_;         // parked/riding (pipeline_state.cc)

@@ -29,6 +29,7 @@ void append(storage::Batch& to, storage::Batch& from) {
   move_all(to.packs, from.packs);
   move_all(to.locks, from.locks);
   move_all(to.alarms, from.alarms);
+  move_all(to.zone_events, from.zone_events);
   move_all(to.command_results, from.command_results);
   move_all(to.commands, from.commands);
   move_all(to.messages, from.messages);
@@ -39,8 +40,8 @@ void append(storage::Batch& to, storage::Batch& from) {
 // Anything the store never evicts (or that is not telemetry at all): worth a commit at once.
 bool has_non_telemetry(const storage::Batch& b) {
   return !b.rides.empty() || !b.faults.empty() || !b.packs.empty() || !b.locks.empty() ||
-         !b.alarms.empty() || !b.command_results.empty() || !b.commands.empty() ||
-         !b.messages.empty() || !b.meta.empty();
+         !b.alarms.empty() || !b.zone_events.empty() || !b.command_results.empty() ||
+         !b.commands.empty() || !b.messages.empty() || !b.meta.empty();
 }
 
 template <typename T>
@@ -57,6 +58,7 @@ std::size_t footprint(const storage::Batch& b) {
   for (const auto& x : b.packs) n += footprint(x) + x.record.lifetime_json.size();
   for (const auto& x : b.locks) n += footprint(x);
   for (const auto& x : b.alarms) n += footprint(x) + x.record.detail.capacity();
+  for (const auto& x : b.zone_events) n += footprint(x) + x.record.zone_name.capacity();
   for (const auto& x : b.command_results) n += footprint(x);
   n += b.commands.size() * sizeof(storage::CommandJournalEntry);
   for (const auto& m : b.messages) n += sizeof(m) + m.payload.capacity();
@@ -186,6 +188,16 @@ void Recorder::queue_message(storage::UplinkMessage message) {
   note_pending();
 }
 
+void Recorder::record_alarm(storage::AlarmRecord record, storage::Bytes payload) {
+  sink_.batch().alarms.push_back({std::move(record), std::move(payload)});
+  note_pending();
+}
+
+void Recorder::record_zone_event(storage::ZoneEventRecord record, storage::Bytes payload) {
+  sink_.batch().zone_events.push_back({std::move(record), std::move(payload)});
+  note_pending();
+}
+
 bool Recorder::urgent() const {
   if (pending_records() == 0) return false;
   if (next_retry_ && !retry_due()) return false;  // failing: wait for the retry interval
@@ -282,6 +294,7 @@ void Recorder::bound_retry_memory() {
     dropped += drop_oldest(retry_.faults, bytes, hard);
     dropped += drop_oldest(retry_.commands, bytes, hard);
     dropped += drop_oldest(retry_.alarms, bytes, hard);
+    dropped += drop_oldest(retry_.zone_events, bytes, hard);
     dropped += drop_oldest(retry_.command_results, bytes, hard);
   }
   if (dropped == 0) return;

@@ -97,6 +97,9 @@ uplink::UplinkConfig make_uplink_config(const config::Config& c) {
   u.status_interval = std::chrono::milliseconds(c.mqtt.status_interval_ms);
   u.telemetry_batch_max_samples = static_cast<std::size_t>(c.mqtt.batch_max_samples);
   u.telemetry_batch_max_delay = std::chrono::milliseconds(c.mqtt.batch_max_ms);
+  u.protocol = c.mqtt.protocol == "3.1.1" ? uplink::MqttProtocol::kV311 : uplink::MqttProtocol::kV5;
+  u.session_expiry = std::chrono::seconds(c.mqtt.session_expiry_s);
+  u.will_delay = std::chrono::seconds(c.mqtt.will_delay_s);
   return u;
 }
 

@@ -120,6 +120,13 @@ nlohmann::json make_status_json(const StatusInputs& in) {
       broker["last_error"] = "connect failed " + std::to_string(s.connect_failures) + " time(s)";
     }
     broker["connect_failures"] = s.connect_failures;
+    // MQTT 5: publishes the broker refused (docs/uplink.md "MQTT 5"); the records stay queued.
+    broker["protocol"] = in.config.mqtt.protocol;
+    broker["publish_refusals"] = s.publish_refusals;
+    broker["last_publish_refusal"] = s.last_publish_refusal;
+    broker["last_publish_refusal_code"] = s.last_publish_refusal_code;
+    broker["last_publish_refusal_us"] = s.last_publish_refusal_us;
+    broker["refused_records"] = s.refused_records;
   }
   if (in.uplink && in.uplink_failure) {
     const auto& f = *in.uplink_failure;

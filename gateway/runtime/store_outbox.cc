@@ -31,6 +31,8 @@ std::string uplink_kind(storage::OutboxKind kind) {
       return uplink::kind::kEviction;
     case storage::OutboxKind::kAlarm:
       return uplink::kind::kAlarm;
+    case storage::OutboxKind::kZone:
+      return uplink::kind::kZone;
   }
   return "invalid";
 }

@@ -119,6 +119,12 @@ std::vector<Attention> evaluate(const json& status, const AttentionRules& rules)
       out.push_back({"broker", fmt::format("broker {} not connected{}{}", str(*broker, "uri"),
                                            err.empty() ? "" : ": ", err)});
     }
+    // MQTT 5: the broker answers publishes with a refusal (e.g. an ACL's 0x87).
+    if (const std::string refusal = str(*broker, "last_publish_refusal", ""); !refusal.empty()) {
+      out.push_back({"broker", fmt::format("broker refuses publishes: {}; {} record(s) kept in "
+                                           "the outbox, retried with back-off",
+                                           refusal, count(*broker, "refused_records"))});
+    }
   }
   // Optional section (older services do not send it).
   if (const json* g = member(status, "gnss"); g && g->is_object()) {
@@ -243,6 +249,15 @@ std::string format_summary(const json& s, const std::vector<Attention>& findings
       const auto age = num(broker, "last_connect_error_age_s");
       text += fmt::format("\n         last connect error{}: {}",
                           age ? " " + age_text(*age) + " ago" : std::string(), last);
+    }
+    if (const std::string p = str(broker, "protocol", ""); !p.empty()) {
+      text += fmt::format("\n         MQTT {}", p);
+      if (const auto n = count(broker, "publish_refusals"); n > 0) {
+        text += fmt::format(", {} publish(es) refused by the broker", n);
+      }
+    }
+    if (const std::string refusal = str(broker, "last_publish_refusal", ""); !refusal.empty()) {
+      text += fmt::format("\n         publishes REFUSED: {}", refusal);
     }
     line("broker", text);
   }

@@ -18,7 +18,10 @@
 //                          "soc_start_pct": 64 | null} | null},  // optional section
 //     "broker": {"enabled": true, "connected": false, "uri": "ssl://...", "last_error": "",
 //                "last_connect_error": "TLS: ...", "last_connect_error_age_s": 3.2 | null,
-//                "tls_failures": 2},                     // the last three: optional
+//                "tls_failures": 2,                      // the last three: optional
+//                "protocol": "5", "publish_refusals": 3, "refused_records": 1,
+//                "last_publish_refusal": "0x87 Not authorized (fleet/v1/bike-0001/ride)",
+//                "last_publish_refusal_code": 135, "last_publish_refusal_us": 0},  // optional
 //     "outbox": {"depth": 12, "oldest_unsent_age_s": 120.5 | null},
 //     "disk":   {"used_bytes": 1048576, "budget_bytes": 268435456},   // effective budget
 //     "storage": {"failing": true, "last_error": "disk full (SQLITE_FULL)", "failed_writes": 7,
@@ -40,6 +43,8 @@
 //   * an active fault has severity "critical" ("fault"),
 //   * the broker is enabled and not connected ("broker"; the detail quotes last_error, which is
 //     the connect failure's reason when the service knows it, e.g. a TLS verification failure),
+//   * the broker refuses publishes (MQTT 5 reason code >= 0x80; "broker", quoting
+//     last_publish_refusal, e.g. "0x87 Not authorized (fleet/v1/bike-0042/ride)"),
 //   * store writes are failing ("storage": reason, failed writes, for how long),
 //   * the disk budget was clamped below storage.max_mb because the disk is smaller ("budget"),
 //   * disk use exceeds disk_fraction of the budget ("disk"),

@@ -30,6 +30,7 @@ constexpr KindRoute kRoutes[] = {
      [](v1::Envelope& e) -> MessageLite* { return e.mutable_eviction(); }},
     {kind::kAlarm, &Topics::alarm,
      [](v1::Envelope& e) -> MessageLite* { return e.mutable_alarm(); }},
+    {kind::kZone, &Topics::zone, [](v1::Envelope& e) -> MessageLite* { return e.mutable_zone(); }},
     {kind::kTelemetry, &Topics::telemetry,
      [](v1::Envelope& e) -> MessageLite* { return e.mutable_telemetry(); }},
 };

@@ -2,6 +2,8 @@
 
 #include <mqtt/ssl_options.h>
 
+#include <cstdint>
+
 namespace fleetgw::uplink {
 
 namespace {
@@ -22,8 +24,21 @@ bool uses_tls(std::string_view uri) {
 
 mqtt::connect_options make_connect_options(const ConnectionSettings& s) {
   mqtt::connect_options opts;
-  opts.set_mqtt_version(MQTTVERSION_3_1_1);
-  opts.set_clean_session(s.clean_session);
+  if (s.protocol == MqttProtocol::kV5) {
+    opts.set_mqtt_version(MQTTVERSION_5);  // clears the 3.1.1 clean-session flag
+    opts.set_clean_start(s.clean_session);
+    if (!s.clean_session) {
+      // Without it an MQTT 5 session ends with the connection, persistent or not.
+      mqtt::properties props;
+      props.add(mqtt::property(
+          mqtt::property::SESSION_EXPIRY_INTERVAL,
+          static_cast<std::int32_t>(static_cast<std::uint32_t>(s.session_expiry.count()))));
+      opts.set_properties(std::move(props));
+    }
+  } else {
+    opts.set_mqtt_version(MQTTVERSION_3_1_1);
+    opts.set_clean_session(s.clean_session);
+  }
   opts.set_keep_alive_interval(static_cast<int>(s.keep_alive.count()));
   opts.set_connect_timeout(static_cast<int>(std::max<std::int64_t>(1, s.connect_timeout.count())));
   opts.set_automatic_reconnect(false);
@@ -49,10 +64,22 @@ mqtt::connect_options make_connect_options(const ConnectionSettings& s) {
   return opts;
 }
 
+std::unique_ptr<mqtt::async_client> make_client(const std::string& uri,
+                                                const std::string& client_id,
+                                                MqttProtocol protocol) {
+  if (protocol == MqttProtocol::kV5) {
+    return std::make_unique<mqtt::async_client>(uri, client_id,
+                                                mqtt::create_options(MQTTVERSION_5));
+  }
+  return std::make_unique<mqtt::async_client>(uri, client_id);
+}
+
 std::string_view connack_reason(int code) {
   switch (code) {
     case 1:
-      return "refused by the broker: unacceptable protocol version";
+      // A 3.1.1-only broker answers an MQTT 5 connect this way.
+      return "refused by the broker: unacceptable protocol version (for a broker without MQTT 5, "
+             "set [mqtt] protocol = \"3.1.1\")";
     case 2:
       return "refused by the broker: client identifier rejected";
     case 3:

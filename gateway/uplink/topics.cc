@@ -44,6 +44,7 @@ Topics::Topics(std::string_view prefix, std::string_view vehicle_id) {
   status = base + "/status";
   eviction = base + "/eviction";
   alarm = base + "/alarm";
+  zone = base + "/zone";
   state = base + "/state";
   cmd = base + "/cmd";
   cmd_result = base + "/cmd/result";

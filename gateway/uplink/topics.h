@@ -18,7 +18,7 @@ struct Topics {
   Topics(std::string_view prefix, std::string_view vehicle_id);
 
   std::string base;  // <prefix>/<vehicle_id>
-  std::string telemetry, ride, fault, pack, lock, info, status, eviction, alarm;
+  std::string telemetry, ride, fault, pack, lock, info, status, eviction, alarm, zone;
   std::string state;       // retained fleetgw.v1.VehicleState
   std::string cmd;         // subscribed
   std::string cmd_result;  // <base>/cmd/result

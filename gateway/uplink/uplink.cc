@@ -13,6 +13,7 @@
 
 #include "fleetgw/v1/command.pb.h"
 #include "gateway/uplink/connect_diagnosis.h"
+#include "gateway/uplink/mqtt5.h"
 #include "gateway/uplink/mqtt_connection.h"
 #include "gateway/uplink/tcp_nodelay.h"
 #include "gateway/uplink/uplink_impl.h"
@@ -48,6 +49,26 @@ constexpr Micros kRecycleInterval = std::chrono::seconds(60);
 // Each step of a connect diagnosis waits at most this long (also bounds the destructor's wait).
 constexpr milliseconds kProbeTimeout{2000};
 
+// The text of an MQTT 5 CONNACK refusal: the 3.1.1 wording where one exists (the same reason
+// reads the same under both protocols), the code and Paho's name otherwise.
+std::string connack_v5_reason(int reason) {
+  switch (reason) {
+    case 0x84:
+      return "refused by the broker: unsupported protocol version (set [mqtt] protocol = "
+             "\"3.1.1\" for a broker without MQTT 5)";
+    case 0x85:
+      return "refused by the broker: client identifier rejected";
+    case 0x86:
+      return "not authorised: bad user name or password";
+    case 0x87:
+      return "not authorised";
+    case 0x88:
+      return "refused by the broker: server unavailable";
+    default:
+      return "refused by the broker: " + reason_text(reason);
+  }
+}
+
 }  // namespace
 
 Uplink::Impl::Impl(UplinkConfig c, OutboxSource& o)
@@ -56,16 +77,19 @@ Uplink::Impl::Impl(UplinkConfig c, OutboxSource& o)
       topics(config.topic_prefix, config.vehicle_id),
       backoff(config.reconnect_min, config.reconnect_max,
               config.jitter_seed != 0 ? config.jitter_seed : std::random_device{}()),
+      refusal_backoff(config.reconnect_min, config.reconnect_max,
+                      config.jitter_seed != 0 ? config.jitter_seed + 1 : std::random_device{}()),
       connect_listener(events),
       publish_listener(events),
       subscribe_listener(events),
       client(make_client()) {
   batch_delay = config.telemetry_batch_max_delay;
+  if (config.protocol == MqttProtocol::kV5) envelope_props = envelope_properties();
 }
 
 std::unique_ptr<mqtt::async_client> Uplink::Impl::make_client() {
-  auto c = std::make_unique<mqtt::async_client>(normalise_broker_uri(config.broker_uri),
-                                                config.vehicle_id);
+  auto c = uplink::make_client(normalise_broker_uri(config.broker_uri), config.vehicle_id,
+                               config.protocol);
   c->set_connection_lost_handler(
       [this](const std::string& cause) { events.push(detail::ConnectionLost{cause}); });
   c->set_message_callback([this](mqtt::const_message_ptr msg) { on_message(*msg); });
@@ -91,6 +115,7 @@ void Uplink::Impl::recycle_client(Micros now) {
   client = make_client();
   in_flight.clear();
   claimed.clear();
+  forget_refused();
   batch = PendingBatch{};
   heap_trim_due = now + kTrimDelay;
   connect(now);
@@ -136,9 +161,22 @@ mqtt::connect_options Uplink::Impl::make_connect_options(Micros now) const {
   s.clean_session = false;
   // Our window is the real bound; Paho's only needs room for it plus status messages.
   s.max_inflight = static_cast<int>(config.max_in_flight + 8);
+  s.protocol = config.protocol;
+  s.session_expiry = config.session_expiry;
   mqtt::connect_options opts = uplink::make_connect_options(s);
   const std::string will = serialize_will(now);
-  opts.set_will_message(mqtt::message(topics.status, will, config.qos, true));
+  if (config.protocol == MqttProtocol::kV5) {
+    // The will delay is a property of the will, and says how to date the loss (docs/uplink.md).
+    mqtt::properties props = envelope_props;
+    props.add(mqtt::property(
+        mqtt::property::WILL_DELAY_INTERVAL,
+        static_cast<std::int32_t>(static_cast<std::uint32_t>(config.will_delay.count()))));
+    props.add(mqtt::property(mqtt::property::USER_PROPERTY, std::string(kWillDelayProperty),
+                             std::to_string(config.will_delay.count())));
+    opts.set_will(mqtt::will_options(topics.status, will, config.qos, true, props));
+  } else {
+    opts.set_will_message(mqtt::message(topics.status, will, config.qos, true));
+  }
   return opts;
 }
 
@@ -157,11 +195,19 @@ void Uplink::Impl::connect(Micros now) {
   }
 }
 
-void Uplink::Impl::on_connect_failed(Micros now, int rc, const std::string& message) {
+void Uplink::Impl::on_connect_failed(Micros now, int rc, const std::string& message, int reason) {
   ++counters.connect_failures;
   schedule_reconnect(now);
   spdlog::debug("uplink: connect attempt {} failed: {}; next attempt in {} ms", connect_attempt,
                 message, counters.last_backoff.count());
+  // An MQTT 5 CONNACK refusal: the broker answered, so there is nothing to diagnose. Paho C
+  // hands its reason code over as the token's return code (rc 135 for 0x87), or as the reason.
+  if (config.protocol == MqttProtocol::kV5 && !is_refusal(reason) && is_refusal(rc)) reason = rc;
+  if (is_refusal(reason)) {
+    last_failure_was_tls = false;
+    set_connect_error(now, connack_v5_reason(reason));
+    return;
+  }
   if (const auto refusal = connack_reason(rc); !refusal.empty()) {
     last_failure_was_tls = false;
     set_connect_error(now, std::string(refusal));
@@ -276,6 +322,7 @@ void Uplink::Impl::poll(Micros now) {
   if (state == UplinkState::kWaitingToReconnect && now.count() >= counters.next_connect_at_us) {
     connect(now);
   }
+  if (refusal_retry_at.count() != 0 && now >= refusal_retry_at) retry_refused(now);
   if (state == UplinkState::kConnected) {
     resend_stale(now);
     if (status_changed || (config.status_interval.count() > 0 &&
@@ -292,7 +339,7 @@ void Uplink::Impl::handle(Micros now, detail::ConnectDone& e) {
   if (e.ok) {
     on_connected(now);
   } else {
-    on_connect_failed(now, e.rc, e.message);
+    on_connect_failed(now, e.rc, e.message, e.reason);
   }
 }
 void Uplink::Impl::handle(Micros now, detail::ConnectionLost& e) {
@@ -326,7 +373,7 @@ void Uplink::Impl::stop(Micros now, milliseconds timeout) {
       // The retained state says "offline" too (a lost connection cannot: docs/uplink.md).
       if (!vehicle_state.empty()) publish_vehicle_state(now, false);
       // A clean DISCONNECT suppresses the last will, so say "offline" ourselves.
-      auto tok = client->publish(mqtt::make_message(
+      auto tok = client->publish(make_message(
           topics.status,
           serialize_status(now, v1::ONLINE_STATE_OFFLINE, v1::CONNECTION_STATE_DISCONNECTED),
           config.qos, true));
@@ -341,6 +388,7 @@ void Uplink::Impl::stop(Micros now, milliseconds timeout) {
   // Records still in flight were never acked: they stay in the outbox for the next start.
   in_flight.clear();
   claimed.clear();
+  forget_refused();
   batch = PendingBatch{};
   std::size_t dropped_commands = commands.size();
   for (const auto& ev : events.take()) {
@@ -370,6 +418,7 @@ Micros Uplink::Impl::next_due(Micros now) const {
     if (stale_possible)
       due = std::min(due, connected_at + duration_cast<Micros>(config.resend_after));
   }
+  if (refusal_retry_at.count() != 0) due = std::min(due, refusal_retry_at);
   if (heap_trim_due.count() != 0) due = std::min(due, heap_trim_due);
   if (recycle_due.count() != 0) due = std::min(due, recycle_due);
   return due == Micros::max() ? due : std::max(due, now);
@@ -456,6 +505,8 @@ UplinkStats Uplink::stats() const {
   const OutboxStats os = impl_->outbox.stats();
   s.outbox_depth = os.depth;
   s.oldest_unsent_created_us = os.oldest_created_us;
+  s.refused_records = impl_->refused_held.size();
+  s.refusal_retry_at_us = impl_->refusal_retry_at.count();
   return s;
 }
 

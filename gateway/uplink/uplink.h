@@ -26,6 +26,14 @@
 //    online Status on connect (and again when the bus state changes), retained offline Status
 //    on stop(). The last will is an offline Status marked last_will that carries only what is
 //    known at connect (no outbox figures, created_at_us 0).
+//  * MQTT 5 (config.protocol, the default; 3.1.1 is the fallback): a publish the broker refuses
+//    with a PUBACK reason code >= 0x80 is not delivered: its records stay in the outbox, the
+//    drain pauses and they are sent again after a back-off (reconnect_min .. reconnect_max,
+//    doubling while the refusals go on); UplinkStats and every Status say why (code and name),
+//    and the log says it once per distinct reason and topic. Every message carries the content
+//    type and schema user property of mqtt5.h; the session asks for config.session_expiry and
+//    the last will for config.will_delay. Under 3.1.1 a broker cannot refuse a publish: an ACL
+//    that drops one still acknowledges it, and the record is gone (docs/uplink.md).
 //  * Connect failures: each is diagnosed (connect_diagnosis.h) off the owner's thread; the reason
 //    lands in UplinkStats::last_connect_error and is logged once per distinct reason, not per
 //    retry.
@@ -97,6 +105,15 @@ struct UplinkStats {
   std::string last_connect_error;
   std::int64_t last_connect_error_us = 0;  // `now` when it was set; 0 when empty
   std::uint64_t tls_failures = 0;          // failed attempts whose reason is a TLS failure
+  // MQTT 5: publishes the broker refused (PUBACK reason code >= 0x80) since start.
+  std::uint64_t publish_refusals = 0;
+  // Why the latest refused publish was refused, e.g. "0x87 Not authorized
+  // (fleet/v1/bike-0042/ride)"; empty once a refused record got through (or none ever was).
+  std::string last_publish_refusal;
+  int last_publish_refusal_code = 0;         // its reason code; 0 when empty
+  std::int64_t last_publish_refusal_us = 0;  // `now` when it came; 0 when empty
+  std::size_t refused_records = 0;           // records held for the next retry
+  std::int64_t refusal_retry_at_us = 0;      // when they are retried; 0 = nothing held
 };
 
 class Uplink {

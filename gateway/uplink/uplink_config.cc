@@ -21,6 +21,10 @@ void require_readable(std::string_view field, const std::string& path) {
 
 }  // namespace
 
+std::string_view to_string(MqttProtocol protocol) {
+  return protocol == MqttProtocol::kV5 ? "5" : "3.1.1";
+}
+
 std::string redact_uri(std::string_view uri) {
   const auto scheme_end = uri.find("://");
   const std::size_t authority = scheme_end == std::string_view::npos ? 0 : scheme_end + 3;

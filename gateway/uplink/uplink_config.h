@@ -27,6 +27,14 @@ struct TlsConfig {
   bool verify_server_name = true;
 };
 
+// The MQTT protocol version the uplink speaks (docs/uplink.md, "MQTT 5").
+enum class MqttProtocol {
+  kV311,  // MQTT 3.1.1: the fallback for brokers without MQTT 5 (no reason codes on PUBACK)
+  kV5,    // MQTT 5: refused publishes are seen, properties on every message
+};
+// "5" or "3.1.1", the spelling of [mqtt] protocol.
+std::string_view to_string(MqttProtocol protocol);
+
 struct UplinkConfig {
   // tcp://host:port or ssl://host:port (mqtts:// is accepted as ssl://). No user information.
   std::string broker_uri;
@@ -52,8 +60,18 @@ struct UplinkConfig {
 
   std::chrono::seconds keep_alive{30};
   std::chrono::seconds connect_timeout{10};
+  MqttProtocol protocol = MqttProtocol::kV5;
+  // MQTT 5 only (ignored under 3.1.1, where the session lasts until the next clean session):
+  // how long the broker keeps the session (the cmd subscription, commands queued for the
+  // vehicle, unacknowledged QoS 1 exchanges) after the connection ends. 0..4294967295 s
+  // (0xFFFFFFFF = never expires).
+  std::chrono::seconds session_expiry{86'400};
+  // MQTT 5 only: the broker publishes the last will this long after it noticed the loss, and not
+  // at all when the gateway reconnects within it (a short outage does not flap to OFFLINE).
+  std::chrono::seconds will_delay{15};
   // Reconnect back-off: the n-th consecutive failure waits a random time in
-  // [d/2, d] with d = min(reconnect_max, reconnect_min * 2^n).
+  // [d/2, d] with d = min(reconnect_max, reconnect_min * 2^n). The same bounds pace the retries
+  // of publishes the broker refused (MQTT 5 reason code >= 0x80).
   std::chrono::milliseconds reconnect_min{1000};
   std::chrono::milliseconds reconnect_max{120'000};
   std::uint64_t jitter_seed = 0;  // 0 = seed from std::random_device

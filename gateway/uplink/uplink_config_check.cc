@@ -2,6 +2,7 @@
 
 #include <unistd.h>
 
+#include <cstdint>
 #include <map>
 
 #include "gateway/uplink/topics.h"
@@ -28,6 +29,9 @@ std::string config_key_of(const std::string& field) {
       {"live_telemetry_qos", "mqtt.telemetry_qos"},
       {"telemetry_batch_max_samples", "mqtt.batch_max_samples"},
       {"telemetry_batch_max_delay", "mqtt.batch_max_ms"},
+      {"protocol", "mqtt.protocol"},
+      {"session_expiry", "mqtt.session_expiry_s"},
+      {"will_delay", "mqtt.will_delay_s"},
   };
   const auto it = keys.find(field);
   return it != keys.end() ? it->second : "uplink." + field;
@@ -110,6 +114,14 @@ std::vector<UplinkConfigProblem> check_uplink_config(const UplinkConfig& c) {
   if (c.max_command_bytes == 0) fail("max_command_bytes", "must be positive");
   if (c.max_queued_commands == 0) fail("max_queued_commands", "must be positive");
   if (c.status_interval.count() < 0) fail("status_interval", "must be >= 0");
+  // MQTT 5 carries both as four-byte intervals.
+  constexpr std::int64_t kMaxInterval = 0xFFFF'FFFF;
+  if (c.session_expiry.count() < 0 || c.session_expiry.count() > kMaxInterval) {
+    fail("session_expiry", "must be 0..4294967295 s");
+  }
+  if (c.will_delay.count() < 0 || c.will_delay.count() > kMaxInterval) {
+    fail("will_delay", "must be 0..4294967295 s");
+  }
   return out;
 }
 

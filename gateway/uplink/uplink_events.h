@@ -5,7 +5,9 @@
 // the wake-up hook after every event; take() moves all queued events out. The number of queued
 // commands is tracked in an atomic so the Paho thread can bound it without scanning the queue.
 // Listeners tag tokens with our own integer id (never a pointer), so a late completion of a
-// publish already given up on is simply ignored.
+// publish already given up on is simply ignored. Reason codes are taken only when they are a
+// real MQTT 5 code (0..0xFE): Paho marks 3.1.1 tokens with MQTTPP_V3_CODE (0xFF), which MQTT 5
+// does not define.
 #pragma once
 
 #include <atomic>
@@ -28,6 +30,7 @@ struct ConnectDone {
   bool ok;
   int rc;
   std::string message;
+  int reason = 0;  // MQTT 5 CONNACK reason code (0 under 3.1.1)
 };
 struct ConnectionLost {
   std::string cause;
@@ -37,6 +40,9 @@ struct PublishDone {
   bool ok;
   int rc;
   std::string message;
+  // MQTT 5 PUBACK reason code; >= 0x80 = the broker refused the message (mqtt5.h). 0 under
+  // 3.1.1 and for failures that are not the broker's answer (connection lost...).
+  int reason = 0;
 };
 struct SubscribeDone {
   bool ok;
@@ -98,6 +104,11 @@ inline std::uint64_t from_context(const mqtt::token& tok) {
   return static_cast<std::uint64_t>(reinterpret_cast<std::uintptr_t>(tok.get_user_context()));
 }
 
+inline int mqtt5_reason(const mqtt::token& tok) {
+  const int code = tok.get_reason_code();
+  return code >= 0 && code < 0xFF ? code : 0;
+}
+
 inline std::string token_error(const mqtt::token& tok) {
   std::string msg = "rc " + std::to_string(tok.get_return_code());
   const std::string text = mqtt::exception::error_str(tok.get_return_code());
@@ -112,7 +123,8 @@ class ConnectListener final : public mqtt::iaction_listener {
     q_.push(ConnectDone{from_context(tok), true, 0, {}});
   }
   void on_failure(const mqtt::token& tok) override {
-    q_.push(ConnectDone{from_context(tok), false, tok.get_return_code(), token_error(tok)});
+    q_.push(ConnectDone{from_context(tok), false, tok.get_return_code(), token_error(tok),
+                        mqtt5_reason(tok)});
   }
 
  private:
@@ -126,7 +138,8 @@ class PublishListener final : public mqtt::iaction_listener {
     q_.push(PublishDone{from_context(tok), true, 0, {}});
   }
   void on_failure(const mqtt::token& tok) override {
-    q_.push(PublishDone{from_context(tok), false, tok.get_return_code(), token_error(tok)});
+    q_.push(PublishDone{from_context(tok), false, tok.get_return_code(), token_error(tok),
+                        mqtt5_reason(tok)});
   }
 
  private:

@@ -39,7 +39,8 @@ struct Uplink::Impl {
   struct InFlightEntry {
     std::vector<std::uint64_t> seqs;  // outbox records carried; empty for other messages
     int qos = 1;
-    std::uint64_t connection = 0;  // counters.connects when it was sent
+    std::uint64_t connection = 0;        // counters.connects when it was sent
+    const std::string* topic = nullptr;  // a member of `topics` (for refusal messages)
   };
 
   Impl(UplinkConfig c, OutboxSource& o);
@@ -52,7 +53,7 @@ struct Uplink::Impl {
   // ---- owner's thread: lifecycle (uplink.cc) ----
   mqtt::connect_options make_connect_options(Micros now) const;
   void connect(Micros now);
-  void on_connect_failed(Micros now, int rc, const std::string& message);
+  void on_connect_failed(Micros now, int rc, const std::string& message, int reason = 0);
   void on_diagnosed(Micros now, const detail::ConnectDiagnosed& d);
   void set_connect_error(Micros now, const std::string& reason);
   void schedule_reconnect(Micros now);
@@ -77,7 +78,14 @@ struct Uplink::Impl {
   bool publish(const std::string& topic, std::string payload, int qos, bool retained,
                std::vector<std::uint64_t> seqs);
   bool publish_direct(std::string_view kind, std::string payload, Micros now);
+  mqtt::message_ptr make_message(const std::string& topic, std::string payload, int qos,
+                                 bool retained) const;
   void on_publish_done(Micros now, const detail::PublishDone& d);
+  void on_refused(Micros now, const std::string& topic, std::vector<std::uint64_t> seqs,
+                  int reason);
+  void on_refusal_cleared();
+  void retry_refused(Micros now);
+  void forget_refused();
   void resend_stale(Micros now);
   void release(const std::vector<std::uint64_t>& seqs);
   void reject(const OutgoingRecord& e, std::string_view why);
@@ -95,6 +103,16 @@ struct Uplink::Impl {
   OutboxSource& outbox;
   Topics topics;
   Backoff backoff;
+  // ---- MQTT 5 (docs/uplink.md, "MQTT 5") ----
+  mqtt::properties envelope_props;  // on every publish under MQTT 5; empty under 3.1.1
+  // Publishes the broker refused (PUBACK reason code >= 0x80): their records stay claimed (so the
+  // drain skips them) until refusal_retry_at, and the drain takes no new records meanwhile, so
+  // a refusing broker costs one window of publishes per back-off period, not a hot loop.
+  Backoff refusal_backoff;
+  std::vector<std::uint64_t> refused_held;  // waiting for refusal_retry_at
+  std::set<std::uint64_t> refused_seqs;     // refused at least once and not acked since
+  Micros refusal_retry_at{0};               // 0 = no refusal pending
+  std::set<std::string> logged_refusals;    // each distinct reason (and topic) logged once
   UplinkState state = UplinkState::kStopped;
   UplinkStats counters;
   v1::BusState bus_state = v1::BUS_STATE_UNSPECIFIED;

@@ -1,12 +1,14 @@
 // Uplink publishing: draining the outbox in order within the in-flight window, telemetry
 // batching (samples spliced as stored, envelope_writer.h), status messages, direct publishes,
-// and acking records once their publish completed. See uplink.h for the contract.
+// acking records once their publish completed, and holding the records of publishes an MQTT 5
+// broker refused until their retry. See uplink.h for the contract.
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
 #include <utility>
 
 #include "fleetgw/v1/envelope.pb.h"
+#include "gateway/uplink/mqtt5.h"
 #include "gateway/uplink/uplink_impl.h"
 
 namespace fleetgw::uplink {
@@ -32,6 +34,10 @@ std::string Uplink::Impl::serialize_status(Micros now, v1::OnlineState online,
   s->set_bus_state(bus_state);
   s->set_firmware_version(config.firmware_version);
   s->set_connected_at_us(connect_started.count());
+  s->set_publish_refusals(counters.publish_refusals);
+  s->set_last_publish_refusal(counters.last_publish_refusal);
+  s->set_last_publish_refusal_code(static_cast<std::uint32_t>(counters.last_publish_refusal_code));
+  s->set_last_publish_refusal_at_us(counters.last_publish_refusal_us);
   if (status_decorator) status_decorator(*s);
   return env.SerializeAsString();
 }
@@ -91,10 +97,10 @@ bool Uplink::Impl::publish(const std::string& topic, std::string payload, int qo
   const std::size_t bytes = payload.size();
   const std::size_t records = seqs.size();
   for (const auto s : seqs) claimed.insert(s);
-  in_flight.emplace(id, InFlightEntry{std::move(seqs), qos, counters.connects});
+  in_flight.emplace(id, InFlightEntry{std::move(seqs), qos, counters.connects, &topic});
   try {
-    auto msg = mqtt::make_message(topic, std::move(payload), qos, retained);
-    client->publish(msg, detail::to_context(id), publish_listener);
+    client->publish(make_message(topic, std::move(payload), qos, retained), detail::to_context(id),
+                    publish_listener);
   } catch (const mqtt::exception& e) {
     // Rejected before it left (e.g. the connection just dropped): nothing was sent, so the
     // records simply stay in the outbox.
@@ -134,10 +140,18 @@ bool Uplink::Impl::publish_direct(std::string_view kind, std::string payload, Mi
   return publish(topics.*(route->topic), std::move(*envelope), 1, false, {});
 }
 
+mqtt::message_ptr Uplink::Impl::make_message(const std::string& topic, std::string payload, int qos,
+                                             bool retained) const {
+  auto msg = mqtt::make_message(topic, std::move(payload), qos, retained);
+  if (!envelope_props.empty()) msg->set_properties(envelope_props);
+  return msg;
+}
+
 void Uplink::Impl::on_publish_done(Micros now, const detail::PublishDone& d) {
   const auto it = in_flight.find(d.id);
   if (it == in_flight.end()) return;  // given up on earlier (QoS 0 across a connection loss)
   auto seqs = std::move(it->second.seqs);
+  const std::string* topic = it->second.topic;
   in_flight.erase(it);
   if (d.ok) {
     ++counters.acked_messages;
@@ -145,13 +159,78 @@ void Uplink::Impl::on_publish_done(Micros now, const detail::PublishDone& d) {
     if (!seqs.empty()) {
       outbox.ack(seqs);
       counters.acked_records += seqs.size();
+      if (!refused_seqs.empty()) {
+        bool was_refused = false;
+        for (const auto s : seqs) was_refused |= refused_seqs.erase(s) > 0;
+        if (was_refused) on_refusal_cleared();
+      }
     }
+  } else if (const int reason = is_refusal(d.reason) ? d.reason : d.rc;
+             config.protocol == MqttProtocol::kV5 && is_refusal(reason)) {
+    // Paho's own failures are negative; a positive code >= 0x80 is the broker's answer.
+    on_refused(now, topic != nullptr ? *topic : topics.base, std::move(seqs), reason);
+    return;  // the records stay claimed until their retry
   } else {
     ++counters.failed_publishes;
     spdlog::warn("uplink: publish of {} record(s) failed ({}); they stay in the outbox",
                  seqs.size(), d.message);
   }
   release(seqs);
+}
+
+// The broker answered "no" (MQTT 5 PUBACK reason code >= 0x80): the records were not delivered
+// and stay in the outbox. They stay claimed, and the drain takes nothing new, until the retry
+// time; the wait doubles while refusals go on (refusal_backoff), so a broker that keeps refusing
+// sees one window of publishes per back-off period, never a hot loop.
+void Uplink::Impl::on_refused(Micros now, const std::string& topic, std::vector<std::uint64_t> seqs,
+                              int reason) {
+  ++counters.publish_refusals;
+  ++counters.failed_publishes;
+  const std::string why = reason_text(reason) + " (" + topic + ")";
+  // A new reason goes into the retained status at the next poll; not when the status itself was
+  // refused (it would be refused again, in a loop).
+  if (why != counters.last_publish_refusal && topic != topics.status) status_changed = true;
+  counters.last_publish_refusal = why;
+  counters.last_publish_refusal_code = reason;
+  counters.last_publish_refusal_us = now.count();
+  if (!seqs.empty() && refusal_retry_at.count() == 0) {
+    refusal_retry_at = now + duration_cast<Micros>(refusal_backoff.next());
+  }
+  if (logged_refusals.insert(why).second) {
+    spdlog::warn(
+        "uplink: the broker refused a publish: {}; {} record(s) stay in the outbox, retried "
+        "with back-off (next in {} ms)",
+        why, seqs.size(),
+        refusal_retry_at.count() != 0 ? (refusal_retry_at - now).count() / 1000 : 0);
+  }
+  for (const auto s : seqs) refused_seqs.insert(s);
+  refused_held.insert(refused_held.end(), seqs.begin(), seqs.end());
+}
+
+// A record the broker had refused got through: the cause is gone (e.g. the ACL was fixed).
+void Uplink::Impl::on_refusal_cleared() {
+  spdlog::info("uplink: the broker accepts the publishes it refused before ({})",
+               counters.last_publish_refusal);
+  refusal_backoff.reset();
+  logged_refusals.clear();  // a later refusal is news again
+  counters.last_publish_refusal.clear();
+  counters.last_publish_refusal_code = 0;
+  counters.last_publish_refusal_us = 0;
+  status_changed = true;
+}
+
+// The back-off after a refusal passed: the held records become eligible again (they go first,
+// in outbox order) and the drain resumes.
+void Uplink::Impl::retry_refused(Micros) {
+  refusal_retry_at = Micros{0};
+  release(refused_held);
+  refused_held.clear();
+}
+
+// The client was replaced or stopped: nothing is claimed any more.
+void Uplink::Impl::forget_refused() {
+  refusal_retry_at = Micros{0};
+  refused_held.clear();
 }
 
 void Uplink::Impl::reject(const OutgoingRecord& e, std::string_view why) {
@@ -232,6 +311,7 @@ bool Uplink::Impl::publish_record(const OutgoingRecord& e) {
 
 void Uplink::Impl::drain(Micros now) {
   if (state != UplinkState::kConnected) return;
+  if (refusal_retry_at.count() != 0) return;  // the broker refused records: wait for the retry
   // A full batch left pending because the window was closed goes first.
   if (!batch.empty() && capacity() > 0 &&
       (batch.seqs.size() >= config.telemetry_batch_max_samples || batch_due(now))) {

@@ -30,6 +30,20 @@ AlarmRecord alarm_at(std::int64_t t, std::string kind) {
   return a;
 }
 
+ZoneEventRecord zone_event_at(std::int64_t t, std::string transition) {
+  ZoneEventRecord z;
+  z.ts_us = t;
+  z.zone_id = "old-town";
+  z.zone_name = "Old town";
+  z.kind = "slow";
+  z.transition = std::move(transition);
+  z.bundle_version = 7;
+  z.lat_deg = 52.52;
+  z.lon_deg = 13.405;
+  z.speed_limit_kmh = 15;
+  return z;
+}
+
 void fill(Store& store) {
   for (std::int64_t t : {1'000, 2'000}) {
     Batch b;
@@ -46,6 +60,7 @@ void fill(Store& store) {
     alarm.speed_kmh = 12.5;
     alarm.detail = "wheel turning while frame lock locked";
     b.alarms.push_back({alarm, payload_of("alarm")});
+    b.zone_events.push_back({zone_event_at(t, t == 1'000 ? "enter" : "exit"), payload_of("zone")});
     b.commands.push_back({"c" + std::to_string(t), t, "done", t + 60'000'000});
     b.meta.emplace_back("vin" + std::to_string(t), "BIKE");
     store.write(b);
@@ -63,7 +78,7 @@ TEST(Export, EveryTableExportsTypedRows) {
     } else if (table == "meta") {
       EXPECT_EQ(rows.size(), 4u) << "two vins, the sequence counter and the store id";
     } else if (table == "outbox") {
-      EXPECT_EQ(rows.size(), 14u);
+      EXPECT_EQ(rows.size(), 16u);
     } else {
       EXPECT_EQ(rows.size(), 2u) << table;
     }
@@ -108,6 +123,50 @@ TEST(Export, EveryTableExportsTypedRows) {
   EXPECT_EQ(alarms[1]["lock_node"], 8);
   EXPECT_DOUBLE_EQ(alarms[1]["speed_kmh"].get<double>(), 12.5);
   EXPECT_TRUE(alarms[1]["soc_pct"].is_null()) << "evidence that does not apply stays NULL";
+  auto zones = export_rows(store, "zone_events");
+  EXPECT_EQ(zones[0]["zone_id"], "old-town");
+  EXPECT_EQ(zones[0]["transition"], "enter");
+  EXPECT_EQ(zones[1]["transition"], "exit");
+  EXPECT_EQ(zones[0]["bundle_version"], 7);
+  EXPECT_EQ(zones[0]["speed_limit_kmh"], 15);
+  EXPECT_DOUBLE_EQ(zones[0]["lat_deg"].get<double>(), 52.52);
+}
+
+// Zone events are queued as kind "zone" at priority 1, pointing at their row; a half position
+// or an empty zone id is refused by name before anything is written.
+TEST(Export, ZoneEventsAreQueuedAsZoneAndValidated) {
+  TempDir dir;
+  Store store(StoreOptions{.path = dir.file("e.db")});
+  Batch b;
+  b.now_us = 5'000;
+  b.zone_events.push_back({zone_event_at(5'000, "enter"), payload_of("zone")});
+  ASSERT_TRUE(store.write(b).ok());
+  const auto entries = store.peek_outbox(100, 1 << 20);
+  ASSERT_EQ(entries.size(), 1u);
+  EXPECT_EQ(entries[0].kind, OutboxKind::kZone);
+  EXPECT_EQ(to_string(entries[0].kind), "zone");
+  EXPECT_EQ(outbox_kind_from_string("zone"), OutboxKind::kZone);
+  EXPECT_EQ(entries[0].priority, 1);
+  EXPECT_TRUE(entries[0].source_id.has_value());
+
+  Batch half;
+  half.now_us = 6'000;
+  auto z = zone_event_at(6'000, "exit");
+  z.lon_deg.reset();
+  half.zone_events.push_back({z, payload_of("zone")});
+  const auto r = store.write(half);
+  ASSERT_FALSE(r.ok());
+  EXPECT_NE(r.error->message.find("zone_events[0].lat_deg"), std::string::npos) << r.error->message;
+  Batch unnamed;
+  unnamed.now_us = 6'000;
+  auto u = zone_event_at(6'000, "exit");
+  u.zone_id.clear();
+  unnamed.zone_events.push_back({u, payload_of("zone")});
+  const auto r2 = store.write(unnamed);
+  ASSERT_FALSE(r2.ok());
+  EXPECT_NE(r2.error->message.find("zone_events[0].zone_id: empty"), std::string::npos)
+      << r2.error->message;
+  EXPECT_EQ(export_rows(store, "zone_events").size(), 1u) << "refused batches wrote nothing";
 }
 
 // An alarm stored after a backlog of faults and telemetry still leaves first: priority 0.
@@ -139,9 +198,9 @@ TEST(Export, SinceFiltersByTimeColumn) {
   fill(store);
   for (std::string_view table :
        {"telemetry", "rides", "fault_events", "pack_snapshots", "lock_events", "alarms",
-        "command_results", "commands", "outbox"}) {
+        "zone_events", "command_results", "commands", "outbox"}) {
     auto rows = export_rows(store, table, 1'500);
-    EXPECT_EQ(rows.size(), table == "outbox" ? 7u : 1u) << table;
+    EXPECT_EQ(rows.size(), table == "outbox" ? 8u : 1u) << table;
   }
   EXPECT_EQ(export_rows(store, "meta", 1'500).size(), 4u) << "no time column: since ignored";
 }
@@ -187,8 +246,9 @@ TEST(Stats, ReportsCountsDepthFileAndCounters) {
   EXPECT_EQ(s.schema_version, kSchemaVersion);
   std::map<std::string, std::uint64_t> rows(s.table_rows.begin(), s.table_rows.end());
   EXPECT_EQ(rows["telemetry"], 2u);
-  EXPECT_EQ(rows["outbox"], 14u);
+  EXPECT_EQ(rows["outbox"], 16u);
   EXPECT_EQ(rows["alarms"], 2u);
+  EXPECT_EQ(rows["zone_events"], 2u);
   ASSERT_EQ(s.outbox.size(), 6u);
   EXPECT_EQ(s.outbox[0].priority, 0);
   EXPECT_EQ(s.outbox[0].entries, 4u) << "two command results and two alarms";
@@ -201,7 +261,7 @@ TEST(Stats, ReportsCountsDepthFileAndCounters) {
   EXPECT_EQ(s.page_size, 4096u);
   EXPECT_EQ(s.live_bytes, (s.page_count - s.freelist_pages) * s.page_size);
   EXPECT_EQ(s.budget_bytes, 50u << 20);
-  EXPECT_EQ(s.next_seq, 15u);
+  EXPECT_EQ(s.next_seq, 17u);
   EXPECT_EQ(s.evictions.size(), 3u);
   auto j = s.to_json();
   EXPECT_EQ(j["tables"]["rides"], 2);

@@ -25,10 +25,11 @@ std::set<std::string> objects(Database& db, const std::string& type) {
   return out;
 }
 
-const std::set<std::string> kCurrentTables = {"rides",     "fault_events",      "pack_snapshots",
-                                              "telemetry", "lock_events",       "command_results",
-                                              "commands",  "seen_command_ids",  "meta",
-                                              "outbox",    "eviction_counters", "alarms"};
+const std::set<std::string> kCurrentTables = {"rides",      "fault_events",      "pack_snapshots",
+                                              "telemetry",  "lock_events",       "command_results",
+                                              "commands",   "seen_command_ids",  "meta",
+                                              "outbox",     "eviction_counters", "alarms",
+                                              "zone_events"};
 
 TEST(Schema, FreshDatabaseGetsCurrentSchema) {
   TempDir dir;
@@ -37,8 +38,8 @@ TEST(Schema, FreshDatabaseGetsCurrentSchema) {
   Database db(path);
   EXPECT_EQ(schema_version(db), kSchemaVersion);
   EXPECT_EQ(objects(db, "table"), kCurrentTables);
-  EXPECT_EQ(objects(db, "index"),
-            (std::set<std::string>{"outbox_by_priority", "outbox_by_source", "alarms_by_time"}));
+  EXPECT_EQ(objects(db, "index"), (std::set<std::string>{"outbox_by_priority", "outbox_by_source",
+                                                         "alarms_by_time", "zone_events_by_time"}));
   EXPECT_EQ(db.query_text("PRAGMA journal_mode"), "wal");
   EXPECT_EQ(db.query_int64("PRAGMA auto_vacuum"), 2) << "INCREMENTAL needed to reclaim space";
 }

@@ -52,6 +52,11 @@ TEST(ProtoSchemaV11, AdditionsAreRecordedInTheSnapshotWithTheirNumbers) {
       {"LockEvent", "state_name", 8},
       {"LockEvent", "node", 9},
       {"PackStatistics", "discharge_current_ma", 14},
+      // v1.4, MQTT 5: why the broker refuses publishes (docs/uplink.md "MQTT 5").
+      {"Status", "publish_refusals", 16},
+      {"Status", "last_publish_refusal", 17},
+      {"Status", "last_publish_refusal_code", 18},
+      {"Status", "last_publish_refusal_at_us", 19},
   };
   for (const auto& f : fields) {
     const auto* d = find_field(snapshot, f.message, f.field);

@@ -575,6 +575,9 @@ int run_will_child(const char* uri) {
   for (int i = 0; i < 3; ++i) box.push(1, "fault", wall_now().count(), fault.SerializeAsString());
   UplinkConfig config = plain_config(uri, "bike-will");
   config.store_id = "store-will";
+  // MQTT 5 will delay: none unless a test asks for one (test_uplink_mqtt5.cc).
+  const char* delay = std::getenv("FLEETGW_UPLINK_TEST_CHILD_WILL_DELAY_S");
+  config.will_delay = std::chrono::seconds(delay != nullptr ? std::atoi(delay) : 0);
   Uplink up(config, box);
   up.set_status_decorator([](v1::Status& s) { s.set_attention_needed(true); });
   up.start(wall_now());

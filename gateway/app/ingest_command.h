@@ -1,0 +1,26 @@
+// `fleetgw ingest` on the command line. The ingest runs as its own program, fleetgw-ingest
+// (`fleetgw ingest ...` execs it, as `fleetgw watch` execs fleetgw-watch): it links libpq, which
+// the service binary on the IoT node must not load (resident memory, docs/performance.md).
+//
+// Contract:
+//  * add_ingest_options() defines the options once, for `fleetgw ingest --help` and the
+//    fleetgw-ingest program alike; values are range-checked by CLI11 (usage errors exit 2).
+//  * exec_sibling("fleetgw-ingest", ...) replaces this process with that program found next to
+//    the running executable, else on PATH; it returns only on failure (127, as a shell).
+#pragma once
+
+#include <string_view>
+
+#include "gateway/ingest/ingest_options.h"
+
+namespace CLI {
+class App;
+}
+
+namespace fleetgw::app {
+
+void add_ingest_options(CLI::App& app, ingest::IngestOptions& options);
+
+int exec_sibling(std::string_view program, std::string_view command, int argc, char** argv);
+
+}  // namespace fleetgw::app

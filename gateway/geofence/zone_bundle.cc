@@ -1,0 +1,293 @@
+#include "gateway/geofence/zone_bundle.h"
+
+#include <set>
+#include <stdexcept>
+
+#include "fleetgw/v1/zones.pb.h"
+#include "gateway/command/sha256.h"
+#include "gateway/command/signing.h"
+#include "gateway/common/untrusted_text.h"
+
+namespace fleetgw::geofence {
+namespace {
+
+constexpr std::int64_t kMaxLatE7 = 900'000'000;
+constexpr std::int64_t kMaxLonE7 = 1'800'000'000;
+constexpr std::int64_t kMaxLonSpanE7 = 1'800'000'000;  // no zone across the antimeridian
+constexpr std::size_t kMaxQuotedBytes = 64;
+
+std::string quote_zone_text(std::string_view untrusted) {
+  return "'" + common::untrusted_excerpt(untrusted, kMaxQuotedBytes) + "'";
+}
+
+// "zone 3 ('old-town')": where in the bundle a problem is.
+std::string zone_where(int index, const v1::Zone& zone) {
+  return "zone " + std::to_string(index) + " (" + quote_zone_text(zone.id()) + ")";
+}
+
+// The ring's vertices without consecutive repeats (nor a last vertex repeating the first), or
+// a reason it cannot be one.
+std::variant<Ring, std::string> ring_of(const v1::ZoneRing& r) {
+  if (r.lat_e7_size() != r.lon_e7_size()) {
+    return std::to_string(r.lat_e7_size()) + " latitudes but " + std::to_string(r.lon_e7_size()) +
+           " longitudes";
+  }
+  Ring ring;
+  ring.reserve(static_cast<std::size_t>(r.lat_e7_size()));
+  std::int64_t lon_lo = kMaxLonE7, lon_hi = -kMaxLonE7;
+  for (int i = 0; i < r.lat_e7_size(); ++i) {
+    const std::int64_t lat = r.lat_e7(i), lon = r.lon_e7(i);
+    if (lat < -kMaxLatE7 || lat > kMaxLatE7) {
+      return "vertex " + std::to_string(i) + ": latitude " + std::to_string(lat) +
+             "e-7 is outside -90..90 degrees";
+    }
+    if (lon < -kMaxLonE7 || lon > kMaxLonE7) {
+      return "vertex " + std::to_string(i) + ": longitude " + std::to_string(lon) +
+             "e-7 is outside -180..180 degrees";
+    }
+    lon_lo = std::min(lon_lo, lon);
+    lon_hi = std::max(lon_hi, lon);
+    const Vertex v{r.lat_e7(i), r.lon_e7(i)};
+    if (ring.empty() || !(ring.back() == v)) ring.push_back(v);
+  }
+  if (ring.size() > 1 && ring.back() == ring.front()) ring.pop_back();
+  if (ring.size() < 3) {
+    return std::to_string(ring.size()) + " distinct vertices (at least 3 needed)";
+  }
+  if (lon_hi - lon_lo > kMaxLonSpanE7) {
+    return "spans more than 180 degrees of longitude (zones across the antimeridian are not "
+           "supported)";
+  }
+  return ring;
+}
+
+std::optional<ZoneKind> kind_of(int kind) {
+  switch (kind) {
+    case v1::ZONE_KIND_OPERATING_AREA:
+      return ZoneKind::kOperatingArea;
+    case v1::ZONE_KIND_SLOW:
+      return ZoneKind::kSlow;
+    case v1::ZONE_KIND_NO_RIDE:
+      return ZoneKind::kNoRide;
+    case v1::ZONE_KIND_NO_PARKING:
+      return ZoneKind::kNoParking;
+    default:
+      return std::nullopt;
+  }
+}
+
+BundleVerdict refused(BundleRefusal reason, std::string detail, std::uint64_t version,
+                      const std::optional<BundleInForce>& in_force) {
+  BundleVerdict v;
+  v.outcome = BundleOutcome::kRefused;
+  v.reason = reason;
+  v.detail = std::move(detail);
+  v.version = version;
+  v.in_force = in_force ? in_force->zones->version : 0;
+  return v;
+}
+
+}  // namespace
+
+std::variant<ZoneSet, std::string> compile_zones(const v1::ZoneBundle& bundle,
+                                                 const BundleLimits& limits) {
+  if (bundle.version() == 0) return std::string("version 0 (versions start at 1)");
+  if (bundle.issued_at_us() <= 0) return std::string("no issued_at_us");
+  if (static_cast<std::size_t>(bundle.zones_size()) > limits.max_zones) {
+    return std::to_string(bundle.zones_size()) + " zones, at most " +
+           std::to_string(limits.max_zones);
+  }
+  std::size_t vertices = 0;
+  for (const auto& zone : bundle.zones()) {
+    for (const auto& ring : zone.rings()) vertices += static_cast<std::size_t>(ring.lat_e7_size());
+  }
+  if (vertices > limits.max_vertices) {
+    return std::to_string(vertices) + " vertices, at most " + std::to_string(limits.max_vertices);
+  }
+  ZoneSet set;
+  set.version = bundle.version();
+  set.issued_at = Micros(bundle.issued_at_us());
+  set.zones.reserve(static_cast<std::size_t>(bundle.zones_size()));
+  std::set<std::string_view> ids;
+  for (int i = 0; i < bundle.zones_size(); ++i) {
+    const v1::Zone& z = bundle.zones(i);
+    const std::string where = zone_where(i, z);
+    if (!command::is_valid_tool_id(z.id())) {
+      return where + ": id must be 1..64 characters of [A-Za-z0-9._-]";
+    }
+    if (!ids.insert(z.id()).second) return where + ": id repeated";
+    if (z.name().size() > limits.max_name_bytes || !common::is_valid_utf8(z.name())) {
+      return where + ": name must be at most " + std::to_string(limits.max_name_bytes) +
+             " bytes of UTF-8";
+    }
+    const auto kind = kind_of(z.kind());
+    if (!kind) return where + ": unknown kind " + std::to_string(z.kind());
+    if (*kind == ZoneKind::kSlow && (z.speed_limit_kmh() < 1 || z.speed_limit_kmh() > 255)) {
+      return where + ": a slow zone needs speed_limit_kmh in 1..255, not " +
+             std::to_string(z.speed_limit_kmh());
+    }
+    if (*kind != ZoneKind::kSlow && z.speed_limit_kmh() != 0) {
+      return where + ": speed_limit_kmh is only for slow zones";
+    }
+    if (z.rings_size() == 0) return where + ": no ring";
+    std::vector<Ring> rings;
+    for (int r = 0; r < z.rings_size(); ++r) {
+      auto ring = ring_of(z.rings(r));
+      if (auto* error = std::get_if<std::string>(&ring)) {
+        return where + ", ring " + std::to_string(r) + ": " + *error;
+      }
+      rings.push_back(std::move(std::get<Ring>(ring)));
+    }
+    Zone zone{z.id(), z.name(), *kind, static_cast<int>(z.speed_limit_kmh()),
+              ZonePolygon::build(rings)};
+    set.vertices += zone.shape.vertex_count();
+    set.zones.push_back(std::move(zone));
+  }
+  return set;
+}
+
+std::string_view bundle_outcome_name(BundleOutcome outcome) {
+  switch (outcome) {
+    case BundleOutcome::kAccepted:
+      return "accepted";
+    case BundleOutcome::kAlreadyInForce:
+      return "already_in_force";
+    case BundleOutcome::kRefused:
+      return "refused";
+  }
+  return "unknown";
+}
+
+std::string_view bundle_refusal_name(BundleRefusal reason) {
+  switch (reason) {
+    case BundleRefusal::kNone:
+      return "";
+    case BundleRefusal::kTooLarge:
+      return "too_large";
+    case BundleRefusal::kMalformed:
+      return "malformed";
+    case BundleRefusal::kUnknownKey:
+      return "unknown_key";
+    case BundleRefusal::kBadSignature:
+      return "signature_invalid";
+    case BundleRefusal::kNotNewer:
+      return "not_newer";
+    case BundleRefusal::kVersionConflict:
+      return "version_conflict";
+    case BundleRefusal::kInvalidZones:
+      return "invalid_zones";
+  }
+  return "unknown";
+}
+
+ZoneAuthority::ZoneAuthority(const std::map<std::string, std::string>& trusted_keys,
+                             BundleLimits limits)
+    : limits_(limits) {
+  for (const auto& [id, text] : trusted_keys) {
+    auto key = command::Ed25519PublicKey::from_base64(text);
+    if (id.empty() || !key) {
+      throw std::invalid_argument("command.trusted_keys." + id +
+                                  ": not a base64 raw Ed25519 public key (32 bytes)");
+    }
+    keys_.emplace(id, std::move(*key));
+  }
+}
+
+BundleVerdict ZoneAuthority::offer(std::string_view payload) {
+  return offer(std::span(reinterpret_cast<const std::uint8_t*>(payload.data()), payload.size()));
+}
+
+BundleVerdict ZoneAuthority::offer(std::span<const std::uint8_t> payload) {
+  if (payload.size() > limits_.max_payload_bytes) {
+    return refused(BundleRefusal::kTooLarge,
+                   "payload of " + std::to_string(payload.size()) + " bytes exceeds " +
+                       std::to_string(limits_.max_payload_bytes),
+                   0, in_force_);
+  }
+  v1::SignedZoneBundle signed_bundle;
+  if (!signed_bundle.ParseFromArray(payload.data(), static_cast<int>(payload.size()))) {
+    return refused(BundleRefusal::kMalformed, "not a fleetgw.v1.SignedZoneBundle", 0, in_force_);
+  }
+  if (signed_bundle.bundle().empty()) {
+    return refused(BundleRefusal::kMalformed, "empty bundle", 0, in_force_);
+  }
+  if (signed_bundle.signature().empty()) {
+    return refused(BundleRefusal::kMalformed, "no signature", 0, in_force_);
+  }
+  if (signed_bundle.key_id().empty()) {
+    return refused(BundleRefusal::kMalformed, "no key id", 0, in_force_);
+  }
+  const auto key = keys_.find(signed_bundle.key_id());
+  if (key == keys_.end()) {
+    return refused(BundleRefusal::kUnknownKey,
+                   "key id " + quote_zone_text(signed_bundle.key_id()) + " is not trusted", 0,
+                   in_force_);
+  }
+  const auto* msg = reinterpret_cast<const std::uint8_t*>(signed_bundle.bundle().data());
+  const auto* sig = reinterpret_cast<const std::uint8_t*>(signed_bundle.signature().data());
+  if (!key->second.verify({msg, signed_bundle.bundle().size()},
+                          {sig, signed_bundle.signature().size()})) {
+    return refused(BundleRefusal::kBadSignature,
+                   "Ed25519 signature does not verify with key " + quote_zone_text(key->first), 0,
+                   in_force_);
+  }
+  // Authentic from here on.
+  v1::ZoneBundle bundle;
+  if (!bundle.ParseFromString(signed_bundle.bundle())) {
+    return refused(BundleRefusal::kMalformed, "bundle bytes are not a fleetgw.v1.ZoneBundle", 0,
+                   in_force_);
+  }
+  const std::uint64_t version = bundle.version();
+  std::string digest = command::sha256(signed_bundle.bundle());
+  if (in_force_) {
+    const std::uint64_t current = in_force_->zones->version;
+    if (version == current && digest == in_force_->bundle_sha256) {
+      BundleVerdict v;
+      v.outcome = BundleOutcome::kAlreadyInForce;
+      v.detail = "version " + std::to_string(version) + " is already in force";
+      v.version = v.in_force = version;
+      return v;
+    }
+    if (version == current) {
+      return refused(BundleRefusal::kVersionConflict,
+                     "version " + std::to_string(version) +
+                         " is in force with different content; a change needs a new version",
+                     version, in_force_);
+    }
+    if (version < current) {
+      return refused(BundleRefusal::kNotNewer,
+                     "version " + std::to_string(version) + " is older than version " +
+                         std::to_string(current) + " in force",
+                     version, in_force_);
+    }
+  }
+  auto compiled = compile_zones(bundle, limits_);
+  if (auto* error = std::get_if<std::string>(&compiled)) {
+    return refused(BundleRefusal::kInvalidZones, std::move(*error), version, in_force_);
+  }
+  in_force_ =
+      BundleInForce{std::string(reinterpret_cast<const char*>(payload.data()), payload.size()),
+                    std::move(digest), signed_bundle.key_id(),
+                    std::make_shared<const ZoneSet>(std::move(std::get<ZoneSet>(compiled)))};
+  BundleVerdict v;
+  v.outcome = BundleOutcome::kAccepted;
+  v.detail = "version " + std::to_string(version) +
+             " in force: " + std::to_string(in_force_->zones->zones.size()) + " zones, " +
+             std::to_string(in_force_->zones->vertices) + " vertices";
+  v.version = v.in_force = version;
+  return v;
+}
+
+std::string sign_zone_bundle(const v1::ZoneBundle& bundle, const command::Ed25519PrivateKey& key,
+                             std::string_view key_id) {
+  v1::SignedZoneBundle s;
+  // Serialized once: the signature covers exactly the bytes that travel.
+  s.set_bundle(bundle.SerializeAsString());
+  const auto* bytes = reinterpret_cast<const std::uint8_t*>(s.bundle().data());
+  const auto sig = key.sign({bytes, s.bundle().size()});
+  s.set_signature(std::string(sig.begin(), sig.end()));
+  s.set_key_id(std::string(key_id));
+  return s.SerializeAsString();
+}
+
+}  // namespace fleetgw::geofence

@@ -1,0 +1,69 @@
+// ZoneController: the geofence parts composed as the runtime will drive them -- the bundle in
+// force (ZoneAuthority) and its file, the engine, the enforcer. The runtime's wiring is then four
+// calls: restore() at start-up, on_bundle() for each payload of the zones topic, on_position()
+// for each position change from gnss::GnssFeed, tick() whenever it wakes (with what it knows of
+// the MC) -- plus on_write_result() from the MC action's Done callback. No clock, no bus, no
+// uplink; the only I/O is the bundle file (zone_file.h).
+//
+// Contract:
+//  * restore(): the stored bundle offered like any payload (a tampered or no-longer-trusted file
+//    is refused, with its verdict); nullopt when there is no file or it cannot be read (`error`).
+//  * on_bundle(): an accepted bundle is written to the file FIRST (atomically), then put in
+//    force; a failed write is reported in `persist_error` but the bundle is enforced all the
+//    same (the bike obeys the newest zones; it would fall back to the stored ones after a
+//    restart). A refusal changes nothing. Zones removed by a new bundle end with exit events.
+//  * on_position(now, fix): `fix` is the CURRENT position or nullptr when it is unknown or
+//    stale; only a real change of position should be passed (a fix counts once towards the
+//    dwell). Appends enter/exit events.
+//  * tick(now, mc): the MC write to make now (ZoneEnforcer::next on the engine's demands), or
+//    nullopt; next_deadline(now) is when tick() should run next for a ramp.
+#pragma once
+
+#include <filesystem>
+#include <map>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "gateway/geofence/zone_bundle.h"
+#include "gateway/geofence/zone_enforcer.h"
+#include "gateway/geofence/zone_engine.h"
+
+namespace fleetgw::geofence {
+
+struct ZoneControllerConfig {
+  EngineConfig engine;
+  EnforcerConfig enforcer;
+  BundleLimits limits;
+  std::map<std::string, std::string> trusted_keys;  // [command.trusted_keys]
+  std::filesystem::path bundle_file;                // empty: not persisted
+};
+
+class ZoneController {
+ public:
+  explicit ZoneController(ZoneControllerConfig config);
+
+  std::optional<BundleVerdict> restore(Micros now, std::string& error,
+                                       std::vector<ZoneEvent>& events);
+  BundleVerdict on_bundle(std::span<const std::uint8_t> payload, Micros now,
+                          std::vector<ZoneEvent>& events, std::string& persist_error);
+  void on_position(Micros now, const gnss::Position* fix, std::vector<ZoneEvent>& events);
+  std::optional<McWrite> tick(Micros now, const McView& mc);
+  void on_write_result(bool succeeded, Micros now) { enforcer_.on_result(succeeded, now); }
+  std::optional<Micros> next_deadline(Micros now) const { return engine_.next_change(now); }
+
+  Demands demands(Micros now) const { return engine_.demands(now); }
+  ParkingVerdict parking(const gnss::Position* fix, bool ride_ending, Micros now) const {
+    return engine_.parking(fix, ride_ending, now);
+  }
+  const ZoneAuthority& authority() const { return authority_; }
+
+ private:
+  ZoneControllerConfig config_;
+  ZoneAuthority authority_;
+  ZoneEngine engine_;
+  ZoneEnforcer enforcer_;
+};
+
+}  // namespace fleetgw::geofence

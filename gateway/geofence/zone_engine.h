@@ -1,0 +1,179 @@
+// ZoneEngine: geofences evaluated on the bike (issue 14) -- from position fixes to zone
+// enter/exit events and to what the motor controller should be told, as values. Pure logic: no
+// clock (every entry point takes the wall-clock `now`), no I/O, no bus; the runtime writes the
+// demands through the MC command path and stores and publishes the events.
+//
+// Contract:
+//  * Zones come as an immutable ZoneSet (zone_bundle.h builds one from a verified bundle).
+//    set_zones() replaces it: a zone id present in both keeps its state; a zone removed while
+//    the bike was inside produces an exit event (its effects end).
+//  * step(now, fix) takes the CURRENT fix or nullptr (position unknown or stale). Unknown means
+//    no transition at all: every zone keeps its state (a slow zone stays applied in a tunnel),
+//    and a transition that was pending starts over.
+//  * Hysteresis: a fix counts as inside (outside) a zone only when it is inside (outside) by at
+//    least `margin_m` from every edge; a fix within the margin counts for neither side. A zone's
+//    state changes only after fixes on the other side for at least `min_dwell` without
+//    interruption (a fix within the margin, on the old side or unknown interrupts it). So GNSS
+//    jitter across a boundary does not flap; a real crossing is reported once the bike is
+//    `margin_m` past the boundary for `min_dwell`.
+//  * A zone starts in "unknown" state. unknown -> inside is an ENTER event (a bike switched on
+//    inside a slow zone gets its limit); unknown -> outside is silent; inside -> outside is an
+//    EXIT event. Events carry the fix that decided them.
+//  * Demands (demands(now), also returned by step()):
+//      - speed_limit_kmh: the lowest limit of the slow zones the bike is inside, reached along a
+//        linear ramp of `speed_ramp` from the limit in force when the target changed; after the
+//        last slow zone it ramps back up to `unrestricted_kmh` over `restore_ramp`, then is
+//        nullopt (no zone limit: the bike's own applies). Whole km/h, rounded so a falling
+//        limit never undercuts the ramp and a rising one never overshoots it.
+//      - assist_cap_percent: 100 normally; inside a no-ride zone it fades linearly to 0 over
+//        `assist_fade` (never an abrupt stop), and back to 100 over `restore_ramp` after it.
+//      - outside_operating_area: the bundle has operating areas and the bike is (confirmed)
+//        outside every one of them -- the alarm level.
+//      - in_no_parking_zone: (confirmed) inside a no-parking zone.
+//  * next_change(now) is when demands() next changes without a new fix (a ramp's next whole
+//    step), so the owner can wake up for it; nullopt while nothing is moving.
+//  * parking(fix, ride_ending) judges a lock at that fix, from the fix itself (a bike locked
+//    seconds after entering a zone is still judged where it is): a fix inside a no-parking zone
+//    or within the margin of one is reported; the lock is refused only when
+//    `refuse_ride_ending_locks`, the lock ends a ride and the fix is inside by at least the
+//    margin. An unknown position never refuses a lock (a rider must always be able to end a
+//    ride).
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "gateway/geofence/zone_geometry.h"
+#include "gateway/gnss/position.h"
+
+namespace fleetgw::geofence {
+
+using Micros = std::chrono::microseconds;
+using namespace std::chrono_literals;
+
+// Same numbers as fleetgw.v1.ZoneKind.
+enum class ZoneKind : std::uint8_t { kOperatingArea = 1, kSlow = 2, kNoRide = 3, kNoParking = 4 };
+// "operating_area", "slow", "no_ride", "no_parking".
+std::string_view zone_kind_name(ZoneKind kind);
+
+struct Zone {
+  std::string id;
+  std::string name;
+  ZoneKind kind = ZoneKind::kSlow;
+  int speed_limit_kmh = 0;  // kSlow only
+  ZonePolygon shape;
+};
+
+struct ZoneSet {
+  std::uint64_t version = 0;
+  Micros issued_at{0};
+  std::vector<Zone> zones;
+  std::size_t vertices = 0;
+};
+
+struct EngineConfig {
+  double margin_m = 10.0;
+  Micros min_dwell = 3s;
+  Micros speed_ramp = 10s;
+  Micros assist_fade = 8s;
+  Micros restore_ramp = 5s;
+  int unrestricted_kmh = 25;  // the bike's own limit: where a restored limit ramps back to
+  bool refuse_ride_ending_locks = false;
+};
+
+// Same numbers as fleetgw.v1.ZoneTransition.
+enum class Transition : std::uint8_t {
+  kEnter = 1,
+  kExit = 2,
+  kLockedInNoParking = 3,
+  kLockRefused = 4,
+};
+// "enter", "exit", "locked_in_no_parking", "lock_refused".
+std::string_view transition_name(Transition t);
+
+struct ZoneEvent {
+  std::string zone_id;
+  std::string zone_name;
+  ZoneKind kind = ZoneKind::kSlow;
+  Transition transition = Transition::kEnter;
+  Micros at{0};
+  std::optional<gnss::Position> position;  // absent only for a zone removed with no fix known
+  std::uint64_t bundle_version = 0;
+  int speed_limit_kmh = 0;
+};
+
+struct Demands {
+  std::optional<int> speed_limit_kmh;
+  int assist_cap_percent = 100;
+  bool outside_operating_area = false;
+  bool in_no_parking_zone = false;
+  friend bool operator==(const Demands&, const Demands&) = default;
+};
+
+struct ParkingVerdict {
+  bool in_no_parking_zone = false;  // report the lock
+  bool refuse = false;              // refuse it (ride-ending lock, clearly inside, configured)
+  std::optional<ZoneEvent> event;   // kLockedInNoParking or kLockRefused, when in such a zone
+};
+
+// A value moving linearly from one level to another over a set duration.
+class Ramp {
+ public:
+  explicit Ramp(double level) : from_(level), to_(level) {}
+  // Starts moving from the current value towards `to` (nothing when `to` is already the target).
+  void retarget(double to, Micros now, Micros duration);
+  double value(Micros now) const;
+  double target() const { return to_; }
+  bool settled(Micros now) const { return now >= start_ + duration_ || from_ == to_; }
+  // The value in whole units: ceil while falling, floor while rising.
+  int whole(Micros now) const;
+  // When whole() next changes; nullopt once settled.
+  std::optional<Micros> next_step(Micros now) const;
+
+ private:
+  double from_;
+  double to_;
+  Micros start_{0};
+  Micros duration_{0};
+};
+
+class ZoneEngine {
+ public:
+  explicit ZoneEngine(EngineConfig config = {});
+
+  void set_zones(std::shared_ptr<const ZoneSet> zones, Micros now, std::vector<ZoneEvent>& events);
+  Demands step(Micros now, const gnss::Position* fix, std::vector<ZoneEvent>& events);
+  Demands demands(Micros now) const;
+  std::optional<Micros> next_change(Micros now) const;
+  ParkingVerdict parking(const gnss::Position* fix, bool ride_ending, Micros now) const;
+
+  const std::shared_ptr<const ZoneSet>& zones() const { return zones_; }
+  const EngineConfig& config() const { return config_; }
+  // The confirmed state of zone `index` of zones(): true inside, false outside, nullopt unknown.
+  std::optional<bool> inside(std::size_t index) const;
+
+ private:
+  enum class Side : std::uint8_t { kUnknown, kInside, kOutside };
+  struct State {
+    Side confirmed = Side::kUnknown;
+    Side pending = Side::kUnknown;
+    Micros pending_since{0};
+  };
+  ZoneEvent event_for(const Zone& zone, Transition t, Micros now,
+                      const std::optional<gnss::Position>& where) const;
+  void update_targets(Micros now);
+
+  EngineConfig config_;
+  std::shared_ptr<const ZoneSet> zones_;
+  std::vector<State> states_;
+  std::optional<gnss::Position> last_fix_;
+  Ramp speed_;
+  Ramp assist_;
+};
+
+}  // namespace fleetgw::geofence

@@ -1,0 +1,113 @@
+#include "gateway/geofence/zone_tool.h"
+
+#include <ostream>
+
+#include "fleetgw/v1/zones.pb.h"
+#include "gateway/command/ed25519.h"
+#include "gateway/command/signing.h"
+#include "gateway/common/untrusted_text.h"
+#include "gateway/geofence/zone_bundle.h"
+#include "gateway/geofence/zone_file.h"
+#include "gateway/geofence/zone_geojson.h"
+
+namespace fleetgw::geofence {
+namespace {
+
+constexpr std::size_t kMaxGeojsonBytes = 64u << 20;
+
+void print_verdict(const BundleVerdict& v, std::ostream& out) {
+  out << bundle_outcome_name(v.outcome);
+  if (v.reason != BundleRefusal::kNone) out << " (" << bundle_refusal_name(v.reason) << ")";
+  out << ": " << v.detail << '\n';
+}
+
+}  // namespace
+
+int run_zones_sign(const ZonesSignOptions& options, std::ostream& out, std::ostream& err) {
+  try {
+    if (options.version == 0) {
+      err << "zones sign: --version must be at least 1 (greater than the bundle in force)\n";
+      return 1;
+    }
+    std::string error;
+    const auto text = read_zone_file(options.geojson, error, kMaxGeojsonBytes);
+    if (!text) {
+      err << "zones sign: " << (error.empty() ? options.geojson.string() + ": no such file" : error)
+          << '\n';
+      return 1;
+    }
+    auto bundle = bundle_from_geojson(*text, options.version, options.issued_at);
+    if (auto* problem = std::get_if<std::string>(&bundle)) {
+      err << "zones sign: " << options.geojson.string() << ": " << *problem << '\n';
+      return 1;
+    }
+    const std::string key_id =
+        options.key_id.empty() ? options.key_pem.stem().string() : options.key_id;
+    if (!command::is_valid_tool_id(key_id)) {
+      err << "zones sign: key id '" << common::untrusted_excerpt(key_id)
+          << "' must be 1..64 characters of [A-Za-z0-9._-]\n";
+      return 1;
+    }
+    const auto key = command::Ed25519PrivateKey::load_pem(options.key_pem);
+    const auto& b = std::get<v1::ZoneBundle>(bundle);
+    const std::string payload = sign_zone_bundle(b, key, key_id);
+    if (!write_zone_file(options.out, payload, error)) {
+      err << "zones sign: " << error << '\n';
+      return 1;
+    }
+    // Counted as the gateway counts them (a closing vertex repeating the first is not one).
+    const auto compiled = compile_zones(b);
+    const std::size_t vertices =
+        std::holds_alternative<ZoneSet>(compiled) ? std::get<ZoneSet>(compiled).vertices : 0;
+    out << "zones sign: version " << b.version() << ", " << b.zones_size() << " zones, " << vertices
+        << " vertices, signed by '" << key_id << "': " << payload.size() << " bytes -> "
+        << options.out.string() << '\n';
+    return 0;
+  } catch (const std::exception& e) {
+    err << "zones sign: " << e.what() << '\n';
+    return 1;
+  }
+}
+
+int run_zones_check(const ZonesCheckOptions& options, std::ostream& out, std::ostream& err) {
+  try {
+    ZoneAuthority authority(options.trusted_keys);
+    std::string error;
+    if (options.in_force) {
+      const auto v = restore_zones(authority, *options.in_force, error);
+      if (!error.empty()) {
+        err << "zones check: " << error << '\n';
+        return 1;
+      }
+      out << "in force (" << options.in_force->string() << "): ";
+      if (v) {
+        print_verdict(*v, out);
+      } else {
+        out << "none\n";
+      }
+    }
+    const auto payload = read_zone_file(options.bundle, error);
+    if (!payload) {
+      err << "zones check: " << (error.empty() ? options.bundle.string() + ": no such file" : error)
+          << '\n';
+      return 1;
+    }
+    const auto v = authority.offer(*payload);
+    out << options.bundle.string() << ": ";
+    print_verdict(v, out);
+    if (v.outcome == BundleOutcome::kRefused) return 1;
+    for (const auto& z : authority.in_force()->zones->zones) {
+      out << "  " << z.id << "  " << zone_kind_name(z.kind) << "  " << z.shape.vertex_count()
+          << " vertices";
+      if (z.kind == ZoneKind::kSlow) out << "  " << z.speed_limit_kmh << " km/h";
+      if (!z.name.empty()) out << "  \"" << common::untrusted_excerpt(z.name, 128) << '"';
+      out << '\n';
+    }
+    return 0;
+  } catch (const std::exception& e) {
+    err << "zones check: " << e.what() << '\n';
+    return 1;
+  }
+}
+
+}  // namespace fleetgw::geofence

@@ -1,0 +1,48 @@
+// `fleetgw zones sign|check`: the operator's side of zone bundles (issue 14). The CLI (gateway/
+// app/cli.cc) parses the arguments and the configuration; everything else is here, testable
+// with streams.
+//
+// Contract:
+//  * run_zones_sign() reads a GeoJSON FeatureCollection (zone_geojson.h), builds the bundle of
+//    `version` issued at `issued_at`, validates it with the gateway's own rules, signs it with
+//    the Ed25519 PEM key (the `fleetgw keygen` key; key id: `key_id`, by default the key file's
+//    name without .pem, as keygen names it) and writes the SignedZoneBundle atomically to `out`
+//    (zone_file.h). It prints one line saying what it wrote. Exit 0; 1 with a message on `err`
+//    naming the file and the problem (unreadable, invalid zone, bad key); nothing is written
+//    then.
+//  * run_zones_check() judges a signed bundle file exactly as a gateway would: with the trusted
+//    keys given and, when `in_force` names a file (the gateway's stored bundle), against the
+//    bundle in force there. It prints the verdict and, when the bundle authenticates and is
+//    valid, one line per zone (id, kind, vertices, limit, name). Exit 0 when a gateway would
+//    accept it (or already has it), 1 when it would refuse it.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <iosfwd>
+#include <map>
+#include <optional>
+#include <string>
+
+#include "gateway/geofence/zone_engine.h"
+
+namespace fleetgw::geofence {
+
+struct ZonesSignOptions {
+  std::filesystem::path geojson;
+  std::filesystem::path key_pem;
+  std::string key_id;  // empty: the key file's stem
+  std::uint64_t version = 0;
+  Micros issued_at{0};
+  std::filesystem::path out;
+};
+int run_zones_sign(const ZonesSignOptions& options, std::ostream& out, std::ostream& err);
+
+struct ZonesCheckOptions {
+  std::filesystem::path bundle;
+  std::map<std::string, std::string> trusted_keys;  // as [command.trusted_keys]
+  std::optional<std::filesystem::path> in_force;
+};
+int run_zones_check(const ZonesCheckOptions& options, std::ostream& out, std::ostream& err);
+
+}  // namespace fleetgw::geofence

@@ -1,0 +1,31 @@
+// The ingest's PostgreSQL schema as versioned migrations compiled into the binary.
+//
+// Contract:
+//  * migrations() lists every migration in version order (1, 2, ...); a migration, once
+//    released, is never edited: a change is a new migration.
+//  * migrate(conn) brings the database to the newest version: under a session advisory lock (so
+//    several workers starting together apply each migration once), each missing version runs in
+//    its own transaction together with its row in `schema_migrations` (version, name,
+//    applied_at). Returns the number of migrations applied (0: already current). A database
+//    newer than this binary (an unknown version in schema_migrations) is refused with PgError.
+//  * Throws PgError naming the failing migration.
+#pragma once
+
+#include <span>
+#include <string_view>
+
+#include "gateway/ingest/pg.h"
+
+namespace fleetgw::ingest {
+
+struct Migration {
+  int version;
+  std::string_view name;
+  std::string_view sql;
+};
+
+std::span<const Migration> migrations();
+
+int migrate(PgConnection& conn);
+
+}  // namespace fleetgw::ingest

@@ -1,0 +1,102 @@
+// libpq wrappers (pg.h).
+#include "gateway/ingest/pg.h"
+
+#include <spdlog/spdlog.h>
+
+#include <charconv>
+#include <vector>
+
+namespace fleetgw::ingest {
+namespace {
+
+std::string trimmed(const char* s) {
+  std::string out = s != nullptr ? s : "";
+  while (!out.empty() && (out.back() == '\n' || out.back() == ' ')) out.pop_back();
+  return out;
+}
+
+PgResult checked(PGresult* raw, PGconn* conn, std::string_view what) {
+  PgResultPtr r(raw);
+  const ExecStatusType st = r ? PQresultStatus(r.get()) : PGRES_FATAL_ERROR;
+  if (st == PGRES_COMMAND_OK || st == PGRES_TUPLES_OK) return PgResult(std::move(r));
+  std::string state;
+  std::string message;
+  if (r) {
+    const char* s = PQresultErrorField(r.get(), PG_DIAG_SQLSTATE);
+    state = s != nullptr ? s : "";
+    message = trimmed(PQresultErrorMessage(r.get()));
+  }
+  if (message.empty()) message = trimmed(PQerrorMessage(conn));
+  throw PgError(std::string(what) + ": " + message + (state.empty() ? "" : " [" + state + "]"),
+                state);
+}
+
+}  // namespace
+
+std::int64_t PgResult::int64(int row, int col) const {
+  const std::string_view t = text(row, col);
+  std::int64_t v = 0;
+  const auto [p, ec] = std::from_chars(t.data(), t.data() + t.size(), v);
+  if (ec != std::errc() || p != t.data() + t.size()) {
+    throw PgError("not an integer in column " + std::to_string(col) + ": " + std::string(t), "");
+  }
+  return v;
+}
+
+std::int64_t PgResult::affected() const {
+  const char* n = PQcmdTuples(r_.get());
+  if (n == nullptr || *n == '\0') return 0;
+  std::int64_t v = 0;
+  std::from_chars(n, n + std::char_traits<char>::length(n), v);
+  return v;
+}
+
+PgConnection::PgConnection(const std::string& conninfo) : conn_(PQconnectdb(conninfo.c_str())) {
+  if (!conn_) throw PgError("PostgreSQL: out of memory", "");
+  if (PQstatus(conn_.get()) != CONNECTION_OK) {
+    // libpq's message names host, port and the server's reason, never the password.
+    throw PgError("PostgreSQL connection failed: " + trimmed(PQerrorMessage(conn_.get())), "");
+  }
+  // Server notices (e.g. "relation already exists, skipping") are not errors: debug level,
+  // instead of libpq's default of printing them on stderr.
+  PQsetNoticeProcessor(
+      conn_.get(),
+      [](void*, const char* message) { spdlog::debug("PostgreSQL: {}", trimmed(message)); },
+      nullptr);
+  // Row values are untrusted text from vehicles: make sure the session encoding is UTF-8
+  // whatever the server's default.
+  PQsetClientEncoding(conn_.get(), "UTF8");
+}
+
+PgResult PgConnection::exec(std::string_view sql, std::string_view what) {
+  const std::string s(sql);
+  return checked(PQexec(conn_.get(), s.c_str()), conn_.get(), what);
+}
+
+PgResult PgConnection::exec_params(std::string_view sql, std::span<const PgParam> params,
+                                   std::string_view what) {
+  const std::string s(sql);
+  std::vector<const char*> values;
+  values.reserve(params.size());
+  for (const PgParam& p : params) values.push_back(p ? p->c_str() : nullptr);
+  return checked(PQexecParams(conn_.get(), s.c_str(), static_cast<int>(values.size()), nullptr,
+                              values.data(), nullptr, nullptr, 0),
+                 conn_.get(), what);
+}
+
+PgTransaction::PgTransaction(PgConnection& c) : c_(c) {
+  c_.exec("BEGIN", "begin transaction");
+}
+
+PgTransaction::~PgTransaction() {
+  if (done_) return;
+  // A broken connection cannot roll back; the server aborts the transaction when it notices.
+  if (c_.ok()) PQclear(PQexec(c_.raw(), "ROLLBACK"));
+}
+
+void PgTransaction::commit() {
+  c_.exec("COMMIT", "commit");
+  done_ = true;
+}
+
+}  // namespace fleetgw::ingest

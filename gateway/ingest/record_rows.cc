@@ -1,0 +1,352 @@
+// One function per Envelope body kind (record_rows.h): the column order of each TableSpec is
+// the order of its RowBuilder calls.
+#include "gateway/ingest/record_rows.h"
+
+#include <nlohmann/json.hpp>
+
+namespace fleetgw::ingest::rows {
+namespace {
+constexpr std::string_view kIgnore = "ON CONFLICT DO NOTHING";
+}  // namespace
+
+// Column lists: the order of the RowBuilder calls in the functions below.
+const TableSpec kRides{"rides",
+                       "vehicle_id, store_id, sequence, created_at_us, gateway_fw_version, "
+                       "ride_id, started_at_us, ended_at_us, duration_ms, moving_time_ms, "
+                       "start_odo_m, end_odo_m, distance_odo_m, distance_integrated_m, "
+                       "distance_gnss_m, max_speed_dkmh, avg_speed_dkmh, energy_mwh, energy_mah, "
+                       "soc_start_pct, soc_end_pct, fault_count, partial, partial_reason, "
+                       "start_lat_e7, start_lon_e7, end_lat_e7, end_lon_e7",
+                       28, kIgnore};
+const TableSpec kFaults{"fault_events",
+                        "vehicle_id, store_id, sequence, created_at_us, gateway_fw_version, node, "
+                        "bit, code, name, severity, kind, first_seen_us, last_seen_us, occurrences",
+                        14, kIgnore};
+const TableSpec kTelemetry{
+    "telemetry_samples",
+    "vehicle_id, store_id, sequence, created_at_us, sampled_at_us, speed_dkmh, motor_rpm, "
+    "power_w, voltage_mv, current_ma, cadence_rpm, torque_dnm, assist, soc_pct, range_m, odo_m, "
+    "trip_m, pcb_temp_c, motor_temp_c, mcu_temp_c, remaining_mah, full_mah, pack_temp_c, lat_e7, "
+    "lon_e7",
+    25, kIgnore};
+const TableSpec kPacks{"pack_snapshots",
+                       "vehicle_id, store_id, sequence, created_at_us, gateway_fw_version, "
+                       "pack_serial, measured_at_us, voltage_mv, discharge_current_ma, soc_pct, "
+                       "soh_pct, remaining_mah, full_mah, cycles, temp_c, cells_mv, cell_min_mv, "
+                       "cell_max_mv",
+                       18, kIgnore};
+const TableSpec kLocks{"lock_events",
+                       "vehicle_id, store_id, sequence, created_at_us, gateway_fw_version, node, "
+                       "lock_kind, previous_state, state, previous_state_name, state_name, source, "
+                       "at_us, command_id, lat_e7, lon_e7",
+                       16, kIgnore};
+const TableSpec kResults{"command_results",
+                         "vehicle_id, store_id, sequence, created_at_us, gateway_fw_version, "
+                         "command_id, result, reason, final_lock_state_name, duration_ms, stored, "
+                         "mc_action, command_sha256",
+                         13, kIgnore};
+const TableSpec kCommands{"commands",
+                          "command_id, vehicle_id, key_id, issued_at_us, expires_at_us, action, "
+                          "target",
+                          7, kIgnore};
+const TableSpec kInfo{"device_info",
+                      "vehicle_id, store_id, sequence, created_at_us, gateway_fw_version, nodes", 6,
+                      kIgnore};
+const TableSpec kAlarms{"alarms",
+                        "vehicle_id, store_id, sequence, created_at_us, gateway_fw_version, kind, "
+                        "transition, at_us, first_evidence_us, speed_dkmh, soc_pct, lock_kind, "
+                        "detail",
+                        13, kIgnore};
+const TableSpec kEvictions{"evictions",
+                           "vehicle_id, store_id, sequence, created_at_us, gateway_fw_version, "
+                           "evicted_records, first_sequence, last_sequence, oldest_created_at_us, "
+                           "newest_created_at_us, by_kind, reason",
+                           12, kIgnore};
+// Latest wins: a retained status is delivered again at every subscribe.
+const TableSpec kStatus{
+    "status",
+    "vehicle_id, created_at_us, online, connection, outbox_depth, bus_state, firmware_version, "
+    "last_will, attention",
+    9,
+    "ON CONFLICT (vehicle_id) DO UPDATE SET received_at_us = fleet_now_us(), created_at_us = "
+    "EXCLUDED.created_at_us, online = EXCLUDED.online, connection = EXCLUDED.connection, "
+    "outbox_depth = EXCLUDED.outbox_depth, bus_state = EXCLUDED.bus_state, firmware_version = "
+    "EXCLUDED.firmware_version, last_will = EXCLUDED.last_will, attention = EXCLUDED.attention",
+    true};
+// A state older than the stored one (a late duplicate) does not replace it.
+const TableSpec kState{
+    "vehicle_state",
+    "vehicle_id, updated_at_us, online, mode, soc_pct, range_m, odo_m, lat_e7, lon_e7", 9,
+    "ON CONFLICT (vehicle_id) DO UPDATE SET received_at_us = fleet_now_us(), updated_at_us = "
+    "EXCLUDED.updated_at_us, online = EXCLUDED.online, mode = EXCLUDED.mode, soc_pct = "
+    "EXCLUDED.soc_pct, range_m = EXCLUDED.range_m, odo_m = EXCLUDED.odo_m, lat_e7 = "
+    "EXCLUDED.lat_e7, lon_e7 = EXCLUDED.lon_e7 WHERE EXCLUDED.updated_at_us >= "
+    "vehicle_state.updated_at_us",
+    true};
+
+RowSet& new_rows(Decoded& d, const TableSpec& t) {
+  d.rows.push_back(RowSet{&t, {}});
+  return d.rows.back();
+}
+
+void ride_rows(const v1::Envelope& e, Decoded& d, RowBuilder& b) {
+  const v1::RideRecord& r = e.ride();
+  Header{e}.add(b);
+  b.text("ride_id", r.ride_id());
+  b.i64(r.started_at_us());
+  b.i64(r.ended_at_us());
+  b.u64("duration_ms", r.duration_ms());
+  b.u64("moving_time_ms", r.moving_time_ms());
+  b.u64("start_odo_m", r.start_odo_m());
+  b.u64("end_odo_m", r.end_odo_m());
+  b.u64("distance_odo_m", r.distance_odo_m());
+  b.u64("distance_integrated_m", r.distance_integrated_m());
+  b.opt_u64("distance_gnss_m", r.has_distance_gnss_m(), r.distance_gnss_m());
+  b.u32("max_speed_dkmh", r.max_speed_dkmh());
+  b.u32("avg_speed_dkmh", r.avg_speed_dkmh());
+  b.u64("energy_mwh", r.energy_mwh());
+  b.u64("energy_mah", r.energy_mah());
+  b.opt_u32("soc_start_pct", r.has_soc_start_pct(), r.soc_start_pct());
+  b.opt_u32("soc_end_pct", r.has_soc_end_pct(), r.soc_end_pct());
+  b.u32("fault_count", r.fault_count());
+  b.boolean(r.partial());
+  b.text("partial_reason", r.partial_reason());
+  b.position(r.has_start_position(), r.start_position());
+  b.position(r.has_end_position(), r.end_position());
+  d.records = 1;
+}
+
+void fault_rows(const v1::Envelope& e, Decoded& d, RowBuilder& b) {
+  const v1::FaultEvent& f = e.fault();
+  Header{e}.add(b);
+  b.text("node", f.node());
+  b.u32("bit", f.bit());
+  b.opt_u32("code", f.has_code(), f.code());
+  b.text("name", f.name());
+  b.raw(enum_name(&v1::FaultSeverity_Name<v1::FaultSeverity>, f.severity()));
+  b.raw(enum_name(&v1::FaultEventKind_Name<v1::FaultEventKind>, f.kind()));
+  b.i64(f.first_seen_us());
+  b.i64(f.last_seen_us());
+  b.u32("occurrences", f.occurrences());
+  d.records = 1;
+}
+
+void pack_rows(const v1::Envelope& e, Decoded& d, RowBuilder& b) {
+  const v1::PackStatistics& p = e.pack();
+  Header{e}.add(b);
+  b.text("pack_serial", p.pack_serial());
+  b.i64(p.measured_at_us());
+  b.opt_u32("voltage_mv", p.has_voltage_mv(), p.voltage_mv());
+  // Gateways before v1.1 send only the BMS's own sign (charge positive): reading that
+  // deprecated field is the point here.
+  if (p.has_discharge_current_ma()) {
+    b.i64(p.discharge_current_ma());
+  } else {
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wdeprecated-declarations"
+    b.opt_i64(p.has_current_ma(), -static_cast<std::int64_t>(p.current_ma()));
+#pragma GCC diagnostic pop
+  }
+  b.opt_u32("soc_pct", p.has_soc_pct(), p.soc_pct());
+  b.opt_u32("soh_pct", p.has_soh_pct(), p.soh_pct());
+  b.opt_u32("remaining_mah", p.has_remaining_mah(), p.remaining_mah());
+  b.opt_u32("full_mah", p.has_full_mah(), p.full_mah());
+  b.opt_u32("cycles", p.has_cycles(), p.cycles());
+  std::string temps = "{";
+  for (int i = 0; i < p.temp_c_size(); ++i) temps += (i ? "," : "") + std::to_string(p.temp_c(i));
+  b.raw(temps + "}");
+  std::string cells = "{";
+  for (int i = 0; i < p.cells_mv_size(); ++i) {
+    if (p.cells_mv(i) > static_cast<std::uint32_t>(std::numeric_limits<std::int32_t>::max())) {
+      b.fail("value_out_of_range", fmt::format("cells_mv[{}]: {} above 2^31-1", i, p.cells_mv(i)));
+    }
+    cells += (i ? "," : "") + std::to_string(p.cells_mv(i));
+  }
+  b.raw(cells + "}");
+  b.opt_u32("cell_min_mv", p.has_cell_min_mv(), p.cell_min_mv());
+  b.opt_u32("cell_max_mv", p.has_cell_max_mv(), p.cell_max_mv());
+  d.records = 1;
+}
+
+void lock_rows(const v1::Envelope& e, Decoded& d, RowBuilder& b) {
+  const v1::LockEvent& l = e.lock();
+  Header{e}.add(b);
+  b.text("node", l.node());
+  b.text("lock_kind", l.lock_kind());
+  b.raw(enum_name(&v1::LockState_Name<v1::LockState>, l.previous_state()));
+  b.raw(enum_name(&v1::LockState_Name<v1::LockState>, l.state()));
+  b.text("previous_state_name", l.previous_state_name());
+  b.text("state_name", l.state_name());
+  b.raw(enum_name(&v1::LockEventSource_Name<v1::LockEventSource>, l.source()));
+  b.i64(l.at_us());
+  b.text("command_id", l.command_id());
+  b.position(l.has_position(), l.position());
+  d.records = 1;
+}
+
+namespace {
+
+std::string bytea_hex(std::string_view bytes) {
+  std::string out = "\\x";
+  for (unsigned char c : bytes) out += fmt::format("{:02x}", c);
+  return out;
+}
+
+}  // namespace
+
+void result_rows(const v1::Envelope& e, Decoded& d, RowBuilder& b) {
+  const v1::CommandResult& r = e.command_result();
+  Header{e}.add(b);
+  b.text("command_id", r.command_id());
+  b.raw(enum_name(&v1::CommandResultCode_Name<v1::CommandResultCode>, r.result()));
+  b.text("reason", r.reason());
+  b.text("final_lock_state_name", r.final_lock_state_name());
+  b.u64("duration_ms", r.duration_ms());
+  b.boolean(r.stored());
+  b.text("mc.action", r.mc().action());
+  if (r.command_sha256().size() > 64) {
+    b.fail("text_too_long", fmt::format("command_sha256: {} bytes", r.command_sha256().size()));
+  }
+  r.command_sha256().empty() ? b.null() : b.raw(bytea_hex(r.command_sha256()));
+  d.records = e.sequence() > 0 ? 1 : 0;
+}
+
+void info_rows(const v1::Envelope& e, Decoded& d, RowBuilder& b) {
+  Header{e}.add(b);
+  nlohmann::json nodes = nlohmann::json::array();
+  for (const v1::NodeInfo& n : e.info().nodes()) {
+    for (std::string_view s : {n.node(), n.model(), n.serial(), n.hw_version(), n.fw_version()}) {
+      if (s.size() > kMaxText || s.find('\0') != std::string_view::npos) {
+        b.fail("bad_text", "info.nodes: a field too long or with a NUL byte");
+      }
+    }
+    nodes.push_back({{"node", n.node()},
+                     {"model", n.model()},
+                     {"serial", n.serial()},
+                     {"hw_version", n.hw_version()},
+                     {"fw_version", n.fw_version()}});
+  }
+  // Strings parsed by protobuf are valid UTF-8 (proto3), so dump() cannot throw here.
+  b.raw(nodes.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace));
+  d.records = 1;
+}
+
+void alarm_rows(const v1::Envelope& e, Decoded& d, RowBuilder& b) {
+  const v1::Alarm& a = e.alarm();
+  Header{e}.add(b);
+  b.raw(enum_name(&v1::AlarmKind_Name<v1::AlarmKind>, a.kind()));
+  b.raw(enum_name(&v1::AlarmTransition_Name<v1::AlarmTransition>, a.transition()));
+  b.i64(a.at_us());
+  b.i64(a.first_evidence_us());
+  b.opt_u32("speed_dkmh", a.has_speed_dkmh(), a.speed_dkmh());
+  b.opt_u32("soc_pct", a.has_soc_pct(), a.soc_pct());
+  b.text("lock_kind", a.lock_kind());
+  b.text("detail", a.detail());
+  d.records = 1;
+}
+
+void eviction_rows(const v1::Envelope& e, Decoded& d, RowBuilder& b) {
+  const v1::EvictionReport& r = e.eviction();
+  Header{e}.add(b);
+  b.u64("evicted_records", r.evicted_records());
+  b.u64("first_sequence", r.first_sequence());
+  b.u64("last_sequence", r.last_sequence());
+  b.i64(r.oldest_created_at_us());
+  b.i64(r.newest_created_at_us());
+  nlohmann::json by_kind = nlohmann::json::object();
+  for (const auto& [kind, n] : r.evicted_by_kind()) {
+    if (kind.size() > kMaxText || kind.find('\0') != std::string::npos) {
+      b.fail("bad_text", "eviction.evicted_by_kind: a key too long or with a NUL byte");
+    }
+    by_kind[kind] = n;
+  }
+  b.raw(by_kind.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace));
+  b.text("reason", r.reason());
+  if (r.first_sequence() == 0 || r.last_sequence() < r.first_sequence()) {
+    b.fail("bad_eviction_range", fmt::format("eviction: [{}, {}] is not a range of sequences",
+                                             r.first_sequence(), r.last_sequence()));
+  } else {
+    d.ranges.push_back({r.first_sequence(), r.last_sequence()});
+  }
+  d.records = 1;
+}
+
+void status_rows(const v1::Envelope& e, RowBuilder& b) {
+  const v1::Status& s = e.status();
+  b.text("vehicle_id", e.vehicle_id());
+  b.i64(e.created_at_us());
+  b.raw(enum_name(&v1::OnlineState_Name<v1::OnlineState>, s.state()));
+  b.raw(enum_name(&v1::ConnectionState_Name<v1::ConnectionState>, s.connection()));
+  b.u64("outbox_depth", s.outbox_depth());
+  b.raw(enum_name(&v1::BusState_Name<v1::BusState>, s.bus_state()));
+  b.text("firmware_version", s.firmware_version());
+  b.boolean(s.last_will());
+  nlohmann::json attention = nlohmann::json::array();
+  for (const std::string& a : s.attention()) {
+    if (a.size() > kMaxText || a.find('\0') != std::string::npos) {
+      b.fail("bad_text", "status.attention: an entry too long or with a NUL byte");
+    }
+    attention.push_back(a);
+  }
+  // A PostgreSQL array literal from JSON strings: {"a","b"} quotes and escapes the same way.
+  std::string array = attention.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
+  array.front() = '{';
+  array.back() = '}';
+  b.raw(array);
+}
+
+void state_rows(const v1::Envelope& e, RowBuilder& b) {
+  const v1::VehicleState& s = e.state();
+  b.text("vehicle_id", e.vehicle_id());
+  b.i64(s.updated_at_us());
+  b.boolean(s.online());
+  b.raw(enum_name(&v1::VehicleMode_Name<v1::VehicleMode>, s.mode()));
+  b.opt_u32("soc_pct", s.has_soc_pct(), s.soc_pct());
+  b.opt_u32("range_m", s.has_range_m(), s.range_m());
+  b.opt_u64("odo_m", s.has_odo_m(), s.odo_m());
+  b.position(s.has_position(), s.position());
+}
+
+std::optional<Reject> telemetry_rows(const v1::Envelope& e, Decoded& d) {
+  RowSet& rows = new_rows(d, kTelemetry);
+  RowBuilder b(rows.values);
+  std::vector<std::uint64_t> seqs;
+  seqs.reserve(e.telemetry().samples_size());
+  for (const v1::TelemetrySample& s : e.telemetry().samples()) {
+    if (s.sequence() == 0) {
+      return Reject{"record_without_sequence",
+                    fmt::format("telemetry sample {} has sequence 0", seqs.size())};
+    }
+    b.text("vehicle_id", e.vehicle_id());
+    b.text("store_id", e.store_id());
+    b.u64("samples.sequence", s.sequence());
+    b.i64(e.created_at_us());
+    b.i64(s.sampled_at_us());
+    b.opt_u32("speed_dkmh", s.has_speed_dkmh(), s.speed_dkmh());
+    b.opt_u32("motor_rpm", s.has_motor_rpm(), s.motor_rpm());
+    b.opt_i64(s.has_power_w(), s.power_w());
+    b.opt_u32("voltage_mv", s.has_voltage_mv(), s.voltage_mv());
+    b.opt_i64(s.has_current_ma(), s.current_ma());
+    b.opt_u32("cadence_rpm", s.has_cadence_rpm(), s.cadence_rpm());
+    b.opt_u32("torque_dnm", s.has_torque_dnm(), s.torque_dnm());
+    b.opt_u32("assist", s.has_assist(), s.assist());
+    b.opt_u32("soc_pct", s.has_soc_pct(), s.soc_pct());
+    b.opt_u32("range_m", s.has_range_m(), s.range_m());
+    b.opt_u64("odo_m", s.has_odo_m(), s.odo_m());
+    b.opt_u64("trip_m", s.has_trip_m(), s.trip_m());
+    b.opt_i64(s.has_pcb_temp_c(), s.pcb_temp_c());
+    b.opt_i64(s.has_motor_temp_c(), s.motor_temp_c());
+    b.opt_i64(s.has_mcu_temp_c(), s.mcu_temp_c());
+    b.opt_u32("remaining_mah", s.has_remaining_mah(), s.remaining_mah());
+    b.opt_u32("full_mah", s.has_full_mah(), s.full_mah());
+    b.opt_i64(s.has_pack_temp_c(), s.pack_temp_c());
+    b.position(s.has_position(), s.position());
+    seqs.push_back(s.sequence());
+  }
+  if (b.error) return b.error;
+  if (seqs.empty()) return Reject{"empty_telemetry", "telemetry batch without samples"};
+  d.records = seqs.size();
+  d.ranges = to_ranges(std::move(seqs));
+  return std::nullopt;
+}
+}  // namespace fleetgw::ingest::rows

@@ -1,0 +1,124 @@
+// Internal to gateway/ingest (used by envelope_rows.cc): the destination tables, the checked
+// row builder and one function per Envelope body kind that appends that body's row.
+//
+// Contract:
+//  * RowBuilder appends one value per call in the table's column order; a value PostgreSQL
+//    could not store as sent (uint32 > 2^31-1, uint64 > 2^63-1, text with NUL or over kMaxText)
+//    is recorded as the builder's first `error` (a Reject naming the field), never thrown.
+//  * <kind>_rows(e, d, b) appends the row of e's body through `b` (whose values belong to a
+//    RowSet of the kind's table in `d`), and sets d.records (and, for an eviction report, the
+//    evicted range in d.ranges); callers check b.error afterwards.
+//  * telemetry_rows() adds a RowSet of its own (one row per sample) and the samples' ranges.
+#pragma once
+
+#include <fmt/format.h>
+
+#include <cstdint>
+#include <limits>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "fleetgw/v1/envelope.pb.h"
+#include "gateway/common/untrusted_text.h"
+#include "gateway/ingest/envelope_rows.h"
+
+namespace fleetgw::ingest::rows {
+
+namespace v1 = fleetgw::v1;
+
+extern const TableSpec kRides, kFaults, kTelemetry, kPacks, kLocks, kResults, kCommands, kInfo,
+    kAlarms, kEvictions, kStatus, kState;
+
+// Appends one row's values with the checks of the contract; the first failure is kept.
+class RowBuilder {
+ public:
+  explicit RowBuilder(std::vector<PgParam>& out) : out_(out) {}
+
+  void text(std::string_view field, std::string_view s) {
+    if (s.size() > kMaxText) {
+      fail("text_too_long", fmt::format("{}: {} bytes (at most {})", field, s.size(), kMaxText));
+    } else if (s.find('\0') != std::string_view::npos) {
+      fail("nul_in_text",
+           fmt::format("{}: NUL byte in \"{}\"", field, common::untrusted_excerpt(s)));
+    }
+    out_.emplace_back(std::string(s));
+  }
+  void u32(std::string_view field, std::uint32_t v) {
+    if (v > static_cast<std::uint32_t>(std::numeric_limits<std::int32_t>::max())) {
+      fail("value_out_of_range", fmt::format("{}: {} above 2^31-1", field, v));
+    }
+    out_.emplace_back(std::to_string(v));
+  }
+  void u64(std::string_view field, std::uint64_t v) {
+    if (v > static_cast<std::uint64_t>(std::numeric_limits<std::int64_t>::max())) {
+      fail("value_out_of_range", fmt::format("{}: {} above 2^63-1", field, v));
+    }
+    out_.emplace_back(std::to_string(v));
+  }
+  void i64(std::int64_t v) { out_.emplace_back(std::to_string(v)); }
+  void boolean(bool v) { out_.emplace_back(v ? "true" : "false"); }
+  void null() { out_.emplace_back(std::nullopt); }
+  void raw(std::string v) { out_.emplace_back(std::move(v)); }
+  template <class T>
+  void opt_u32(std::string_view field, bool has, T v) {
+    has ? u32(field, v) : null();
+  }
+  template <class T>
+  void opt_u64(std::string_view field, bool has, T v) {
+    has ? u64(field, v) : null();
+  }
+  void opt_i64(bool has, std::int64_t v) { has ? i64(v) : null(); }
+  void position(bool has, const v1::Position& p) {
+    if (has) {
+      i64(p.lat_e7());
+      i64(p.lon_e7());
+    } else {
+      null();
+      null();
+    }
+  }
+
+  void fail(std::string_view code, std::string detail) {
+    if (!error) error = Reject{std::string(code), std::move(detail)};
+  }
+  std::optional<Reject> error;
+
+ private:
+  std::vector<PgParam>& out_;
+};
+
+template <class Enum>
+std::string enum_name(const std::string& (*name)(Enum), int value) {
+  const std::string& n = name(static_cast<Enum>(value));
+  return n.empty() ? std::to_string(value) : n;
+}
+
+// The record header: sequence rules and the five shared columns.
+struct Header {
+  const v1::Envelope& e;
+  void add(RowBuilder& b) const {
+    b.text("vehicle_id", e.vehicle_id());
+    b.text("store_id", e.store_id());
+    b.u64("sequence", e.sequence());
+    b.i64(e.created_at_us());
+    b.text("gateway_fw_version", e.gateway_fw_version());
+  }
+};
+
+RowSet& new_rows(Decoded& d, const TableSpec& t);
+
+void ride_rows(const v1::Envelope& e, Decoded& d, RowBuilder& b);
+void fault_rows(const v1::Envelope& e, Decoded& d, RowBuilder& b);
+void pack_rows(const v1::Envelope& e, Decoded& d, RowBuilder& b);
+void lock_rows(const v1::Envelope& e, Decoded& d, RowBuilder& b);
+void result_rows(const v1::Envelope& e, Decoded& d, RowBuilder& b);
+void info_rows(const v1::Envelope& e, Decoded& d, RowBuilder& b);
+void alarm_rows(const v1::Envelope& e, Decoded& d, RowBuilder& b);
+void eviction_rows(const v1::Envelope& e, Decoded& d, RowBuilder& b);
+void status_rows(const v1::Envelope& e, RowBuilder& b);
+void state_rows(const v1::Envelope& e, RowBuilder& b);
+std::optional<Reject> telemetry_rows(const v1::Envelope& e, Decoded& d);
+
+}  // namespace fleetgw::ingest::rows
