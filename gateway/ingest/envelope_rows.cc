@@ -73,6 +73,8 @@ std::string_view leaf_of(v1::Envelope::BodyCase body) {
       return "alarm";
     case v1::Envelope::kState:
       return "state";
+    case v1::Envelope::kZone:
+      return "zone";
     default:
       break;  // a body newer than this ingest: rejected as unsupported
   }
@@ -176,6 +178,9 @@ std::variant<Decoded, Reject> decode_message(std::string_view topic_prefix, std:
     case v1::Envelope::kAlarm:
       spec = &kAlarms;
       break;
+    case v1::Envelope::kZone:
+      spec = &kZones;
+      break;
     case v1::Envelope::kEviction:
       spec = &kEvictions;
       break;
@@ -211,6 +216,9 @@ std::variant<Decoded, Reject> decode_message(std::string_view topic_prefix, std:
       break;
     case v1::Envelope::kAlarm:
       alarm_rows(e, d, b);
+      break;
+    case v1::Envelope::kZone:
+      zone_rows(e, d, b);
       break;
     case v1::Envelope::kEviction:
       eviction_rows(e, d, b);

@@ -151,8 +151,27 @@ CREATE VIEW vehicle_firmware AS
   ORDER BY d.vehicle_id, n.node, d.created_at_us DESC;
 )sql";
 
+// v2 (schema v1.4 on the wire): zone events (Envelope field 21, topic .../zone) as a record
+// table, and the Status publish-refusal fields 16-19 as status columns (NULL only in rows
+// written before v2; a gateway older than v1.4 sends none, stored as proto3's 0 and "").
+constexpr std::string_view kV2 = R"sql(
+CREATE TABLE zone_events (
+  vehicle_id text NOT NULL, store_id text NOT NULL, sequence bigint NOT NULL,
+  created_at_us bigint NOT NULL, committed_at_us bigint NOT NULL DEFAULT fleet_now_us(),
+  gateway_fw_version text NOT NULL,
+  zone_id text NOT NULL, zone_name text NOT NULL, kind text NOT NULL, transition text NOT NULL,
+  at_us bigint, lat_e7 integer, lon_e7 integer, bundle_version bigint, speed_limit_kmh integer,
+  PRIMARY KEY (vehicle_id, store_id, sequence));
+CREATE INDEX zone_events_by_zone ON zone_events (zone_id, at_us);
+
+ALTER TABLE status ADD COLUMN publish_refusals bigint,
+  ADD COLUMN last_publish_refusal text, ADD COLUMN last_publish_refusal_code integer,
+  ADD COLUMN last_publish_refusal_at_us bigint;
+)sql";
+
 constexpr Migration kMigrations[] = {
     {1, "records, latest state, sequence ranges, rejected messages", kV1},
+    {2, "zone events, status publish refusals", kV2},
 };
 
 // Any constant: the lock only serialises ingest workers migrating the same database.

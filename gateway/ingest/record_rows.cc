@@ -66,13 +66,23 @@ const TableSpec kEvictions{"evictions",
 const TableSpec kStatus{
     "status",
     "vehicle_id, created_at_us, online, connection, outbox_depth, bus_state, firmware_version, "
-    "last_will, attention",
-    9,
+    "last_will, attention, publish_refusals, last_publish_refusal, last_publish_refusal_code, "
+    "last_publish_refusal_at_us",
+    13,
     "ON CONFLICT (vehicle_id) DO UPDATE SET received_at_us = fleet_now_us(), created_at_us = "
     "EXCLUDED.created_at_us, online = EXCLUDED.online, connection = EXCLUDED.connection, "
     "outbox_depth = EXCLUDED.outbox_depth, bus_state = EXCLUDED.bus_state, firmware_version = "
-    "EXCLUDED.firmware_version, last_will = EXCLUDED.last_will, attention = EXCLUDED.attention",
+    "EXCLUDED.firmware_version, last_will = EXCLUDED.last_will, attention = EXCLUDED.attention, "
+    "publish_refusals = EXCLUDED.publish_refusals, last_publish_refusal = "
+    "EXCLUDED.last_publish_refusal, last_publish_refusal_code = "
+    "EXCLUDED.last_publish_refusal_code, last_publish_refusal_at_us = "
+    "EXCLUDED.last_publish_refusal_at_us",
     true};
+const TableSpec kZones{"zone_events",
+                       "vehicle_id, store_id, sequence, created_at_us, gateway_fw_version, "
+                       "zone_id, zone_name, kind, transition, at_us, lat_e7, lon_e7, "
+                       "bundle_version, speed_limit_kmh",
+                       14, kIgnore};
 // A state older than the stored one (a late duplicate) does not replace it.
 const TableSpec kState{
     "vehicle_state",
@@ -293,6 +303,33 @@ void status_rows(const v1::Envelope& e, RowBuilder& b) {
   array.front() = '{';
   array.back() = '}';
   b.raw(array);
+  b.u64("status.publish_refusals", s.publish_refusals());
+  b.text("status.last_publish_refusal", s.last_publish_refusal());
+  b.u32("status.last_publish_refusal_code", s.last_publish_refusal_code());
+  b.i64(s.last_publish_refusal_at_us());
+}
+
+// A zone event names its zone: an event without a zone id, kind or transition is malformed (a
+// gateway never sends one), not a row nobody could group by zone.
+void zone_rows(const v1::Envelope& e, Decoded& d, RowBuilder& b) {
+  const v1::ZoneEvent& z = e.zone();
+  Header{e}.add(b);
+  if (z.zone_id().empty()) b.fail("bad_zone_event", "zone.zone_id is empty");
+  if (z.kind() == v1::ZONE_KIND_UNSPECIFIED) {
+    b.fail("bad_zone_event", "zone.kind is ZONE_KIND_UNSPECIFIED");
+  }
+  if (z.transition() == v1::ZONE_TRANSITION_UNSPECIFIED) {
+    b.fail("bad_zone_event", "zone.transition is ZONE_TRANSITION_UNSPECIFIED");
+  }
+  b.text("zone.zone_id", z.zone_id());
+  b.text("zone.zone_name", z.zone_name());
+  b.raw(enum_name(&v1::ZoneKind_Name<v1::ZoneKind>, z.kind()));
+  b.raw(enum_name(&v1::ZoneTransition_Name<v1::ZoneTransition>, z.transition()));
+  b.i64(z.at_us());
+  b.position(z.has_position(), z.position());
+  b.u64("zone.bundle_version", z.bundle_version());
+  b.u32("zone.speed_limit_kmh", z.speed_limit_kmh());
+  d.records = 1;
 }
 
 void state_rows(const v1::Envelope& e, RowBuilder& b) {

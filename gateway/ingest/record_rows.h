@@ -29,7 +29,7 @@ namespace fleetgw::ingest::rows {
 namespace v1 = fleetgw::v1;
 
 extern const TableSpec kRides, kFaults, kTelemetry, kPacks, kLocks, kResults, kCommands, kInfo,
-    kAlarms, kEvictions, kStatus, kState;
+    kAlarms, kEvictions, kStatus, kState, kZones;
 
 // Appends one row's values with the checks of the contract; the first failure is kept.
 class RowBuilder {
@@ -116,6 +116,7 @@ void lock_rows(const v1::Envelope& e, Decoded& d, RowBuilder& b);
 void result_rows(const v1::Envelope& e, Decoded& d, RowBuilder& b);
 void info_rows(const v1::Envelope& e, Decoded& d, RowBuilder& b);
 void alarm_rows(const v1::Envelope& e, Decoded& d, RowBuilder& b);
+void zone_rows(const v1::Envelope& e, Decoded& d, RowBuilder& b);
 void eviction_rows(const v1::Envelope& e, Decoded& d, RowBuilder& b);
 void status_rows(const v1::Envelope& e, RowBuilder& b);
 void state_rows(const v1::Envelope& e, RowBuilder& b);

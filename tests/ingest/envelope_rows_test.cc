@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include <limits>
+#include <optional>
 #include <random>
 #include <string>
 
@@ -127,6 +128,100 @@ TEST(IngestRows, StatusAndStateAreLatestValuesNotRecords) {
   EXPECT_TRUE(d.ranges.empty());
   EXPECT_EQ(value(d, "online"), "ONLINE_STATE_OFFLINE");
   EXPECT_EQ(value(d, "attention"), R"({"storage \"full\""})");
+}
+
+TEST(IngestRows, StatusKeepsThePublishRefusalFields) {
+  v1::Envelope e = envelope(0);
+  e.mutable_status()->set_publish_refusals(3);
+  e.mutable_status()->set_last_publish_refusal("not authorized");
+  e.mutable_status()->set_last_publish_refusal_code(135);
+  e.mutable_status()->set_last_publish_refusal_at_us(1'700'000'000'123'456);
+  const Decoded d = decoded("fleet/v1/bike-1/status", e);
+  EXPECT_EQ(value(d, "publish_refusals"), "3");
+  EXPECT_EQ(value(d, "last_publish_refusal"), "not authorized");
+  EXPECT_EQ(value(d, "last_publish_refusal_code"), "135");
+  EXPECT_EQ(value(d, "last_publish_refusal_at_us"), "1700000000123456");
+}
+
+TEST(IngestRows, OutsideOperatingAreaAlarmIsStoredByName) {
+  v1::Envelope e = envelope(31);
+  e.mutable_alarm()->set_kind(v1::ALARM_KIND_OUTSIDE_OPERATING_AREA);
+  e.mutable_alarm()->set_transition(v1::ALARM_TRANSITION_RAISED);
+  const Decoded d = decoded("fleet/v1/bike-1/alarm", e);
+  EXPECT_EQ(d.rows.at(0).table->table, "alarms");
+  EXPECT_EQ(value(d, "kind"), "ALARM_KIND_OUTSIDE_OPERATING_AREA");
+}
+
+v1::Envelope zone_event(std::uint64_t seq) {
+  v1::Envelope e = envelope(seq);
+  v1::ZoneEvent* z = e.mutable_zone();
+  z->set_zone_id("old-town.slow");
+  z->set_zone_name("Old town");
+  z->set_kind(v1::ZONE_KIND_SLOW);
+  z->set_transition(v1::ZONE_TRANSITION_ENTER);
+  z->set_at_us(1'700'000'000'500'000);
+  z->mutable_position()->set_lat_e7(483'712'345);
+  z->mutable_position()->set_lon_e7(-104'567);
+  z->set_bundle_version(12);
+  z->set_speed_limit_kmh(15);
+  return e;
+}
+
+TEST(IngestRows, ZoneEventBecomesOneRowAndAccountsForItsSequence) {
+  const Decoded d = decoded("fleet/v1/bike-1/zone", zone_event(77));
+  ASSERT_EQ(d.rows.size(), 1u);
+  EXPECT_EQ(d.rows[0].table->table, "zone_events");
+  EXPECT_EQ(d.rows[0].rows(), 1u);
+  EXPECT_EQ(d.records, 1u);
+  EXPECT_EQ(d.ranges, (std::vector<SequenceRange>{{77, 77}}));
+  EXPECT_EQ(value(d, "vehicle_id"), "bike-1");
+  EXPECT_EQ(value(d, "store_id"), "store-a");
+  EXPECT_EQ(value(d, "sequence"), "77");
+  EXPECT_EQ(value(d, "zone_id"), "old-town.slow");
+  EXPECT_EQ(value(d, "zone_name"), "Old town");
+  EXPECT_EQ(value(d, "kind"), "ZONE_KIND_SLOW");
+  EXPECT_EQ(value(d, "transition"), "ZONE_TRANSITION_ENTER");
+  EXPECT_EQ(value(d, "at_us"), "1700000000500000");
+  EXPECT_EQ(value(d, "lat_e7"), "483712345");
+  EXPECT_EQ(value(d, "lon_e7"), "-104567");
+  EXPECT_EQ(value(d, "bundle_version"), "12");
+  EXPECT_EQ(value(d, "speed_limit_kmh"), "15");
+
+  // No fix: NULL position, never 0,0.
+  v1::Envelope no_fix = zone_event(78);
+  no_fix.mutable_zone()->clear_position();
+  const Decoded n = decoded("fleet/v1/bike-1/zone", no_fix);
+  EXPECT_EQ(n.rows.at(0).values.at(10), std::nullopt);
+  EXPECT_EQ(n.rows.at(0).values.at(11), std::nullopt);
+}
+
+TEST(IngestRows, MalformedZoneEventIsRejectedWithTheReason) {
+  auto reject = [](const v1::Envelope& e, std::string_view topic = "fleet/v1/bike-1/zone") {
+    auto r = decode_message("fleet/v1", topic, e.SerializeAsString());
+    const auto* rej = std::get_if<Reject>(&r);
+    return rej ? *rej : Reject{"accepted", ""};
+  };
+  v1::Envelope no_id = zone_event(5);
+  no_id.mutable_zone()->clear_zone_id();
+  EXPECT_EQ(reject(no_id).code, "bad_zone_event");
+  EXPECT_NE(reject(no_id).detail.find("zone.zone_id"), std::string::npos);
+  v1::Envelope no_kind = zone_event(5);
+  no_kind.mutable_zone()->set_kind(v1::ZONE_KIND_UNSPECIFIED);
+  EXPECT_NE(reject(no_kind).detail.find("zone.kind"), std::string::npos);
+  v1::Envelope no_transition = zone_event(5);
+  no_transition.mutable_zone()->set_transition(v1::ZONE_TRANSITION_UNSPECIFIED);
+  EXPECT_NE(reject(no_transition).detail.find("zone.transition"), std::string::npos);
+  v1::Envelope nul = zone_event(5);
+  nul.mutable_zone()->set_zone_name(std::string("a\0b", 3));
+  EXPECT_EQ(reject(nul).code, "nul_in_text");
+  EXPECT_NE(reject(nul).detail.find("zone.zone_name"), std::string::npos);
+  v1::Envelope version = zone_event(5);
+  version.mutable_zone()->set_bundle_version(std::numeric_limits<std::uint64_t>::max());
+  EXPECT_EQ(reject(version).code, "value_out_of_range");
+  EXPECT_NE(reject(version).detail.find("zone.bundle_version"), std::string::npos);
+  v1::Envelope zero = zone_event(0);
+  EXPECT_EQ(reject(zero).code, "record_without_sequence");
+  EXPECT_EQ(reject(zone_event(5), "fleet/v1/bike-1/alarm").code, "wrong_leaf");
 }
 
 TEST(IngestRows, UnstoredCommandResultHasSequenceZeroAndNoRange) {

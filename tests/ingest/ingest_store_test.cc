@@ -64,6 +64,131 @@ TEST_F(IngestStoreTest, MigrationsApplyOnceAndAreRecorded) {
             static_cast<std::int64_t>(fleetgw::ingest::migrations().size()));
 }
 
+// A database a v1-only ingest made (with a row in it) is brought to the newest version once,
+// keeping its rows; the status table gains the refusal columns (NULL in the old row).
+TEST_F(IngestStoreTest, MigrationTwoAppliesOnceOnAVersionOneDatabase) {
+  {
+    PgConnection c(cluster_->conninfo());
+    c.exec(
+        "CREATE TABLE schema_migrations (version integer PRIMARY KEY, name text NOT NULL, "
+        "applied_at timestamptz NOT NULL DEFAULT now())",
+        "schema_migrations");
+    const auto& v1sql = fleetgw::ingest::migrations()[0];
+    ASSERT_EQ(v1sql.version, 1);
+    c.exec(v1sql.sql, "v1");
+    c.exec("INSERT INTO schema_migrations (version, name) VALUES (1, 'v1')", "v1 row");
+    c.exec(
+        "INSERT INTO status (vehicle_id, created_at_us, online, connection, bus_state, "
+        "firmware_version, last_will, attention) VALUES ('b0', 1, 'ONLINE_STATE_ONLINE', 'c', "
+        "'b', '1.3', false, '{}')",
+        "old status");
+  }
+  IngestStore a(cluster_->conninfo(), 100);
+  EXPECT_EQ(a.connect(), static_cast<int>(fleetgw::ingest::migrations().size()) - 1);
+  IngestStore b(cluster_->conninfo(), 100);
+  EXPECT_EQ(b.connect(), 0);
+  EXPECT_EQ(count("SELECT max(version) FROM schema_migrations"),
+            fleetgw::ingest::migrations().back().version);
+  EXPECT_EQ(count("SELECT count(*) FROM status WHERE vehicle_id = 'b0' AND publish_refusals IS "
+                  "NULL"),
+            1);
+  EXPECT_EQ(count("SELECT count(*) FROM zone_events"), 0);
+}
+
+TEST_F(IngestStoreTest, ZoneEventIsStoredOnceDespiteRedelivery) {
+  IngestStore s(cluster_->conninfo(), 100);
+  v1::Envelope e;
+  e.set_vehicle_id("b1");
+  e.set_store_id("s1");
+  e.set_sequence(4);
+  e.set_created_at_us(1'700'000'000'000'000);
+  v1::ZoneEvent* z = e.mutable_zone();
+  z->set_zone_id("depot");
+  z->set_zone_name("Depot");
+  z->set_kind(v1::ZONE_KIND_OPERATING_AREA);
+  z->set_transition(v1::ZONE_TRANSITION_EXIT);
+  z->set_at_us(1'700'000'000'000'100);
+  z->mutable_position()->set_lat_e7(483'000'001);
+  z->mutable_position()->set_lon_e7(-2'000'002);
+  z->set_bundle_version(9);
+  const auto msg = [&] {
+    return std::get<Decoded>(
+        fleetgw::ingest::decode_message("fleet/v1", "fleet/v1/b1/zone", e.SerializeAsString()));
+  };
+  EXPECT_EQ(s.write(msg()).inserted, 1);
+  const auto again = s.write(msg());
+  EXPECT_EQ(again.inserted, 0);
+  EXPECT_EQ(again.duplicates, 1);
+  PgConnection c(cluster_->conninfo());
+  const auto r = c.exec(
+      "SELECT zone_id, zone_name, kind, transition, at_us, lat_e7, lon_e7, bundle_version "
+      "FROM zone_events",
+      "zone rows");
+  ASSERT_EQ(r.rows(), 1);
+  EXPECT_EQ(r.text(0, 0), "depot");
+  EXPECT_EQ(r.text(0, 1), "Depot");
+  EXPECT_EQ(r.text(0, 2), "ZONE_KIND_OPERATING_AREA");
+  EXPECT_EQ(r.text(0, 3), "ZONE_TRANSITION_EXIT");
+  EXPECT_EQ(r.int64(0, 4), 1'700'000'000'000'100);
+  EXPECT_EQ(r.int64(0, 5), 483'000'001);
+  EXPECT_EQ(r.int64(0, 6), -2'000'002);
+  EXPECT_EQ(r.int64(0, 7), 9);
+  // The zone event accounts for its sequence: 1..3 are a gap, nothing else.
+  const auto gaps = s.gaps();
+  ASSERT_EQ(gaps.size(), 1u);
+  EXPECT_EQ(gaps[0].last_missing, 3);
+
+  // docs/backend.md's "zone entries per zone per day" query, as printed there.
+  e.set_sequence(5);
+  z->set_transition(v1::ZONE_TRANSITION_ENTER);
+  EXPECT_EQ(s.write(msg()).inserted, 1);
+  const auto per_day = c.exec(
+      "SELECT date_trunc('day', to_timestamp(at_us / 1e6)) AS day, zone_id, "
+      "min(zone_name) AS zone_name, count(*) AS entries, count(DISTINCT vehicle_id) AS vehicles "
+      "FROM zone_events WHERE transition = 'ZONE_TRANSITION_ENTER' "
+      "GROUP BY 1, 2 ORDER BY 1, entries DESC",
+      "zone entries per day");
+  ASSERT_EQ(per_day.rows(), 1);
+  EXPECT_EQ(per_day.text(0, 1), "depot");
+  EXPECT_EQ(per_day.int64(0, 3), 1);
+}
+
+TEST_F(IngestStoreTest, AlarmAndStatusOfSchemaOnePointFourLand) {
+  IngestStore s(cluster_->conninfo(), 100);
+  v1::Envelope alarm;
+  alarm.set_vehicle_id("b1");
+  alarm.set_store_id("s1");
+  alarm.set_sequence(1);
+  alarm.mutable_alarm()->set_kind(v1::ALARM_KIND_OUTSIDE_OPERATING_AREA);
+  s.write(std::get<Decoded>(
+      fleetgw::ingest::decode_message("fleet/v1", "fleet/v1/b1/alarm", alarm.SerializeAsString())));
+  v1::Envelope status;
+  status.set_vehicle_id("b1");
+  status.mutable_status()->set_publish_refusals(2);
+  status.mutable_status()->set_last_publish_refusal("not authorized");
+  status.mutable_status()->set_last_publish_refusal_code(135);
+  status.mutable_status()->set_last_publish_refusal_at_us(77);
+  const auto write_status = [&] {
+    s.write(std::get<Decoded>(fleetgw::ingest::decode_message("fleet/v1", "fleet/v1/b1/status",
+                                                              status.SerializeAsString())));
+  };
+  write_status();
+  status.mutable_status()->set_publish_refusals(5);  // the upsert replaces the count
+  write_status();
+  EXPECT_EQ(count("SELECT count(*) FROM alarms WHERE kind = 'ALARM_KIND_OUTSIDE_OPERATING_AREA'"),
+            1);
+  PgConnection c(cluster_->conninfo());
+  const auto r = c.exec(
+      "SELECT publish_refusals, last_publish_refusal, last_publish_refusal_code, "
+      "last_publish_refusal_at_us FROM status",
+      "status");
+  ASSERT_EQ(r.rows(), 1);
+  EXPECT_EQ(r.int64(0, 0), 5);
+  EXPECT_EQ(r.text(0, 1), "not authorized");
+  EXPECT_EQ(r.int64(0, 2), 135);
+  EXPECT_EQ(r.int64(0, 3), 77);
+}
+
 TEST_F(IngestStoreTest, NewerDatabaseIsRefused) {
   IngestStore a(cluster_->conninfo(), 100);
   a.connect();
