@@ -16,6 +16,7 @@
 #include "gateway/app/ingest_command.h"
 #include "gateway/app/logging.h"
 #include "gateway/app/ride_command.h"
+#include "gateway/app/sibling_program.h"
 #include "gateway/app/table_format.h"
 #include "gateway/app/watch_command.h"
 #include "gateway/config/config.h"
@@ -446,19 +447,14 @@ int run_cli(int argc, char** argv) {
       return run_ride_command(*ride, std::cout, std::cerr);
     }
     if (watch_cmd->parsed()) {
-      int first = 1;
-      while (first < argc && std::string_view(argv[first]) != "watch") ++first;
-      return exec_watch(first < argc ? argc - first - 1 : 0, argv + first + 1);
+      return exec_subcommand_program("fleetgw-watch", "watch", argc, argv);
     }
     if (fleet_sim_cmd->parsed()) {
       setup_logging("info");
       return run_fleet_sim(fleet_sim_options);
     }
     if (ingest_cmd->parsed()) {
-      int first = 1;
-      while (first < argc && std::string_view(argv[first]) != "ingest") ++first;
-      return exec_sibling("fleetgw-ingest", "ingest", first < argc ? argc - first - 1 : 0,
-                          argv + first + 1);
+      return exec_subcommand_program("fleetgw-ingest", "ingest", argc, argv);
     }
     if (status_cmd->parsed()) {
       if (!status_config.empty()) {

@@ -1,13 +1,8 @@
-// Options of `fleetgw ingest` and the exec of the sibling program (ingest_command.h).
+// Options of `fleetgw ingest` (ingest_command.h).
 #include "gateway/app/ingest_command.h"
 
-#include <unistd.h>
-
 #include <CLI/CLI.hpp>
-#include <filesystem>
-#include <iostream>
 #include <string>
-#include <vector>
 
 namespace fleetgw::app {
 
@@ -44,24 +39,6 @@ void add_ingest_options(CLI::App& app, ingest::IngestOptions& o) {
   app.add_option("--log-level", o.log_level, "trace, debug, info, warn, error")
       ->check(CLI::IsMember({"trace", "debug", "info", "warn", "error"}))
       ->capture_default_str();
-}
-
-int exec_sibling(std::string_view program_name, std::string_view command, int argc, char** argv) {
-  std::string program(program_name);
-  std::vector<char*> args;
-  args.push_back(program.data());
-  for (int i = 0; i < argc; ++i) args.push_back(argv[i]);
-  args.push_back(nullptr);
-  std::error_code ec;
-  const auto self = std::filesystem::read_symlink("/proc/self/exe", ec);
-  if (!ec) {
-    const std::string sibling = (self.parent_path() / program).string();
-    ::execv(sibling.c_str(), args.data());
-  }
-  ::execvp(program.c_str(), args.data());
-  std::cerr << "fleetgw " << command << ": cannot run " << program << " (not next to "
-            << (ec ? std::string("fleetgw") : self.string()) << " nor on PATH)\n";
-  return 127;
 }
 
 }  // namespace fleetgw::app

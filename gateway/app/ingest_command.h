@@ -5,8 +5,7 @@
 // Contract:
 //  * add_ingest_options() defines the options once, for `fleetgw ingest --help` and the
 //    fleetgw-ingest program alike; values are range-checked by CLI11 (usage errors exit 2).
-//  * exec_sibling("fleetgw-ingest", ...) replaces this process with that program found next to
-//    the running executable, else on PATH; it returns only on failure (127, as a shell).
+//  * `fleetgw ingest ...` runs it through exec_subcommand_program (sibling_program.h).
 #pragma once
 
 #include <string_view>
@@ -20,7 +19,5 @@ class App;
 namespace fleetgw::app {
 
 void add_ingest_options(CLI::App& app, ingest::IngestOptions& options);
-
-int exec_sibling(std::string_view program, std::string_view command, int argc, char** argv);
 
 }  // namespace fleetgw::app

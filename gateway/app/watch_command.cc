@@ -1,12 +1,7 @@
 #include "gateway/app/watch_command.h"
 
-#include <unistd.h>
-
 #include <CLI/CLI.hpp>
-#include <filesystem>
-#include <iostream>
 #include <string>
-#include <vector>
 
 namespace fleetgw::app {
 
@@ -20,24 +15,6 @@ void add_watch_options(CLI::App& app, WatchOptions& o) {
   app.add_option("--password", o.password, "password");
   app.add_option("--count", o.max_messages, "stop after this many messages");
   app.add_option("--duration", o.duration_s, "stop after this many seconds");
-}
-
-int exec_watch(int argc, char** argv) {
-  std::vector<char*> args;
-  std::string program = "fleetgw-watch";
-  args.push_back(program.data());
-  for (int i = 0; i < argc; ++i) args.push_back(argv[i]);
-  args.push_back(nullptr);
-  std::error_code ec;
-  const auto self = std::filesystem::read_symlink("/proc/self/exe", ec);
-  if (!ec) {
-    const std::string sibling = (self.parent_path() / program).string();
-    ::execv(sibling.c_str(), args.data());
-  }
-  ::execvp(program.c_str(), args.data());
-  std::cerr << "fleetgw watch: cannot run " << program << " (not next to "
-            << (ec ? std::string("fleetgw") : self.string()) << " nor on PATH)\n";
-  return 127;
 }
 
 }  // namespace fleetgw::app

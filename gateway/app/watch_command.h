@@ -38,8 +38,4 @@ void add_watch_options(CLI::App& app, WatchOptions& options);
 
 int run_watch(const WatchOptions& options, std::ostream& out);
 
-// `fleetgw watch ARGS...`: replaces this process with fleetgw-watch ARGS..., found next to the
-// running executable or else on PATH. Returns only on failure (exit status 127, as a shell).
-int exec_watch(int argc, char** argv);
-
 }  // namespace fleetgw::app
