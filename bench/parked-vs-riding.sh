@@ -20,32 +20,9 @@ MINUTES=${MINUTES:-10}
 command -v mosquitto_sub >/dev/null || { echo "parked-vs-riding: needs mosquitto-clients" >&2; exit 1; }
 (( MINUTES >= 1 && MINUTES <= 10 )) || { echo "parked-vs-riding: MINUTES must be 1-10" >&2; exit 2; }
 
-WORK=$(mktemp -d /tmp/fleetgw-parked-XXXXXX)
-PIDS=()
-cleanup() {
-  for p in "${PIDS[@]}"; do kill "$p" 2>/dev/null || true; done
-  [[ ${KEEP:-0} == 1 ]] && echo "work directory: $WORK" || rm -rf "$WORK"
-}
-trap cleanup EXIT
-
-free_port() {
-  /usr/bin/python3 -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])'
-}
-
-declare -A PORT
-start_broker() {  # name
-  local port
-  port=$(free_port)
-  printf 'listener %s 127.0.0.1\nallow_anonymous true\nsys_interval 1\nset_tcp_nodelay true\n' \
-    "$port" >"$WORK/$1-mosquitto.conf"
-  mosquitto -c "$WORK/$1-mosquitto.conf" 2>"$WORK/$1-mosquitto.log" &
-  PIDS+=($!)
-  for _ in $(seq 100); do  # until the broker accepts a connection
-    mosquitto_sub -h 127.0.0.1 -p "$port" -t '$SYS/broker/version' -C 1 -W 1 >/dev/null 2>&1 && break
-    sleep 0.05
-  done
-  PORT[$1]=$port
-}
+# shellcheck source=bench/lib-brokers.sh
+source bench/lib-brokers.sh
+bench_workdir fleetgw-parked
 
 bytes_received() {  # name: the broker's received-bytes counter
   mosquitto_sub -h 127.0.0.1 -p "${PORT[$1]}" -t '$SYS/broker/bytes/received' -C 1 -W 5
