@@ -63,6 +63,12 @@ account_ctest() {  # log rc label
     PASSED=$((PASSED + BASH_REMATCH[2] - BASH_REMATCH[1]))
   fi
   SUMMARY+=("$3: ${line:-no ctest summary} (exit $2)")
+  # A failed GoogleTest assertion, where the end of the run shows it: CI may show only the tail
+  # of a long log, and the summary is the tail.
+  if [ "$2" != 0 ]; then
+    while IFS= read -r line; do SUMMARY+=("  ${line:0:240}"); done \
+      < <(grep -E -A4 ": Failure$|^\[  FAILED  \] [A-Za-z]" "$1" | grep -v "^--$" | head -n 30)
+  fi
 }
 
 run_ctest() {  # build-dir ctest-args...
