@@ -124,9 +124,12 @@ fi
 phase_start build
 san_flags=(-DFLEETGW_SANITIZE=ON -DFLEETGW_FUZZ=ON)
 [ "${SKIP_ASAN:-0}" = 1 ] && san_flags=(-DFLEETGW_SANITIZE=OFF -DFLEETGW_FUZZ=OFF)
-# -O1 with line tables: sanitizer reports keep file:line, the suite runs at a useful speed.
+# -O1 with line tables: sanitizer reports keep file:line, the suite runs at a useful speed. The
+# test files themselves at -O0 (half their compile, which is most of the build; the code under
+# test keeps -O1). Linked with lld: a third of GNU ld's time for the ≈ 40 executables.
 CXX=clang++ CC=clang cmake -S . -B build-san -DCMAKE_BUILD_TYPE=Debug \
   "-DCMAKE_CXX_FLAGS_DEBUG=-O1 -gline-tables-only" "${san_flags[@]}" \
+  -DFLEETGW_TEST_COMPILE_OPTIONS=-O0 -DCMAKE_EXE_LINKER_FLAGS=-fuse-ld=lld \
   -DFLEETGW_WERROR=ON -DFLEETGW_BUILD_BENCH=OFF -DFLEETGW_UNITY=ON -DFLEETGW_UNITY_TESTS=ON \
   "${LAUNCHER[@]}" >/dev/null
 cmake --build build-san -j "$JOBS"
@@ -279,5 +282,10 @@ printf '  %s\n' "${SUMMARY[@]}"
 echo "== elapsed per phase"
 printf '  %s\n' "${PHASES[@]}"
 echo "  total   $((SECONDS / 60)) min $((SECONDS % 60)) s"
+# The CPU time of everything the run started (user, system): on a shared or busy machine the
+# elapsed time varies, this much less.
+times >build/cpu-times.txt  # in this shell: a subshell's `times` would not see the children
+read -r cpu_user cpu_sys < <(tail -1 build/cpu-times.txt)
+echo "  cpu     $cpu_user user, $cpu_sys system"
 echo "fleetgw: $PASSED passed, $FAILED failed"
 exit "$status"

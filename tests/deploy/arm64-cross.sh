@@ -85,7 +85,8 @@ else
   # -O1 without -g: about half the compile time of -O2 -g on these TUs, and the emulated tests
   # still run at a useful speed. -Os (FLEETGW_OPTIMIZE_SIZE) would override -O1: off here.
   build_flags=(-DCMAKE_BUILD_TYPE=Release "-DCMAKE_CXX_FLAGS_RELEASE=-O1 -DNDEBUG"
-    -DFLEETGW_OPTIMIZE_SIZE=OFF -DFLEETGW_BUILD_BENCH=OFF -DFLEETGW_UNITY=ON -DFLEETGW_UNITY_TESTS=ON)
+    -DFLEETGW_OPTIMIZE_SIZE=OFF -DFLEETGW_BUILD_BENCH=OFF -DFLEETGW_UNITY=ON -DFLEETGW_UNITY_TESTS=ON
+    -DFLEETGW_TEST_COMPILE_OPTIONS=-O0)  # the test files unoptimised: the code under test is -O1
   # Only what runs under emulation: the test binaries (the service binary is the figures build's).
   targets=()
 fi
