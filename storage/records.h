@@ -47,6 +47,16 @@ struct Ride {
   std::optional<int> soc_end_pct;
   std::map<std::string, double> assist_time_s;  // assist mode name -> seconds (JSON text column)
   int fault_count = 0;
+  // Where the ride went (schema v6), from the current GNSS fixes (gateway/domain/ride_track.h):
+  // the first and latest fix, the GNSS distance and the simplified track as track_text()
+  // (storage/track_text.h). Empty = no fix during the ride (NULL, never "0, 0"); a latitude
+  // always comes with its longitude.
+  std::optional<double> start_lat_deg;
+  std::optional<double> start_lon_deg;
+  std::optional<double> end_lat_deg;
+  std::optional<double> end_lon_deg;
+  std::optional<double> gnss_distance_m;
+  std::optional<std::string> track;
   friend bool operator==(const Ride&, const Ride&) = default;
 };
 

@@ -175,7 +175,20 @@ CREATE TABLE zone_events (
 CREATE INDEX zone_events_by_time ON zone_events (ts_us);
 )sql";
 
-constexpr std::array<std::string_view, kSchemaVersion> kSteps = {kV1, kV2, kV3, kV4, kV5};
+// v6: where a ride went (issue 14), NULL when the ride had no GNSS fix. `track` is the
+// simplified polyline (every fix within 5 m of it) as a JSON array of [longitude, latitude]
+// positions in degrees, 1e-7 precision: GeoJSON's coordinate order and syntax
+// (storage/track_text.h).
+constexpr std::string_view kV6 = R"sql(
+ALTER TABLE rides ADD COLUMN start_lat_deg REAL;
+ALTER TABLE rides ADD COLUMN start_lon_deg REAL;
+ALTER TABLE rides ADD COLUMN end_lat_deg REAL;
+ALTER TABLE rides ADD COLUMN end_lon_deg REAL;
+ALTER TABLE rides ADD COLUMN gnss_distance_m REAL;
+ALTER TABLE rides ADD COLUMN track TEXT;
+)sql";
+
+constexpr std::array<std::string_view, kSchemaVersion> kSteps = {kV1, kV2, kV3, kV4, kV5, kV6};
 
 }  // namespace
 

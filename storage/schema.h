@@ -24,6 +24,8 @@
 //       "alarm" at priority 0
 //   v5  zone_events table: geofence enter/exit and no-parking lock events (issue 14); queued
 //       as outbox kind "zone" at priority 1
+//   v6  rides: start_lat_deg, start_lon_deg, end_lat_deg, end_lon_deg, gnss_distance_m (REAL)
+//       and track (TEXT: JSON array of [lon, lat], storage/track_text.h), NULL without a fix
 #pragma once
 
 #include <stdexcept>
@@ -33,7 +35,7 @@
 
 namespace fleetgw::storage {
 
-inline constexpr int kSchemaVersion = 5;
+inline constexpr int kSchemaVersion = 6;
 
 class SchemaTooNewError : public std::runtime_error {
  public:

@@ -17,7 +17,8 @@ namespace {
 constexpr std::string_view kRideColumns =
     "id, ride_id, state, partial, start_us, end_us, duration_s, moving_s, start_odo_km, "
     "end_odo_km, distance_km, distance_integrated_km, max_speed_kmh, avg_speed_kmh, energy_wh, "
-    "energy_mah, soc_start_pct, soc_end_pct, assist_time_json, fault_count";
+    "energy_mah, soc_start_pct, soc_end_pct, assist_time_json, fault_count, start_lat_deg, "
+    "start_lon_deg, end_lat_deg, end_lon_deg, gnss_distance_m, track";
 
 Ride read_ride(const Statement& st) {
   Ride r;
@@ -46,6 +47,12 @@ Ride read_ride(const Statement& st) {
     }
   }
   r.fault_count = static_cast<int>(st.column_int64(19));
+  r.start_lat_deg = st.column_opt_double(20);
+  r.start_lon_deg = st.column_opt_double(21);
+  r.end_lat_deg = st.column_opt_double(22);
+  r.end_lon_deg = st.column_opt_double(23);
+  r.gnss_distance_m = st.column_opt_double(24);
+  if (!st.column_is_null(25)) r.track = st.column_text(25);
   return r;
 }
 

@@ -2,10 +2,12 @@
 // with its sequence numbers, and what happens on SQLITE_FULL (storage/store.h).
 #include <spdlog/spdlog.h>
 
+#include <cmath>
 #include <map>
 #include <stdexcept>
 
 #include "storage/store_impl.h"
+#include "storage/track_text.h"
 
 namespace fleetgw::storage {
 namespace {
@@ -21,7 +23,8 @@ constexpr std::string_view kUpsertRide =
     "INSERT INTO rides (ride_id, state, partial, start_us, end_us, duration_s, moving_s, "
     "start_odo_km, end_odo_km, distance_km, distance_integrated_km, max_speed_kmh, "
     "avg_speed_kmh, energy_wh, energy_mah, soc_start_pct, soc_end_pct, assist_time_json, "
-    "fault_count) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?) "
+    "fault_count, start_lat_deg, start_lon_deg, end_lat_deg, end_lon_deg, gnss_distance_m, "
+    "track) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?) "
     "ON CONFLICT (ride_id) DO UPDATE SET state = excluded.state, partial = excluded.partial, "
     "start_us = excluded.start_us, end_us = excluded.end_us, duration_s = excluded.duration_s, "
     "moving_s = excluded.moving_s, start_odo_km = excluded.start_odo_km, "
@@ -30,7 +33,10 @@ constexpr std::string_view kUpsertRide =
     "max_speed_kmh = excluded.max_speed_kmh, avg_speed_kmh = excluded.avg_speed_kmh, "
     "energy_wh = excluded.energy_wh, energy_mah = excluded.energy_mah, "
     "soc_start_pct = excluded.soc_start_pct, soc_end_pct = excluded.soc_end_pct, "
-    "assist_time_json = excluded.assist_time_json, fault_count = excluded.fault_count "
+    "assist_time_json = excluded.assist_time_json, fault_count = excluded.fault_count, "
+    "start_lat_deg = excluded.start_lat_deg, start_lon_deg = excluded.start_lon_deg, "
+    "end_lat_deg = excluded.end_lat_deg, end_lon_deg = excluded.end_lon_deg, "
+    "gnss_distance_m = excluded.gnss_distance_m, track = excluded.track "
     "RETURNING id";
 constexpr std::string_view kInsertFault =
     "INSERT INTO fault_events (node, bit, code, name, severity, event, first_seen_us, "
@@ -95,6 +101,17 @@ void check_time(std::int64_t us, std::string_view field, std::size_t i, std::str
   if (us < 0) reject(field, i, member, "negative timestamp " + std::to_string(us));
 }
 
+// A position is both coordinates or neither, each finite and in range.
+void check_position(const std::optional<double>& lat, const std::optional<double>& lon,
+                    std::string_view field, std::size_t i, std::string_view member) {
+  if (lat.has_value() != lon.has_value()) {
+    reject(field, i, member, "latitude and longitude must come together");
+  }
+  if (lat && !(std::fabs(*lat) <= 90.0 && std::fabs(*lon) <= 180.0)) {
+    reject(field, i, member, "position out of range");
+  }
+}
+
 void validate(const Batch& b) {
   if (b.now_us < 0) {
     throw std::invalid_argument("storage: Batch.now_us: negative timestamp " +
@@ -119,6 +136,16 @@ void validate(const Batch& b) {
     }
     check_time(r.start_us, "rides", i, "start_us");
     if (r.end_us && *r.end_us < r.start_us) reject("rides", i, "end_us", "before start_us");
+    check_position(r.start_lat_deg, r.start_lon_deg, "rides", i, "start_lat_deg");
+    check_position(r.end_lat_deg, r.end_lon_deg, "rides", i, "end_lat_deg");
+    if (r.gnss_distance_m && !(*r.gnss_distance_m >= 0 && std::isfinite(*r.gnss_distance_m))) {
+      reject("rides", i, "gnss_distance_m", "not a finite distance >= 0");
+    }
+    if (r.track) {
+      if (const auto parsed = parse_track_text(*r.track); !parsed.ok()) {
+        reject("rides", i, "track", parsed.error);
+      }
+    }
   }
   for (std::size_t i = 0; i < b.faults.size(); ++i) {
     const FaultEvent& f = b.faults[i].record;
@@ -268,7 +295,8 @@ WriteResult Store::Impl::write_once(const Batch& b) {
                    r.moving_s, r.start_odo_km, r.end_odo_km, r.distance_km,
                    r.distance_integrated_km, r.max_speed_kmh, r.avg_speed_kmh, r.energy_wh,
                    r.energy_mah, r.soc_start_pct, r.soc_end_pct, json_text(r.assist_time_s),
-                   r.fault_count);
+                   r.fault_count, r.start_lat_deg, r.start_lon_deg, r.end_lat_deg, r.end_lon_deg,
+                   r.gnss_distance_m, r.track);
       if (!st->step()) throw std::logic_error("storage: ride upsert returned no id");
       std::int64_t id = st->column_int64(0);
       st->reset();

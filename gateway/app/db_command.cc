@@ -2,8 +2,10 @@
 
 #include <CLI/CLI.hpp>
 
+#include <algorithm>
 #include <limits>
 
+#include "gateway/app/db_geojson.h"
 #include "gateway/app/db_listings.h"
 #include "gateway/app/db_summary.h"
 #include "gateway/app/store_open.h"
@@ -91,7 +93,9 @@ std::unique_ptr<DbCommand> add_db_command(CLI::App& app) {
   db->command->require_subcommand(1);
   db->stats = db->command->add_subcommand("stats", "row counts, outbox depth, size, evictions");
   db->export_rows = db->command->add_subcommand(
-      "export", "one table, every row: JSON lines (default) or CSV (--format csv)");
+      "export",
+      "one table, every row: JSON lines (default), CSV (--format csv), or for rides GeoJSON "
+      "(--format geojson)");
   db->summary = db->command->add_subcommand(
       "summary", "what happened, in one sentence: rides, faults, commands, alarms");
   std::vector<CLI::App*> all = {db->stats, db->export_rows, db->summary};
@@ -113,8 +117,9 @@ std::unique_ptr<DbCommand> add_db_command(CLI::App& app) {
   db->export_rows->add_option("--table", db->table, "table to export")->required();
   db->export_rows
       ->add_option("--format", db->export_format,
-                   "jsonl: one JSON object per line (default); csv: RFC 4180 with a header")
-      ->check(CLI::IsMember({"jsonl", "csv"}));
+                   "jsonl: one JSON object per line (default); csv: RFC 4180 with a header; "
+                   "geojson: a FeatureCollection, one Feature per ride with its track (rides)")
+      ->check(CLI::IsMember({"jsonl", "csv", "geojson"}));
   add_since(*db->export_rows, *db);
   add_since(*db->summary, *db);
   add_format(*db->summary, *db, "output format (default: table)");
@@ -134,6 +139,14 @@ int run_db_command(const DbCommand& db, std::ostream& out, std::ostream& err) {
     }
     since_us = *parsed;
     since_given = since_us;
+  }
+  if (db.export_rows->parsed() && db.export_format == "geojson" &&
+      std::find(kGeojsonTables.begin(), kGeojsonTables.end(), db.table) == kGeojsonTables.end()) {
+    err << "fleetgw db export: --format geojson: table '" << table_cell(db.table)
+        << "' has no geometry; --format geojson supports:";
+    for (const auto name : kGeojsonTables) err << ' ' << name;
+    err << '\n';
+    return 2;
   }
   storage::StoreOptions options;
   if (db.db_path.empty()) {
@@ -159,7 +172,9 @@ int run_db_command(const DbCommand& db, std::ostream& out, std::ostream& err) {
   }
   if (db.export_rows->parsed()) {
     const auto rows = db.export_format == "csv" ? export_csv(*store, db.table, since_us, out)
-                                                : store->export_table(db.table, since_us, out);
+                      : db.export_format == "geojson"
+                          ? export_rides_geojson(*store, since_us, out, err)
+                          : store->export_table(db.table, since_us, out);
     err << rows << " rows\n";
     return 0;
   }

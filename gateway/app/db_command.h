@@ -15,7 +15,9 @@
 //    default, byte for byte what export always printed): one JSON object per line. `--format
 //    csv`: RFC 4180 (table_format.h), a header of the table's columns in schema order, one
 //    record per row, numbers in full precision, *_json columns as their JSON text, blobs as
-//    lowercase hex; every string exactly as stored (quoted when it must be).
+//    lowercase hex; every string exactly as stored (quoted when it must be). `--format
+//    geojson` (rides only, db_geojson.h): a FeatureCollection, one Feature per ride with its
+//    track as a LineString; any other table exits 2 naming the tables it supports.
 //  * summary: db_summary.h, over `--since` (default: the whole store). `--format table` (the
 //    default): the sentence, a blank line, then one row per area; `json`: one document;
 //    `csv`: the document flattened to key,value rows.
@@ -47,7 +49,7 @@ struct DbCommand {
   std::string table;
   std::string since;                    // as typed; parsed by parse_since()
   std::string format;                   // table|json|csv; empty: the subcommand's default
-  std::string export_format = "jsonl";  // jsonl|csv
+  std::string export_format = "jsonl";  // jsonl|csv|geojson
   std::uint64_t limit = 20;
   bool stdout_is_terminal = false;  // stats' default format
   std::int64_t now_us = 0;          // for relative --since values; 0: the wall clock

@@ -447,6 +447,17 @@ Config parse_root(const toml::table& root, const std::string& name) {
       s.integer("restore_ramp_ms", c.geofence.restore_ramp_ms, 0, 600'000);
       s.integer("own_limit_kmh", c.geofence.own_limit_kmh, 1, 255);
       s.boolean("refuse_ride_ending_locks", c.geofence.refuse_ride_ending_locks);
+      s.string("bundle_topic", c.geofence.bundle_topic);
+      s.boolean("vehicle_bundles", c.geofence.vehicle_bundles);
+      s.integer("max_bundle_bytes", c.geofence.max_bundle_bytes, 1024, 16 << 20);
+      // One exact topic (the uplink subscribes to it): no filter, no empty level.
+      const std::string& t = c.geofence.bundle_topic;
+      if (!t.empty() && (t.front() == '/' || t.back() == '/' || t.find("//") != std::string::npos ||
+                         t.find_first_of(std::string("+#\0", 3)) != std::string::npos)) {
+        s.invalid("bundle_topic",
+                  "must be one topic name: no '+', '#', empty levels or "
+                  "leading/trailing '/'");
+      }
       if (c.geofence.enabled && !c.gnss.enabled) {
         s.invalid("enabled", "geofences need a position: enable [gnss]");
       }

@@ -168,6 +168,12 @@ struct GeofenceConfig {
   int restore_ramp_ms = 5000;             // after a zone: back up
   int own_limit_kmh = 25;                 // the bike's own limit (MC's unknown)
   bool refuse_ride_ending_locks = false;  // no-parking zones: refuse, not only report
+  // Bundles over MQTT ([mqtt] enabled): the retained fleet-wide topic ("" = "<topic_prefix>/
+  // zones"), optionally the vehicle's own "<topic_prefix>/<vehicle>/zones" too, and the largest
+  // payload read (larger ones are refused unread).
+  std::string bundle_topic;
+  bool vehicle_bundles = false;
+  int max_bundle_bytes = 1 << 20;
 };
 
 struct CommandConfig {

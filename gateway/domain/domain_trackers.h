@@ -16,6 +16,7 @@
 
 #include <span>
 #include <string>
+#include <utility>
 
 #include "gateway/domain/alarm_tracker.h"
 #include "gateway/domain/domain_config.h"
@@ -54,6 +55,11 @@ class DomainTrackers {
   void expect_lock_command(motinova::Node lock, const std::string& command_id, Micros now) {
     locks_.expect_cause(lock, "command:" + command_id, now);
     alarms_.expect_command(lock, now);
+  }
+
+  // Each lock event as it is produced (LockTracker::set_observer).
+  void set_lock_observer(LockTracker::Observer observer) {
+    locks_.set_observer(std::move(observer));
   }
 
   const RideTracker& rides() const { return rides_; }

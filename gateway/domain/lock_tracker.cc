@@ -73,6 +73,7 @@ void LockTracker::on_message(const motinova::DecodedMessage& msg, Micros now) {
   ev.cause = l.cause ? l.cause->text : "local";
   if (final_state(next)) l.cause.reset();
   storage::Bytes payload = lock_payload(ev, *before, next, position_);
+  if (observer_) observer_(ev, next);
   sink_.batch().locks.push_back({std::move(ev), std::move(payload)});
 }
 

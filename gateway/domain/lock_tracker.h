@@ -10,12 +10,17 @@
 //    a 0x760 LOCK/UNLOCK, else "local". An announced cause covers the lock's changes until it
 //    reaches a final state (locked, unlocked, lock/unlock failed) or cause_window has passed;
 //    an explicit cause is never overridden by a later vehicle LOCK/UNLOCK.
+//  * set_observer(): called with each event as it is appended to the sink (and its new U19 state
+//    code), inside on_message(): the observer must only take note (the geofence's no-parking
+//    report of a lock made on the bike), never call back into the trackers.
 #pragma once
 
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <optional>
 #include <string>
+#include <utility>
 
 #include "gateway/domain/domain_config.h"
 #include "gateway/domain/domain_sink.h"
@@ -32,6 +37,9 @@ class LockTracker {
   void tick(Micros now);
   // The current GNSS fix (nullopt: unknown); lock events carry the latest one given.
   void set_position(const std::optional<gnss::Position>& position) { position_ = position; }
+
+  using Observer = std::function<void(const storage::LockEvent& event, int new_raw)>;
+  void set_observer(Observer observer) { observer_ = std::move(observer); }
 
   // Announces why the next state changes of `lock` (a lock node; kBroadcast = every lock) happen.
   void expect_cause(motinova::Node lock, std::string cause, Micros now);
@@ -58,6 +66,7 @@ class LockTracker {
   DomainSink& sink_;
   std::array<Lock, 5> locks_{};
   std::optional<gnss::Position> position_;
+  Observer observer_;
 };
 
 }  // namespace fleetgw::domain

@@ -87,6 +87,15 @@ void RideTrack::add(const gnss::Position& p) {
   }
 }
 
+void RideTrack::resume(const gnss::Position& start, const gnss::Position& end, double distance_m,
+                       std::vector<gnss::Position> vertices) {
+  start_ = start;
+  end_ = end;
+  distance_m_ = distance_m;
+  vertices_ = std::move(vertices);
+  if (vertices_.empty()) vertices_.push_back(start);
+}
+
 std::vector<gnss::Position> RideTrack::simplified() const {
   std::vector<gnss::Position> points = vertices_;
   // The end is the latest fix even when it was too close to the last vertex to be one.

@@ -36,6 +36,11 @@ class RideTrack {
   explicit RideTrack(RideTrackOptions options = {}) : options_(options) {}
 
   void add(const gnss::Position& p);
+  // Continues a track checkpointed by a previous run (the ride row after a restart): its start,
+  // its latest fix, its GNSS distance and its simplified vertices (at least the start). The
+  // next fix's step is measured from the last vertex, so the distance goes on where it stopped.
+  void resume(const gnss::Position& start, const gnss::Position& end, double distance_m,
+              std::vector<gnss::Position> vertices);
   bool empty() const { return !start_.has_value(); }
   const std::optional<gnss::Position>& start() const { return start_; }
   const std::optional<gnss::Position>& end() const { return end_; }

@@ -5,7 +5,10 @@
 #include <stdexcept>
 #include <utility>
 
+#include <spdlog/spdlog.h>
+
 #include "motinova/can.h"
+#include "storage/track_text.h"
 
 namespace fleetgw::domain {
 namespace {
@@ -29,6 +32,52 @@ std::optional<int> whole(std::optional<double> v) {
   return static_cast<int>(std::lround(*v));
 }
 
+bool on_earth(const std::optional<double>& lat, const std::optional<double>& lon) {
+  return lat && lon && std::fabs(*lat) <= 90.0 && std::fabs(*lon) <= 180.0;
+}
+
+// The track a previous run checkpointed in the ride row, so a ride resumed (or closed) after a
+// restart keeps where it went before it. The row comes from a file that may be damaged or
+// edited: columns that do not form a track are dropped (said in the log), never trusted.
+void resume_track(storage::Ride& rec, RideTrack& track) {
+  if (!rec.start_lat_deg && !rec.start_lon_deg && !rec.track) return;  // no fix before
+  std::string problem;
+  storage::ParsedTrack parsed;
+  if (!on_earth(rec.start_lat_deg, rec.start_lon_deg) ||
+      !on_earth(rec.end_lat_deg, rec.end_lon_deg)) {
+    problem = "start or end position missing or out of range";
+  } else if (!rec.gnss_distance_m || !(*rec.gnss_distance_m >= 0) ||
+             !std::isfinite(*rec.gnss_distance_m)) {
+    problem = "gnss_distance_m missing or invalid";
+  } else if (!rec.track) {
+    problem = "track missing";
+  } else if (parsed = storage::parse_track_text(*rec.track); !parsed.ok()) {
+    problem = "track: " + parsed.error;
+  }
+  if (!problem.empty()) {
+    spdlog::warn("rides: ride '{}' resumed without its positions before the restart ({})",
+                 rec.ride_id, problem);
+    rec.start_lat_deg.reset();
+    rec.start_lon_deg.reset();
+    rec.end_lat_deg.reset();
+    rec.end_lon_deg.reset();
+    rec.gnss_distance_m.reset();
+    rec.track.reset();
+    return;
+  }
+  auto at = [](double lat, double lon) {
+    gnss::Position p;
+    p.lat_deg = lat;
+    p.lon_deg = lon;
+    return p;
+  };
+  std::vector<gnss::Position> vertices;
+  vertices.reserve(parsed.points.size());
+  for (const auto& p : parsed.points) vertices.push_back(at(p.lat_deg, p.lon_deg));
+  track.resume(at(*rec.start_lat_deg, *rec.start_lon_deg), at(*rec.end_lat_deg, *rec.end_lon_deg),
+               *rec.gnss_distance_m, std::move(vertices));
+}
+
 }  // namespace
 
 RideTracker::RideTracker(RideConfig config, DomainSink& sink)
@@ -49,6 +98,7 @@ void RideTracker::restore(std::span<const storage::Ride> open_rides, Micros now)
     stale.partial_reason = "gateway_restart";
     stale.rec.state = storage::RideState::kClosed;
     stale.rec.end_us = it->start_us + from_seconds(it->duration_s).count();
+    resume_track(stale.rec, stale.track);
     emit(stale.rec, stale, true);
     ++rides_closed_;
   }
@@ -59,6 +109,7 @@ void RideTracker::restore(std::span<const storage::Ride> open_rides, Micros now)
   o.rec.end_us.reset();
   o.rec.partial = true;
   o.partial_reason = "gateway_restart";
+  resume_track(o.rec, o.track);
   const Micros checkpointed = Micros(o.rec.start_us) + from_seconds(o.rec.duration_s);
   o.attributed_until = checkpointed;
   o.base_distance_km = o.rec.distance_km;
@@ -346,6 +397,17 @@ storage::Ride RideTracker::snapshot(const Open& o, Micros until) const {
   rec.distance_km =
       o.base_distance_km + counted.value_or(rec.distance_integrated_km - o.base_integrated_km);
   rec.avg_speed_kmh = rec.moving_s > 0 ? rec.distance_integrated_km / (rec.moving_s / kHour) : 0;
+  if (!o.track.empty()) {
+    // The same start, end, distance and simplified track as the RideRecord payload.
+    rec.start_lat_deg = o.track.start()->lat_deg;
+    rec.start_lon_deg = o.track.start()->lon_deg;
+    rec.end_lat_deg = o.track.end()->lat_deg;
+    rec.end_lon_deg = o.track.end()->lon_deg;
+    rec.gnss_distance_m = o.track.distance_m();
+    std::vector<storage::TrackPoint> points;
+    for (const gnss::Position& p : o.track.simplified()) points.push_back({p.lat_deg, p.lon_deg});
+    rec.track = storage::track_text(points);
+  }
   return rec;
 }
 

@@ -18,7 +18,11 @@
 //    ("gateway_restart"), it keeps accumulating; the odometer steps made while the gateway was
 //    down are counted (distance covers the whole ride). Energy, moving and assist time cannot
 //    be known for the gap: the gap's time is booked as assist "unknown" so assist times still
-//    sum to the duration. A ride is never split and never lost.
+//    sum to the duration. A ride is never split and never lost. Its positions (start, GNSS
+//    distance, simplified track: the row's v6 columns) resume from the checkpoint too.
+//  * Every upsert carries the ride's positions so far (start/end fix, GNSS distance, the
+//    simplified track as storage::track_text()), the same as the RideRecord payload's; all
+//    empty while no fix was received during the ride.
 //  * Distance: the plausible positive steps of the best MC counter seen throughout the ride
 //    (mc_odometer odo 0.1 km > mc_status trip 0.1 km > mc_status odo 1 km), else integrated
 //    speed; the integrated distance is always reported next to it as a cross-check. Energy:

@@ -12,6 +12,12 @@
 //    force; a failed write is reported in `persist_error` but the bundle is enforced all the
 //    same (the bike obeys the newest zones; it would fall back to the stored ones after a
 //    restart). A refusal changes nothing. Zones removed by a new bundle end with exit events.
+//  * on_bundle(..., fix): with the current fix (a bundle replaced at run time) the new zones are
+//    evaluated there at once (ZoneEngine::relocate), so a moved operating area, a new slow or
+//    no-ride zone applies without waiting for the next fix and a dwell.
+//  * on_oversized(): a payload refused unread (over the uplink's limit) as too_large.
+//  * counters(): every offer through on_bundle()/on_oversized() counted, the latest refusal
+//    kept (for `fleetgw status`); restore() is not counted (it is not received).
 //  * on_position(now, fix): `fix` is the CURRENT position or nullptr when it is unknown or
 //    stale; only a real change of position should be passed (a fix counts once towards the
 //    dwell). Appends enter/exit events.
@@ -40,6 +46,14 @@ struct ZoneControllerConfig {
   std::filesystem::path bundle_file;                // empty: not persisted
 };
 
+struct BundleCounters {
+  std::uint64_t offered = 0;   // payloads received (oversized included)
+  std::uint64_t accepted = 0;  // put in force
+  std::uint64_t refused = 0;   // already_in_force is neither accepted nor refused
+  std::optional<BundleVerdict> last_refusal;
+  Micros last_refusal_at{0};
+};
+
 class ZoneController {
  public:
   explicit ZoneController(ZoneControllerConfig config);
@@ -47,7 +61,10 @@ class ZoneController {
   std::optional<BundleVerdict> restore(Micros now, std::string& error,
                                        std::vector<ZoneEvent>& events);
   BundleVerdict on_bundle(std::span<const std::uint8_t> payload, Micros now,
-                          std::vector<ZoneEvent>& events, std::string& persist_error);
+                          std::vector<ZoneEvent>& events, std::string& persist_error,
+                          const gnss::Position* fix = nullptr);
+  BundleVerdict on_oversized(std::size_t bytes, std::size_t limit, Micros now);
+  const BundleCounters& counters() const { return counters_; }
   void on_position(Micros now, const gnss::Position* fix, std::vector<ZoneEvent>& events);
   std::optional<McWrite> tick(Micros now, const McView& mc);
   void on_write_result(bool succeeded, Micros now) { enforcer_.on_result(succeeded, now); }
@@ -64,6 +81,9 @@ class ZoneController {
   ZoneAuthority authority_;
   ZoneEngine engine_;
   ZoneEnforcer enforcer_;
+  BundleCounters counters_;
+
+  void count(const BundleVerdict& verdict, Micros now);
 };
 
 }  // namespace fleetgw::geofence

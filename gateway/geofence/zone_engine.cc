@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
+#include <utility>
 
 namespace fleetgw::geofence {
 
@@ -152,6 +153,27 @@ Demands ZoneEngine::step(Micros now, const gnss::Position* fix, std::vector<Zone
   }
   update_targets(now);
   return demands(now);
+}
+
+void ZoneEngine::relocate(Micros now, const gnss::Position& fix, std::vector<ZoneEvent>& events) {
+  if (!zones_) return;
+  last_fix_ = fix;
+  for (std::size_t i = 0; i < zones_->zones.size(); ++i) {
+    const Zone& zone = zones_->zones[i];
+    State& s = states_[i];
+    const Where w = zone.shape.locate(fix.lat_deg, fix.lon_deg, config_.margin_m);
+    if (w == Where::kNearBoundary) continue;
+    const Side side = w == Where::kInside ? Side::kInside : Side::kOutside;
+    s.pending = Side::kUnknown;
+    if (side == s.confirmed) continue;
+    const Side before = std::exchange(s.confirmed, side);
+    if (side == Side::kInside) {
+      events.push_back(event_for(zone, Transition::kEnter, now, fix));
+    } else if (before == Side::kInside) {
+      events.push_back(event_for(zone, Transition::kExit, now, fix));
+    }
+  }
+  update_targets(now);
 }
 
 void ZoneEngine::update_targets(Micros now) {

@@ -7,6 +7,10 @@
 //  * Zones come as an immutable ZoneSet (zone_bundle.h builds one from a verified bundle).
 //    set_zones() replaces it: a zone id present in both keeps its state; a zone removed while
 //    the bike was inside produces an exit event (its effects end).
+//  * relocate(now, fix) (a bundle replaced at run time): every zone takes the side `fix` is on
+//    at once, without the dwell -- the bike did not cross anything, the zones moved, so there is
+//    no crossing to confirm. Events as for step() (unknown -> inside ENTER, inside -> outside
+//    EXIT); a fix within a zone's margin leaves that zone as it was.
 //  * step(now, fix) takes the CURRENT fix or nullptr (position unknown or stale). Unknown means
 //    no transition at all: every zone keeps its state (a slow zone stays applied in a tunnel),
 //    and a transition that was pending starts over.
@@ -148,6 +152,7 @@ class ZoneEngine {
 
   void set_zones(std::shared_ptr<const ZoneSet> zones, Micros now, std::vector<ZoneEvent>& events);
   Demands step(Micros now, const gnss::Position* fix, std::vector<ZoneEvent>& events);
+  void relocate(Micros now, const gnss::Position& fix, std::vector<ZoneEvent>& events);
   Demands demands(Micros now) const;
   std::optional<Micros> next_change(Micros now) const;
   ParkingVerdict parking(const gnss::Position* fix, bool ride_ending, Micros now) const;

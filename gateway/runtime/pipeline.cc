@@ -114,6 +114,12 @@ Pipeline::Pipeline(asio::io_context& io, const config::Config& config, BusTransp
     try {
       uplink::UplinkConfig uplink_config = make_uplink_config(config);
       uplink_config.store_id = store_.store_id();
+      if (config.geofence.enabled) {
+        zone_topics_ = zone_bundle_topics(config);
+        max_bundle_bytes_ = static_cast<std::size_t>(config.geofence.max_bundle_bytes);
+        uplink_config.zone_topics = zone_topics_;
+        uplink_config.max_zone_bundle_bytes = max_bundle_bytes_;
+      }
       uplink_ = std::make_unique<uplink::Uplink>(std::move(uplink_config), outbox_);
     } catch (const std::exception& e) {
       throw PipelineError(std::string("invalid [mqtt] configuration: ") + e.what());
@@ -225,6 +231,7 @@ void Pipeline::settle() {
     bool more = false;
     if (device_info_.due()) queue_device_info();
     if (gnss_ && gnss_->changed()) apply_gnss();
+    if (zones_ && !pending_bike_locks_.empty()) judge_bike_locks();
     if (zones_) tick_zones();
     if (uplink_ && state_throttle_.due(Clock::now())) update_vehicle_state();
     const auto due = recorder_->flush_deadline();
@@ -256,6 +263,11 @@ void Pipeline::settle() {
           const auto d = commands_->on_payload(payload, bus_now());
           spdlog::info("command received: {}", command::disposition_name(d));
           core_.deliver_echoes();  // the LOCK/UNLOCK it sent, after the command's own work
+          more = true;
+        }
+        // Zone bundles: judged here, on the loop, like commands (Paho only queued them).
+        for (const auto& bundle : uplink_->take_zone_bundles()) {
+          if (zones_) on_zone_bundle(bundle);
           more = true;
         }
       }

@@ -44,18 +44,21 @@
 #include <ostream>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 #include "gateway/can/replay_transport.h"
 #include "gateway/can/transport.h"
 #include "gateway/command/command_service.h"
 #include "gateway/config/config.h"
 #include "gateway/geofence/zone_controller.h"
+#include "gateway/geofence/zone_lock_watch.h"
 #include "gateway/gnss/gnss_feed.h"
 #include "gateway/node/transport_sender.h"
 #include "gateway/runtime/device_info_reporter.h"
 #include "gateway/runtime/gateway_core.h"
 #include "gateway/runtime/parked_mode.h"
 #include "gateway/runtime/recorder.h"
+#include "gateway/runtime/status_provider.h"
 #include "gateway/runtime/store_outbox.h"
 #include "gateway/runtime/vehicle_state.h"
 #include "gateway/sim/sim_transport.h"
@@ -87,6 +90,9 @@ struct PipelineOptions {
 
 // A stage could not be built from the configuration; what() names the section.
 ParkedConfig make_parked_config(const config::Config& config);
+// The zone-bundle topics of [geofence]: bundle_topic (default "<topic_prefix>/zones") and, with
+// vehicle_bundles, "<topic_prefix>/<vehicle>/zones" (pipeline_zones.cc).
+std::vector<std::string> zone_bundle_topics(const config::Config& config);
 
 class PipelineError : public std::runtime_error {
   using std::runtime_error::runtime_error;
@@ -127,6 +133,8 @@ class Pipeline {
   const gnss::GnssFeed* gnss() const { return gnss_.get(); }
   const Recorder& recorder() const { return *recorder_; }
   const PipelineCounters& counters() const { return counters_; }
+  // The geofence section of the status; nullopt when [geofence] is disabled.
+  std::optional<GeofenceStatus> geofence_status() const;
   // Parked (locked and still) or riding; nullopt before the first evaluation.
   std::optional<bool> parked() const { return parked_ ? parked_->parked() : std::nullopt; }
   // Bus time covered by the frames delivered so far (0 before the first frame).
@@ -149,6 +157,12 @@ class Pipeline {
   void apply_zones(Micros wall, const std::optional<gnss::Position>& position);
   void tick_zones();
   void record_zone_event(const geofence::ZoneEvent& e);  // log, store, queue for the uplink
+  // A message of a zone-bundle topic (Uplink::take_zone_bundles), judged, stored, enforced at
+  // once; a refusal is logged once per distinct reason and counted for the status.
+  void on_zone_bundle(const uplink::ZoneBundleMessage& m);
+  // Locks made on the bike (lock events from the bus) noted by the lock observer: reported when
+  // they happened in a no-parking zone.
+  void judge_bike_locks();
   // Raises / clears the outside_operating_area alarm when the engine's demand changes.
   void update_area_alarm(Micros wall, const std::optional<gnss::Position>& position);
   std::optional<std::chrono::steady_clock::time_point> zones_deadline() const;
@@ -177,7 +191,18 @@ class Pipeline {
   bool zone_write_running_ = false;      // an MC write of the zones is under way
   bool outside_operating_area_ = false;  // the alarm is raised
   Micros area_alarm_since_{0};           // when it was raised
-  std::string zone_refusal_;      // the last reason a zone write could not start (logged once)
+  std::string zone_refusal_;  // the last reason a zone write could not start (logged once)
+  std::vector<std::string> zone_topics_;  // the bundle topics subscribed to
+  std::string zone_bundle_file_;
+  std::size_t max_bundle_bytes_ = 0;
+  std::string bundle_refusal_logged_;  // the last bundle refusal logged (each distinct once)
+  std::string bundle_refusal_topic_;   // where the latest refused bundle came from
+  geofence::BikeLockWatch bike_locks_;
+  struct BikeLock {
+    Micros wall{0};
+    std::optional<gnss::Position> fix;  // current when the lock was heard
+  };
+  std::vector<BikeLock> pending_bike_locks_;  // noted in the recorder's turn, judged in settle()
   StateThrottle state_throttle_;  // when the retained vehicle state is rebuilt (pipeline_state.cc)
   ParkedConfig parked_config_;
   std::unique_ptr<ParkedController> parked_;         // parked/riding (pipeline_state.cc)

@@ -40,6 +40,7 @@ void Pipeline::update_vehicle_state() {
   in.live = &core_.live();
   const domain::DomainTrackers& trackers = recorder_->trackers();
   in.active_alarms = trackers.alarms().active_kinds();
+  in.outside_operating_area = outside_operating_area_;
   if (gnss_) in.position = gnss_->state().current(gnss_->wall_now());
   in.parked = parked();
   in.bus_state = bus_state();

@@ -6,7 +6,9 @@
 // topic .../zone) through the recorder, in the same transaction discipline as alarms. Leaving
 // every operating area raises the outside_operating_area Alarm, re-entering one clears it. Lock
 // commands ask the no-parking zones first (CommandService::set_lock_guard): reported, or refused
-// as no_parking_zone when configured. Bundles arrive only from the stored file so far.
+// as no_parking_zone when configured; a lock made on the bike (a lock event from the bus) is
+// judged after the fact and reported. Bundles come from the stored file at start-up and from the
+// retained zone topics (Uplink::take_zone_bundles), judged and enforced here, on the loop.
 #include <spdlog/spdlog.h>
 
 #include "gateway/common/untrusted_text.h"
@@ -35,7 +37,21 @@ storage::ZoneEventRecord zone_record(const geofence::ZoneEvent& e) {
   return r;
 }
 
+std::span<const std::uint8_t> bytes_of(const std::string& s) {
+  return {reinterpret_cast<const std::uint8_t*>(s.data()), s.size()};
+}
+
 }  // namespace
+
+std::vector<std::string> zone_bundle_topics(const config::Config& config) {
+  const auto& g = config.geofence;
+  std::vector<std::string> topics{g.bundle_topic.empty() ? config.mqtt.topic_prefix + "/zones"
+                                                         : g.bundle_topic};
+  if (g.vehicle_bundles) {
+    topics.push_back(config.mqtt.topic_prefix + "/" + config.vehicle.id + "/zones");
+  }
+  return topics;
+}
 
 void Pipeline::record_zone_event(const geofence::ZoneEvent& e) {
   // The name comes from a signed bundle but is still received text: one escaped log line.
@@ -65,6 +81,7 @@ void Pipeline::update_area_alarm(Micros wall, const std::optional<gnss::Position
                : std::string("an unknown position"));
   spdlog::warn("geofence: alarm outside_operating_area {}: {}", outside ? "raised" : "cleared",
                rec.detail);
+  state_throttle_.touch();  // listed in the retained state's active_alarms while raised
   auto payload = domain::alarm_payload(rec, {});
   recorder_->record_alarm(std::move(rec), std::move(payload));
   request_settle();
@@ -84,8 +101,10 @@ void Pipeline::start_zones(const config::Config& config) {
   zc.enforcer.own_limit_kmh = g.own_limit_kmh;
   zc.trusted_keys = config.command.trusted_keys;
   zc.bundle_file = g.bundle_file;
+  zone_bundle_file_ = g.bundle_file;
+  // The stored file is held to the same limit as the topic: what was accepted is restored.
+  zc.limits.max_payload_bytes = static_cast<std::size_t>(g.max_bundle_bytes);
   zones_ = std::make_unique<geofence::ZoneController>(std::move(zc));
-  // No-parking zones judge lock commands at the current fix (unknown: never refused).
   // No-parking zones judge lock commands at the fix current NOW (a stale or unknown position
   // never refuses a lock: a rider must always be able to end a ride).
   commands_->set_lock_guard([this](bool ride_ending, Micros) -> std::optional<std::string> {
@@ -96,6 +115,14 @@ void Pipeline::start_zones(const config::Config& config) {
     if (!verdict.refuse) return std::nullopt;
     return fmt::format("will not end the ride inside the no-parking zone '{}'",
                        verdict.event ? verdict.event->zone_id : std::string("?"));
+  });
+  // A lock made on the bike is only noted here (the recorder is mid-message); settle() judges.
+  recorder_->trackers().set_lock_observer([this](const storage::LockEvent& ev, int new_raw) {
+    if (!bike_locks_.on_lock_event(ev.kind, new_raw, ev.cause)) return;
+    BikeLock lock{.wall = system_now(), .fix = std::nullopt};
+    if (gnss_) lock.fix = gnss_->state().current(gnss_->wall_now());
+    pending_bike_locks_.push_back(std::move(lock));
+    request_settle();
   });
   std::string error;
   std::vector<geofence::ZoneEvent> events;
@@ -119,6 +146,70 @@ void Pipeline::apply_zones(Micros wall, const std::optional<gnss::Position>& pos
   for (const auto& e : events) record_zone_event(e);
   if (!events.empty()) request_settle();
   update_area_alarm(wall, position);
+}
+
+void Pipeline::on_zone_bundle(const uplink::ZoneBundleMessage& m) {
+  const Micros wall = system_now();
+  std::optional<gnss::Position> fix;
+  if (gnss_) fix = gnss_->state().current(gnss_->wall_now());
+  std::vector<geofence::ZoneEvent> events;
+  std::string persist_error;
+  // Located at once with the current fix: a replaced bundle does not wait for the next one.
+  const auto verdict = m.oversized_bytes > 0
+                           ? zones_->on_oversized(m.oversized_bytes, max_bundle_bytes_, wall)
+                           : zones_->on_bundle(bytes_of(m.payload), wall, events, persist_error,
+                                               fix ? &*fix : nullptr);
+  for (const auto& e : events) record_zone_event(e);
+  if (verdict.accepted()) {
+    bundle_refusal_logged_.clear();
+    spdlog::info("geofence: bundle on {} accepted: {}", m.topic, verdict.detail);
+    if (!persist_error.empty()) {
+      spdlog::error("geofence: bundle version {} enforced but not stored: {}", verdict.version,
+                    persist_error);
+    }
+  } else if (verdict.outcome == geofence::BundleOutcome::kRefused) {
+    bundle_refusal_topic_ = m.topic;
+    // A retained bundle comes again on every reconnect: its refusal is news only once.
+    std::string what = fmt::format("{} refused ({}): {}", m.topic,
+                                   geofence::bundle_refusal_name(verdict.reason), verdict.detail);
+    if (what != bundle_refusal_logged_) {
+      spdlog::warn("geofence: bundle on {}; {}", what,
+                   verdict.in_force > 0 ? fmt::format("version {} stays in force", verdict.in_force)
+                                        : std::string("no zones in force"));
+      bundle_refusal_logged_ = std::move(what);
+    }
+  } else {
+    spdlog::debug("geofence: bundle on {}: {}", m.topic, verdict.detail);
+  }
+  update_area_alarm(wall, fix);
+  state_throttle_.touch();
+  request_settle();
+}
+
+void Pipeline::judge_bike_locks() {
+  for (const auto& lock : std::exchange(pending_bike_locks_, {})) {
+    // Report only (ride_ending false): the lock has happened, there is nothing to refuse.
+    const auto verdict = zones_->parking(lock.fix ? &*lock.fix : nullptr, false, lock.wall);
+    if (verdict.event) record_zone_event(*verdict.event);
+  }
+}
+
+std::optional<GeofenceStatus> Pipeline::geofence_status() const {
+  if (!zones_) return std::nullopt;
+  GeofenceStatus g;
+  if (const auto& f = zones_->authority().in_force()) {
+    g.version = f->zones->version;
+    g.zones = f->zones->zones.size();
+    g.vertices = f->zones->vertices;
+    g.key_id = f->key_id;
+    g.issued_at_us = f->zones->issued_at.count();
+  }
+  g.bundle_file = zone_bundle_file_;
+  g.topics = zone_topics_;
+  g.counters = zones_->counters();
+  g.last_refusal_topic = bundle_refusal_topic_;
+  g.outside_operating_area = outside_operating_area_;
+  return g;
 }
 
 void Pipeline::tick_zones() {

@@ -48,6 +48,11 @@ template <typename T>
 std::size_t footprint(const storage::Pending<T>& p) {
   return sizeof(p) + (p.uplink ? p.uplink->capacity() : 0);
 }
+// A ride carries its track text (schema v6): tens of kB for a long ride.
+std::size_t footprint(const storage::Pending<storage::Ride>& p) {
+  return sizeof(p) + (p.uplink ? p.uplink->capacity() : 0) +
+         (p.record.track ? p.record.track->capacity() : 0);
+}
 
 // Heap held by a batch, roughly (records plus payloads), for the retry-memory bound.
 std::size_t footprint(const storage::Batch& b) {

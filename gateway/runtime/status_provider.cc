@@ -35,6 +35,34 @@ nlohmann::json vehicle_json(const LiveState& live, const std::optional<storage::
   return v;
 }
 
+// The bundle in force and the latest refusal, with its reason and where it came from.
+nlohmann::json geofence_json(const GeofenceStatus& g, Micros wall_now) {
+  using nlohmann::json;
+  json out = {{"enabled", true},
+              {"version", g.version > 0 ? json(g.version) : json(nullptr)},
+              {"zones", g.zones},
+              {"vertices", g.vertices},
+              {"key_id", g.key_id},
+              {"issued_at_us", g.issued_at_us},
+              {"bundle_file", g.bundle_file},
+              {"topics", g.topics},
+              {"bundles_received", g.counters.offered},
+              {"bundles_accepted", g.counters.accepted},
+              {"bundles_refused", g.counters.refused},
+              {"last_refusal", ""},
+              {"last_refusal_reason", ""},
+              {"last_refusal_topic", ""},
+              {"last_refusal_age_s", nullptr},
+              {"outside_operating_area", g.outside_operating_area}};
+  if (const auto& r = g.counters.last_refusal) {
+    out["last_refusal_reason"] = std::string(geofence::bundle_refusal_name(r->reason));
+    out["last_refusal"] = out["last_refusal_reason"].get<std::string>() + ": " + r->detail;
+    out["last_refusal_topic"] = g.last_refusal_topic;
+    out["last_refusal_age_s"] = std::max(0.0, seconds(wall_now - g.counters.last_refusal_at));
+  }
+  return out;
+}
+
 }  // namespace
 
 nlohmann::json make_status_json(const StatusInputs& in) {
@@ -191,6 +219,7 @@ nlohmann::json make_status_json(const StatusInputs& in) {
     }
     j["gnss"] = std::move(g);
   }
+  if (in.geofence) j["geofence"] = geofence_json(*in.geofence, wall_now);
   return j;
 }
 

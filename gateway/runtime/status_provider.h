@@ -8,9 +8,11 @@
 #include <cstdint>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "gateway/can/transport.h"
 #include "gateway/config/config.h"
+#include "gateway/geofence/zone_controller.h"
 #include "gateway/gnss/gnss_feed.h"
 #include "gateway/runtime/gateway_core.h"
 #include "gateway/uplink/uplink.h"
@@ -25,6 +27,21 @@ struct UplinkFailure {
   std::string last_connect_error;          // "" = none since the last successful connect
   std::int64_t last_connect_error_us = 0;  // wall clock, us since epoch
   std::uint64_t tls_failures = 0;          // failed TLS handshakes since start
+};
+
+// The geofence section (Pipeline::geofence_status()): the bundle in force and what became of
+// the bundles received.
+struct GeofenceStatus {
+  std::uint64_t version = 0;  // in force; 0 = none
+  std::size_t zones = 0;
+  std::size_t vertices = 0;
+  std::string key_id;
+  std::int64_t issued_at_us = 0;
+  std::string bundle_file;
+  std::vector<std::string> topics;  // subscribed (empty with [mqtt] disabled)
+  geofence::BundleCounters counters;
+  std::string last_refusal_topic;  // where the latest refused bundle came from
+  bool outside_operating_area = false;
 };
 
 struct StatusInputs {
@@ -48,6 +65,8 @@ struct StatusInputs {
   // Parked mode (Pipeline::parked()): "mode" in the "vehicle" section is "parked" or "riding",
   // null before the first evaluation.
   std::optional<bool> parked = std::nullopt;
+  // nullopt when [geofence] is disabled (no "geofence" section).
+  std::optional<GeofenceStatus> geofence = std::nullopt;
 };
 
 nlohmann::json make_status_json(const StatusInputs& in);

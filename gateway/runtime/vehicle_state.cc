@@ -67,6 +67,7 @@ std::string build_vehicle_state(const VehicleStateInputs& in, bool with_time) {
   for (const std::string_view kind : in.active_alarms) {
     s.add_active_alarms(static_cast<v1::AlarmKind>(domain::alarm_kind_number(kind)));
   }
+  if (in.outside_operating_area) s.add_active_alarms(v1::ALARM_KIND_OUTSIDE_OPERATING_AREA);
   if (in.position) set_state_position(*s.mutable_position(), *in.position);
   return s.SerializeAsString();
 }

@@ -29,8 +29,10 @@ namespace fleetgw::runtime {
 struct VehicleStateInputs {
   const LiveState* live = nullptr;
   std::vector<std::string_view> active_alarms;  // AlarmTracker::active_kinds()
-  std::optional<gnss::Position> position;       // the current fix; nullopt = unknown
-  std::optional<bool> parked;                   // nullopt = not known yet
+  // The geofence's outside_operating_area alarm (not an AlarmTracker alarm), listed after them.
+  bool outside_operating_area = false;
+  std::optional<gnss::Position> position;  // the current fix; nullopt = unknown
+  std::optional<bool> parked;              // nullopt = not known yet
   fleetgw::v1::BusState bus_state = fleetgw::v1::BUS_STATE_UNSPECIFIED;
   motinova::Micros now{0};  // bus time: updated_at_us
 };

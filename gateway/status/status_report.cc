@@ -310,6 +310,30 @@ std::string format_summary(const json& s, const std::vector<Attention>& findings
     line("gnss", text);
   }
 
+  if (const json* g = member(s, "geofence"); g && g->is_object()) {
+    std::string text;
+    if (num(*g, "version")) {
+      text =
+          fmt::format("version {} in force: {} zones, {} vertices, key '{}'", count(*g, "version"),
+                      count(*g, "zones"), count(*g, "vertices"), str(*g, "key_id"));
+    } else {
+      text = "NO ZONES in force (no bundle accepted yet)";
+    }
+    text += fmt::format("\n         bundles: {} received, {} accepted, {} refused",
+                        count(*g, "bundles_received"), count(*g, "bundles_accepted"),
+                        count(*g, "bundles_refused"));
+    if (const std::string r = str(*g, "last_refusal", ""); !r.empty()) {
+      const auto age = num(*g, "last_refusal_age_s");
+      const std::string topic = str(*g, "last_refusal_topic", "");
+      text += fmt::format("\n         last refused{}{}: {}", topic.empty() ? "" : " on " + topic,
+                          age ? " " + age_text(*age) + " ago" : std::string(), r);
+    }
+    if (boolean(*g, "outside_operating_area").value_or(false)) {
+      text += "\n         OUTSIDE EVERY OPERATING AREA";
+    }
+    line("geofence", text);
+  }
+
   out += '\n';
   if (findings.empty()) {
     out += "OK\n";

@@ -31,7 +31,14 @@
 //     "gnss":   {"enabled": true, "gpsd": "localhost:2947", "connected": true, "fix": true,
 //                "reason": "" | "no fix" | "gpsd unreachable" | "fix stale", "fixes": 120,
 //                "lat": 52.52, "lon": 13.405, "hdop": 0.9 | null, "satellites": 8,
-//                "last_fix_age_s": 0.4}                  // optional section ([gnss] enabled)
+//                "last_fix_age_s": 0.4},                 // optional section ([gnss] enabled)
+//     "geofence": {"enabled": true, "version": 3 | null, "zones": 4, "vertices": 80,
+//                "key_id": "ops", "issued_at_us": 0, "bundle_file": "/var/lib/fleetgw/zones.pb",
+//                "topics": ["fleet/v1/zones"], "bundles_received": 5, "bundles_accepted": 2,
+//                "bundles_refused": 3, "last_refusal_reason": "not_newer",
+//                "last_refusal": "not_newer: version 1 is older than ...",
+//                "last_refusal_topic": "fleet/v1/zones", "last_refusal_age_s": 2.0 | null,
+//                "outside_operating_area": false}  // optional section ([geofence] enabled)
 //   }
 //   Ages are computed by the service on its own clock, so the client needs no clock agreement.
 //   Unknown keys are ignored (newer services may add some).

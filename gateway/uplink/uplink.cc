@@ -123,7 +123,10 @@ void Uplink::Impl::recycle_client(Micros now) {
 
 // ---- Paho thread ----
 void Uplink::Impl::on_message(const mqtt::message& msg) {
-  if (msg.get_topic() != topics.cmd) return;  // not subscribed to anything else
+  if (msg.get_topic() != topics.cmd) {
+    on_zone_message(msg);
+    return;
+  }
   // By reference: an oversized payload is never copied, only measured.
   const auto& payload = msg.get_payload_ref();
   if (payload.size() > config.max_command_bytes) {
@@ -145,6 +148,26 @@ void Uplink::Impl::on_message(const mqtt::message& msg) {
     return;
   }
   events.push(detail::CommandArrived{payload.str()});
+}
+
+// A zone bundle is judged on the owner's thread (ZoneController); here it is only measured and
+// bounded, so a huge or flooding payload costs neither a copy nor unbounded memory.
+void Uplink::Impl::on_zone_message(const mqtt::message& msg) {
+  const std::string& topic = msg.get_topic();
+  if (std::find(config.zone_topics.begin(), config.zone_topics.end(), topic) ==
+      config.zone_topics.end()) {
+    return;  // not subscribed to anything else
+  }
+  const auto& payload = msg.get_payload_ref();
+  if (events.queued_zone_bundles() >= config.max_queued_zone_bundles) {
+    events.push(detail::ZoneBundleDropped{topic, "zone bundle queue full"});
+    return;
+  }
+  if (payload.size() > config.max_zone_bundle_bytes) {
+    events.push(detail::ZoneBundleArrived{topic, {}, payload.size()});
+    return;
+  }
+  events.push(detail::ZoneBundleArrived{topic, payload.str(), 0});
 }
 
 // ---- owner's thread ----
@@ -276,10 +299,14 @@ void Uplink::Impl::on_connected(Micros now) {
     const int n = port ? enable_tcp_nodelay_to_port(*port) : 0;
     if (n == 0) spdlog::debug("uplink: no broker socket found for TCP_NODELAY");
   }
-  try {
-    client->subscribe(topics.cmd, 1, nullptr, subscribe_listener);
-  } catch (const mqtt::exception& e) {
-    spdlog::error("uplink: subscribe to {} failed: {}", topics.cmd, e.what());
+  // Tagged 0 (cmd) and n (zone_topics[n - 1]), so a refusal names its topic.
+  for (std::size_t i = 0; i <= config.zone_topics.size(); ++i) {
+    const std::string& topic = i == 0 ? topics.cmd : config.zone_topics[i - 1];
+    try {
+      client->subscribe(topic, 1, detail::to_context(i), subscribe_listener);
+    } catch (const mqtt::exception& e) {
+      spdlog::error("uplink: subscribe to {} failed: {}", topic, e.what());
+    }
   }
   publish_status(now);
   // The broker may hold an older state (published before an outage, or by the previous run).
@@ -349,7 +376,25 @@ void Uplink::Impl::handle(Micros now, detail::PublishDone& e) {
   on_publish_done(now, e);
 }
 void Uplink::Impl::handle(Micros, detail::SubscribeDone& e) {
-  if (!e.ok) spdlog::error("uplink: subscription to {} refused (rc {})", topics.cmd, e.rc);
+  if (e.ok) return;
+  const std::string& topic =
+      e.id >= 1 && e.id <= config.zone_topics.size() ? config.zone_topics[e.id - 1] : topics.cmd;
+  spdlog::error("uplink: subscription to {} refused (rc {})", topic, e.rc);
+}
+void Uplink::Impl::handle(Micros now, detail::ZoneBundleArrived& e) {
+  ++counters.zone_bundles_received;
+  // The heap is trimmed after an oversized bundle, but the client is not replaced as after an
+  // oversized command: the broker would deliver the retained bundle again on the new
+  // connection, and the link would flap once a minute for as long as it stays retained.
+  if (e.oversized_bytes >= kTrimAfterBytes && heap_trim_due.count() == 0) {
+    heap_trim_due = now + kTrimDelay;
+  }
+  zone_bundles.push_back(
+      ZoneBundleMessage{std::move(e.topic), std::move(e.payload), e.oversized_bytes});
+}
+void Uplink::Impl::handle(Micros, detail::ZoneBundleDropped& e) {
+  ++counters.zone_bundles_dropped;
+  spdlog::warn("uplink: dropped message on {}: {}", e.topic, e.reason);
 }
 void Uplink::Impl::handle(Micros, detail::CommandArrived& e) {
   ++counters.commands_received;
@@ -393,9 +438,12 @@ void Uplink::Impl::stop(Micros now, milliseconds timeout) {
   std::size_t dropped_commands = commands.size();
   for (const auto& ev : events.take()) {
     dropped_commands += std::holds_alternative<detail::CommandArrived>(ev) ? 1 : 0;
+    if (std::holds_alternative<detail::ZoneBundleArrived>(ev)) events.zone_bundles_taken(1);
   }
   events.commands_taken(dropped_commands);
   commands.clear();
+  events.zone_bundles_taken(zone_bundles.size());
+  zone_bundles.clear();
 }
 
 Micros Uplink::Impl::next_due(Micros now) const {
@@ -466,6 +514,12 @@ void Uplink::poll(Micros now) {
 std::vector<std::string> Uplink::take_commands() {
   auto out = std::exchange(impl_->commands, {});
   impl_->events.commands_taken(out.size());
+  return out;
+}
+
+std::vector<ZoneBundleMessage> Uplink::take_zone_bundles() {
+  auto out = std::exchange(impl_->zone_bundles, {});
+  impl_->events.zone_bundles_taken(out.size());
   return out;
 }
 

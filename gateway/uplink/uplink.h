@@ -44,6 +44,12 @@
 //    ones); payloads not decodable as fleetgw.v1.SignedCommand are dropped too; at most
 //    max_queued_commands wait for take_commands(), more are dropped. All drops are logged and
 //    counted.
+//  * Zone bundles (config.zone_topics, docs/location.md): each topic is subscribed (QoS 1) on
+//    every connect, so the broker delivers its retained bundle each time. A payload larger than
+//    max_zone_bundle_bytes is never copied: it is handed over as its size only (the owner refuses
+//    it as too_large); others are handed over as received, unparsed (the owner's ZoneController
+//    judges them). At most max_queued_zone_bundles wait for take_zone_bundles(); more are
+//    dropped, logged and counted.
 #pragma once
 
 #include <chrono>
@@ -78,23 +84,25 @@ std::string_view to_string(UplinkState state);
 
 struct UplinkStats {
   UplinkState state = UplinkState::kStopped;
-  std::uint64_t published_messages = 0;  // MQTT publishes handed to the client (incl. status)
-  std::uint64_t published_records = 0;   // outbox records in those publishes (re-sends count)
-  std::uint64_t acked_messages = 0;      // publishes whose token completed successfully
-  std::uint64_t acked_records = 0;       // records acked (deleted) in the outbox
-  std::uint64_t failed_publishes = 0;    // publishes that failed; their records stay
-  std::uint64_t rejected_records = 0;    // undecodable / unknown-kind records dropped
-  std::uint64_t bytes_published = 0;     // MQTT payload bytes handed to the client
-  std::uint64_t connects = 0;            // successful connections
-  std::uint64_t reconnects = 0;          // successful connections after the first
-  std::uint64_t connect_failures = 0;    // failed connect attempts
-  std::uint64_t connection_losses = 0;   // established connections that dropped
-  std::uint64_t commands_received = 0;   // commands queued for take_commands()
-  std::uint64_t commands_dropped = 0;    // oversized, undecodable or overflowing commands
-  std::size_t in_flight_messages = 0;    // publishes awaiting their token
-  std::size_t in_flight_records = 0;     // records in those publishes
-  std::size_t in_flight_high_water = 0;  // most publishes ever awaiting their token at once
-  std::uint64_t outbox_depth = 0;        // from the OutboxSource
+  std::uint64_t published_messages = 0;     // MQTT publishes handed to the client (incl. status)
+  std::uint64_t published_records = 0;      // outbox records in those publishes (re-sends count)
+  std::uint64_t acked_messages = 0;         // publishes whose token completed successfully
+  std::uint64_t acked_records = 0;          // records acked (deleted) in the outbox
+  std::uint64_t failed_publishes = 0;       // publishes that failed; their records stay
+  std::uint64_t rejected_records = 0;       // undecodable / unknown-kind records dropped
+  std::uint64_t bytes_published = 0;        // MQTT payload bytes handed to the client
+  std::uint64_t connects = 0;               // successful connections
+  std::uint64_t reconnects = 0;             // successful connections after the first
+  std::uint64_t connect_failures = 0;       // failed connect attempts
+  std::uint64_t connection_losses = 0;      // established connections that dropped
+  std::uint64_t commands_received = 0;      // commands queued for take_commands()
+  std::uint64_t commands_dropped = 0;       // oversized, undecodable or overflowing commands
+  std::uint64_t zone_bundles_received = 0;  // handed to take_zone_bundles() (oversized included)
+  std::uint64_t zone_bundles_dropped = 0;   // the queue was full
+  std::size_t in_flight_messages = 0;       // publishes awaiting their token
+  std::size_t in_flight_records = 0;        // records in those publishes
+  std::size_t in_flight_high_water = 0;     // most publishes ever awaiting their token at once
+  std::uint64_t outbox_depth = 0;           // from the OutboxSource
   std::int64_t oldest_unsent_created_us = 0;
   std::int64_t last_publish_ok_us = 0;  // `now` of the poll that saw the last success; 0 never
   std::chrono::milliseconds last_backoff{0};  // the most recent reconnect delay chosen
@@ -114,6 +122,13 @@ struct UplinkStats {
   std::int64_t last_publish_refusal_us = 0;  // `now` when it came; 0 when empty
   std::size_t refused_records = 0;           // records held for the next retry
   std::int64_t refusal_retry_at_us = 0;      // when they are retried; 0 = nothing held
+};
+
+// A message of a zone-bundle topic, for the owner to judge.
+struct ZoneBundleMessage {
+  std::string topic;
+  std::string payload;              // empty when oversized
+  std::size_t oversized_bytes = 0;  // > 0: over max_zone_bundle_bytes, refused unread
 };
 
 class Uplink {
@@ -144,6 +159,8 @@ class Uplink {
   // Commands received since the last call (raw serialized fleetgw.v1.SignedCommand payloads, in
   // arrival order), already checked for size and decodability. Call after poll().
   std::vector<std::string> take_commands();
+  // Zone-bundle messages received since the last call, in arrival order. Call after poll().
+  std::vector<ZoneBundleMessage> take_zone_bundles();
   // Publishes one record that is not in the outbox (QoS 1, sequence 0), e.g. a command result
   // that could not be stored. `kind` is one of fleetgw::uplink::kind; `payload` its serialized
   // body message. False when not connected, when the payload does not decode as the kind's

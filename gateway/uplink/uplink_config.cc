@@ -94,6 +94,22 @@ void UplinkConfig::validate() const {
   if (max_fetch_bytes == 0) fail("max_fetch_bytes", "must be positive");
   if (max_command_bytes == 0) fail("max_command_bytes", "must be positive");
   if (max_queued_commands == 0) fail("max_queued_commands", "must be positive");
+  for (const auto& t : zone_topics) {
+    // A subscription, but never a filter: one bundle source is one exact topic.
+    if (!is_valid_topic_prefix(t)) {
+      fail("zone_topics", "'" + t +
+                              "' must be one topic name: non-empty, without '+', '#', empty "
+                              "levels or leading/trailing '/'");
+    }
+    if (t == Topics(topic_prefix, vehicle_id).cmd)
+      fail("zone_topics", "'" + t + "' is the cmd topic");
+  }
+  if (!zone_topics.empty() && max_zone_bundle_bytes == 0) {
+    fail("max_zone_bundle_bytes", "must be positive");
+  }
+  if (!zone_topics.empty() && max_queued_zone_bundles == 0) {
+    fail("max_queued_zone_bundles", "must be positive");
+  }
   if (status_interval.count() < 0) fail("status_interval", "must be >= 0");
 }
 

@@ -13,6 +13,7 @@
 #include <optional>
 #include <string>
 #include <string_view>
+#include <vector>
 
 namespace fleetgw::uplink {
 
@@ -100,6 +101,15 @@ struct UplinkConfig {
   std::size_t max_command_bytes = 4096;
   // Commands waiting for poll() at most; more are dropped (a flood cannot exhaust memory).
   std::size_t max_queued_commands = 16;
+
+  // Zone bundles (docs/location.md "Bundles over MQTT"): the retained topics subscribed to for
+  // fleetgw.v1.SignedZoneBundle payloads (empty = none, geofences off). Payloads larger than
+  // max_zone_bundle_bytes are refused on Paho's thread before anything is copied or parsed; at
+  // most max_queued_zone_bundles wait for take_zone_bundles(), more are dropped (a retained
+  // bundle comes again at the next connect).
+  std::vector<std::string> zone_topics;
+  std::size_t max_zone_bundle_bytes = 1024 * 1024;
+  std::size_t max_queued_zone_bundles = 4;
 
   // The retained online status is refreshed this often while connected (0 = only on connect).
   std::chrono::milliseconds status_interval{60'000};

@@ -45,6 +45,7 @@ struct PublishDone {
   int reason = 0;
 };
 struct SubscribeDone {
+  std::uint64_t id;  // 0 = cmd, n = zone_topics[n - 1]
   bool ok;
   int rc;
 };
@@ -55,13 +56,24 @@ struct CommandDropped {
   std::string reason;
   bool large = false;  // a payload worth returning the heap to the system after
 };
+// A message on a zone-bundle topic: its payload, or only its size when it was over the limit
+// (never copied).
+struct ZoneBundleArrived {
+  std::string topic;
+  std::string payload;
+  std::size_t oversized_bytes = 0;  // > 0: refused unread
+};
+struct ZoneBundleDropped {
+  std::string topic;
+  std::string reason;
+};
 // The diagnosis of failed connect attempt `attempt` (connect_diagnosis.h).
 struct ConnectDiagnosed {
   std::uint64_t attempt;
   std::string reason;
 };
 using Event = std::variant<ConnectDone, ConnectionLost, PublishDone, SubscribeDone, CommandArrived,
-                           CommandDropped, ConnectDiagnosed>;
+                           CommandDropped, ZoneBundleArrived, ZoneBundleDropped, ConnectDiagnosed>;
 
 class EventQueue {
  public:
@@ -69,6 +81,7 @@ class EventQueue {
     {
       std::lock_guard lock(mutex_);
       if (std::holds_alternative<CommandArrived>(e)) ++queued_commands_;
+      if (std::holds_alternative<ZoneBundleArrived>(e)) ++queued_zone_bundles_;
       events_.push_back(std::move(e));
     }
     cv_.notify_one();
@@ -86,6 +99,9 @@ class EventQueue {
   // commands_taken().
   std::size_t queued_commands() const { return queued_commands_.load(); }
   void commands_taken(std::size_t n) { queued_commands_ -= n; }
+  // The same for zone bundles (take_zone_bundles()).
+  std::size_t queued_zone_bundles() const { return queued_zone_bundles_.load(); }
+  void zone_bundles_taken(std::size_t n) { queued_zone_bundles_ -= n; }
 
   // Set before the client starts; read-only afterwards, so no lock is needed to call it.
   std::function<void()> wakeup_;
@@ -95,6 +111,7 @@ class EventQueue {
   std::condition_variable cv_;
   std::deque<Event> events_;
   std::atomic<std::size_t> queued_commands_{0};
+  std::atomic<std::size_t> queued_zone_bundles_{0};
 };
 
 inline void* to_context(std::uint64_t id) {
@@ -149,9 +166,13 @@ class PublishListener final : public mqtt::iaction_listener {
 class SubscribeListener final : public mqtt::iaction_listener {
  public:
   explicit SubscribeListener(EventQueue& q) : q_(q) {}
-  void on_success(const mqtt::token&) override { q_.push(SubscribeDone{true, 0}); }
+  // MQTT 5: a SUBACK reason code >= 0x80 (e.g. 0x87 not authorized) is a refusal too.
+  void on_success(const mqtt::token& tok) override {
+    const int reason = mqtt5_reason(tok);
+    q_.push(SubscribeDone{from_context(tok), reason < 0x80, reason});
+  }
   void on_failure(const mqtt::token& tok) override {
-    q_.push(SubscribeDone{false, tok.get_return_code()});
+    q_.push(SubscribeDone{from_context(tok), false, tok.get_return_code()});
   }
 
  private:

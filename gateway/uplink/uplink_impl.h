@@ -49,6 +49,7 @@ struct Uplink::Impl {
 
   // ---- Paho thread ----
   void on_message(const mqtt::message& msg);
+  void on_zone_message(const mqtt::message& msg);
 
   // ---- owner's thread: lifecycle (uplink.cc) ----
   mqtt::connect_options make_connect_options(Micros now) const;
@@ -66,6 +67,8 @@ struct Uplink::Impl {
   void handle(Micros now, detail::SubscribeDone& e);
   void handle(Micros now, detail::CommandArrived& e);
   void handle(Micros now, detail::CommandDropped& e);
+  void handle(Micros now, detail::ZoneBundleArrived& e);
+  void handle(Micros now, detail::ZoneBundleDropped& e);
   void handle(Micros now, detail::ConnectDiagnosed& e);
   void stop(Micros now, std::chrono::milliseconds timeout);
   Micros next_due(Micros now) const;
@@ -122,7 +125,8 @@ struct Uplink::Impl {
   std::chrono::milliseconds batch_delay{0};  // telemetry_batch_max_delay, or the parked one
   bool draining = false;  // drain_for_stop(): telemetry batches leave without waiting
   std::function<void(v1::Status&)> status_decorator;
-  std::vector<std::string> commands;  // waiting for take_commands()
+  std::vector<std::string> commands;            // waiting for take_commands()
+  std::vector<ZoneBundleMessage> zone_bundles;  // waiting for take_zone_bundles()
   std::uint64_t connect_attempt = 0;
   std::uint64_t publish_id = 0;
   std::unordered_map<std::uint64_t, InFlightEntry> in_flight;

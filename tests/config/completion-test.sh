@@ -62,7 +62,7 @@ contains() {
 
 expect "decode db" fleetgw d
 expect "stats export summary rides faults commands alarms" fleetgw db ""
-expect "jsonl csv" fleetgw db export --format ""
+expect "jsonl csv geojson" fleetgw db export --format ""
 expect "table json csv" fleetgw db summary --format ""
 expect "be le auto" fleetgw decode --crc-order ""
 expect "auto" fleetgw decode --crc-order a

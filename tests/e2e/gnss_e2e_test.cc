@@ -3,7 +3,6 @@
 // and its return drive the IoT node's GNSS fault bit (0x0004) and "position unknown". The
 // store is read with SQLite itself; every wait is for a condition with a deadline.
 #include <gtest/gtest.h>
-#include <signal.h>
 #include <sqlite3.h>
 
 #include <chrono>
@@ -15,6 +14,7 @@
 #include <vector>
 
 #include "fleetgw/v1/telemetry.pb.h"
+#include "tests/support/fake_gps.h"
 #include "tests/support/nmea.h"
 #include "tests/support/process.h"
 #include "tests/support/temp_dir.h"
@@ -22,8 +22,9 @@
 
 namespace {
 
-using fleetgw::testing::ChildProcess;
+using fleetgw::testing::FakeGps;
 using fleetgw::testing::GatewayProcess;
+using fleetgw::testing::have_gpsfake;
 using fleetgw::testing::RoutePoint;
 using fleetgw::testing::TempDir;
 using fleetgw::testing::wait_until;
@@ -34,10 +35,6 @@ constexpr double kLat0 = 52.5200;
 constexpr double kLon0 = 13.4050;
 constexpr int kIotNode = 6;
 constexpr int kGpsBit = 2;  // 0x0004 in the normalised IoT fault word
-
-bool have_gpsfake() {
-  return std::system("command -v gpsfake >/dev/null 2>&1 && command -v gpsd >/dev/null 2>&1") == 0;
-}
 
 struct Sample {
   std::int64_t seq;
@@ -87,29 +84,6 @@ std::vector<std::string> gps_fault_events(const std::filesystem::path& db_path) 
   return out;
 }
 
-// gpsfake (and the gpsd it starts) in a process group of its own, so the test can end both.
-class FakeGps {
- public:
-  FakeGps(const TempDir& dir, std::uint16_t port, const std::string& nmea)
-      : nmea_file_(dir.path() / "route.nmea") {
-    std::ofstream(nmea_file_) << nmea;
-    process_.emplace(std::vector<std::string>{"setsid", "gpsfake", "-q", "-c", "0.5", "-P",
-                                              std::to_string(port), "-S", nmea_file_.string()},
-                     dir.path() / "gpsfake.log");
-  }
-  ~FakeGps() { kill(); }
-  void kill() {
-    if (!process_) return;
-    ::kill(-process_->pid(), SIGKILL);  // the whole group: gpsfake and its gpsd
-    process_->kill();
-    process_.reset();
-  }
-
- private:
-  std::filesystem::path nmea_file_;
-  std::optional<ChildProcess> process_;
-};
-
 std::string write_config(const TempDir& dir, std::uint16_t gpsd_port) {
   std::ostringstream c;
   c << "[vehicle]\nid = \"gnss-bike\"\n[log]\nlevel = \"info\"\n"
@@ -150,7 +124,7 @@ TEST(GnssEndToEnd, PositionReachesTelemetryAndTheFaultBitFollowsGpsd) {
   std::vector<RoutePoint> route;
   for (int i = 0; i < 120; ++i) route.push_back({kLat0 + i * 0.000045, kLon0});
   std::optional<FakeGps> gps;
-  gps.emplace(dir, port, fleetgw::testing::nmea_route(route));
+  gps.emplace(dir, port, fleetgw::testing::nmea_route(route), FakeGps::Options{});
   std::int64_t first_fixed_seq = 0;
   ASSERT_TRUE(wait_until(
       [&] {

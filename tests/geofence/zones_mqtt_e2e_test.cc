@@ -1,0 +1,406 @@
+// Zone bundles over MQTT through the real `fleetgw run` and a real mosquitto (issue 14): bundles
+// signed with `fleetgw zones sign`, published retained on the fleet-wide and the vehicle's own
+// zones topic; what the gateway made of each one read back with `fleetgw status --json` (the
+// technician's view), from its bundle file and from its log. Then, with a real gpsd fed by
+// gpsfake, a bundle replaced at run time applies at the current fix at once (the
+// outside_operating_area alarm, also in the retained VehicleState), and a lock made on the bike
+// in a no-parking zone is reported on .../zone. Every wait is for a condition.
+#include <gtest/gtest.h>
+#include <mqtt/async_client.h>
+#include <signal.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <mutex>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "fleetgw/v1/envelope.pb.h"
+#include "tests/support/mosquitto_fixture.h"
+#include "tests/support/nmea.h"
+#include "tests/support/process.h"
+#include "tests/support/temp_dir.h"
+#include "tests/support/wait.h"
+
+namespace {
+
+using fleetgw::testing::ChildProcess;
+using fleetgw::testing::GatewayProcess;
+using fleetgw::testing::MosquittoBroker;
+using fleetgw::testing::MosquittoOptions;
+using fleetgw::testing::TempDir;
+using fleetgw::testing::wait_until;
+using namespace std::chrono_literals;
+
+constexpr double kLat0 = 52.5200;
+constexpr double kLon0 = 13.4050;
+
+std::string read_file(const std::filesystem::path& p) {
+  return fleetgw::testing::read_text_file(p);
+}
+
+std::string run_tool(const TempDir& dir, const std::vector<std::string>& args) {
+  std::vector<std::string> argv{FLEETGW_BINARY};
+  argv.insert(argv.end(), args.begin(), args.end());
+  const auto out = dir.path() / "tool.out";
+  std::filesystem::remove(out);
+  fleetgw::testing::run_program(argv, out);
+  return read_file(out);
+}
+
+std::string rect(double lon0, double lon1, double lat0, double lat1) {
+  std::ostringstream o;
+  o.precision(9);
+  o << "[[[" << lon0 << "," << lat0 << "],[" << lon1 << "," << lat0 << "],[" << lon1 << "," << lat1
+    << "],[" << lon0 << "," << lat1 << "]]]";
+  return o.str();
+}
+
+std::string feature(const std::string& id, const std::string& kind, const std::string& coords,
+                    const std::string& extra = "") {
+  return R"({"type": "Feature", "properties": {"id": ")" + id + R"(", "kind": ")" + kind + "\"" +
+         extra + R"(}, "geometry": {"type": "Polygon", "coordinates": )" + coords + "}}";
+}
+
+// The operator's side: a key and bundles signed with it by the shipped tool.
+class Operator {
+ public:
+  explicit Operator(const TempDir& dir) : dir_(dir) {
+    const std::string keygen = run_tool(dir_, {"keygen", (dir_.path() / "ops").string()});
+    const auto from = keygen.find("ops = \"");
+    key_line_ = keygen.substr(from, keygen.find('\n', from) - from);
+  }
+  const std::string& key_line() const { return key_line_; }
+  // `features` (GeoJSON Feature objects) signed as `version`; the signed file's bytes.
+  std::string sign(int version, const std::vector<std::string>& features) {
+    std::string all;
+    for (const auto& f : features) all += (all.empty() ? "" : ",") + f;
+    const auto geojson = dir_.path() / ("zones-" + std::to_string(version) + ".geojson");
+    const auto out = dir_.path() / ("zones-" + std::to_string(version) + ".pb");
+    std::ofstream(geojson) << R"({"type": "FeatureCollection", "features": [)" << all << "]}";
+    run_tool(dir_, {"zones", "sign", geojson.string(), "--version", std::to_string(version),
+                    "--key", (dir_.path() / "ops.pem").string(), "--out", out.string()});
+    return read_file(out);
+  }
+
+ private:
+  const TempDir& dir_;
+  std::string key_line_;
+};
+
+// Publishes retained messages, as an operator's `mosquitto_pub -r` would.
+void publish_retained(const std::string& uri, const std::string& topic,
+                      const std::string& payload) {
+  mqtt::async_client client(uri, "zones-publisher-" + std::to_string(getpid()));
+  client.connect(mqtt::connect_options_builder().clean_session(true).finalize())->wait();
+  client.publish(mqtt::make_message(topic, payload, 1, true))->wait();
+  client.disconnect()->wait();
+}
+
+// `fleetgw status --json`: the document the technician's tool reads (null when no answer).
+nlohmann::json status_of(const TempDir& dir, const std::filesystem::path& config) {
+  const auto out = dir.path() / "status.json";
+  const auto err = dir.path() / "status.err";
+  std::filesystem::remove(out);
+  fleetgw::testing::run_for_exit_code(
+      {FLEETGW_BINARY, "status", "--config", config.string(), "--json"}, out, err);
+  auto doc = nlohmann::json::parse(read_file(out), nullptr, false);
+  return doc.is_object() ? doc : nlohmann::json();
+}
+
+// The geofence section's value at `key`, or null.
+nlohmann::json geofence_field(const nlohmann::json& status, const std::string& key) {
+  if (!status.is_object() || !status.contains("geofence")) return nullptr;
+  return status["geofence"].value(key, nlohmann::json());
+}
+
+std::string gateway_config(const TempDir& dir, const std::string& vehicle,
+                           const std::string& broker_uri, std::uint16_t gpsd_port,
+                           const std::string& key_line, const std::string& scenario,
+                           const std::string& extra_geofence = "") {
+  std::ostringstream c;
+  c << "[vehicle]\nid = \"" << vehicle << "\"\n[log]\nlevel = \"info\"\n"
+    << "[can]\ntransport = \"sim\"\n[sim]\nscenario = \"" << scenario << "\"\nspeed = 1\n"
+    << "[storage]\npath = \"" << (dir.path() / "fleetgw.db").string() << "\"\n"
+    << "[status]\nsocket = \"" << (dir.path() / "status.sock").string() << "\"\n"
+    << "[mqtt]\nenabled = true\nuri = \"" << broker_uri << "\"\n"
+    << "reconnect_min_ms = 100\nreconnect_max_ms = 500\nstate_interval_ms = 200\n"
+    << "[gnss]\nenabled = true\ngpsd = \"127.0.0.1:" << gpsd_port << "\"\n"
+    << "reconnect_max_ms = 1000\n"
+    << "[geofence]\nenabled = true\nbundle_file = \"" << (dir.path() / "zones.pb").string()
+    << "\"\nmargin_m = 5\n"
+    << extra_geofence << "[command.trusted_keys]\n"
+    << key_line << "\n";
+  const auto path = dir.path() / "fleetgw.toml";
+  std::ofstream(path) << c.str();
+  return path.string();
+}
+
+std::size_t count_of(const std::string& text, const std::string& what) {
+  std::size_t n = 0;
+  for (auto at = text.find(what); at != std::string::npos; at = text.find(what, at + 1)) ++n;
+  return n;
+}
+
+TEST(ZonesOverMqtt, BundlesAreJudgedStoredAndKeptAndEveryRefusalIsNamed) {
+  TempDir dir;
+  MosquittoOptions options;
+  options.persistence = true;  // the retained bundle survives the broker's outage
+  MosquittoBroker broker(options);
+  broker.start();
+  const std::string vehicle = "zone-mqtt-1";
+  Operator ops(dir);
+  const auto area = [](int version) {
+    return feature("city-" + std::to_string(version), "operating_area",
+                   rect(kLon0 - 0.01, kLon0 + 0.01, kLat0 - 0.01, kLat0 + 0.01));
+  };
+  const std::string v1 = ops.sign(1, {area(1)});
+  const std::string v2 = ops.sign(2, {area(2)});
+  const std::string v3 = ops.sign(3, {area(3)});
+  std::string forged = ops.sign(4, {area(4)});
+  forged[forged.size() - 10] ^= 0x01;  // inside the signature (only key id "ops" follows it)
+
+  // gpsd is not needed here: nothing listens on its port (position unknown).
+  const auto config = gateway_config(
+      dir, vehicle, broker.uri(), fleetgw::testing::free_loopback_port(), ops.key_line(),
+      std::string(FLEETGW_SOURCE_DIR) + "/config/scenarios/parked.toml",
+      "vehicle_bundles = true\nmax_bundle_bytes = 65536\n");
+  const auto bundle_file = dir.path() / "zones.pb";
+  publish_retained(broker.uri(), "fleet/v1/zones", v2);
+
+  auto received = [&](int n) {
+    return wait_until(
+        [&] { return geofence_field(status_of(dir, config), "bundles_received") == n; }, 30s,
+        100ms);
+  };
+  {
+    GatewayProcess gw(FLEETGW_BINARY, config, {"--duration", "120"});
+    ASSERT_TRUE(wait_until([&] { return geofence_field(status_of(dir, config), "version") == 2; },
+                           30s, 100ms))
+        << gw.log();
+    EXPECT_EQ(read_file(bundle_file), v2) << "the bundle in force is stored as received";
+    const auto s = status_of(dir, config);
+    EXPECT_EQ(geofence_field(s, "bundles_accepted"), 1);
+    EXPECT_EQ(geofence_field(s, "topics"),
+              nlohmann::json::array({"fleet/v1/zones", "fleet/v1/" + vehicle + "/zones"}));
+    EXPECT_TRUE(gw.log_contains("geofence: bundle on fleet/v1/zones accepted")) << gw.log();
+    EXPECT_EQ(gw.stop(), 0) << gw.log();
+  }
+
+  // The broker down: the stored bundle is in force from the start.
+  broker.stop();
+  {
+    GatewayProcess gw(FLEETGW_BINARY, config, {"--duration", "120"});
+    ASSERT_TRUE(wait_until([&] { return geofence_field(status_of(dir, config), "version") == 2; },
+                           30s, 100ms))
+        << gw.log();
+    EXPECT_TRUE(gw.log_contains("geofence: version 2 in force")) << gw.log();
+    EXPECT_EQ(status_of(dir, config)["broker"]["connected"], false);
+    EXPECT_EQ(geofence_field(status_of(dir, config), "bundles_received"), 0);
+    EXPECT_EQ(gw.stop(), 0) << gw.log();
+  }
+
+  // Back online: the retained version 2 comes again (in force already: no refusal), then an
+  // older version, a forged one, garbage and an oversized payload -- each refused and named,
+  // version 2 staying in force and the service running.
+  broker.start();
+  GatewayProcess gw(FLEETGW_BINARY, config, {"--duration", "180"});
+  ASSERT_TRUE(received(1)) << gw.log();
+  auto s = status_of(dir, config);
+  EXPECT_EQ(geofence_field(s, "version"), 2);
+  EXPECT_EQ(geofence_field(s, "bundles_refused"), 0);
+
+  struct Case {
+    std::string payload;
+    std::string reason;
+  };
+  const std::vector<Case> cases = {
+      {v1, "not_newer"},
+      {forged, "signature_invalid"},
+      {"\x0a\x05garbage and more", "malformed"},
+      {std::string(100'000, 'z'), "too_large"},
+  };
+  int n = 1;
+  for (const auto& c : cases) {
+    publish_retained(broker.uri(), "fleet/v1/zones", c.payload);
+    ASSERT_TRUE(received(++n)) << c.reason << gw.log();
+    s = status_of(dir, config);
+    EXPECT_EQ(geofence_field(s, "last_refusal_reason"), c.reason) << s.dump(2);
+    EXPECT_EQ(geofence_field(s, "last_refusal_topic"), "fleet/v1/zones");
+    EXPECT_EQ(geofence_field(s, "version"), 2) << c.reason;
+    EXPECT_EQ(geofence_field(s, "bundles_refused"), n - 1);
+    EXPECT_TRUE(gw.log_contains("(" + c.reason + ")")) << gw.log();
+    EXPECT_EQ(read_file(bundle_file), v2) << c.reason;
+  }
+  EXPECT_TRUE(gw.log_contains("payload of 100000 bytes exceeds 65536")) << gw.log();
+  EXPECT_TRUE(gw.log_contains("version 2 stays in force")) << gw.log();
+  // The same refusal again (a retained redelivery): counted, logged once.
+  publish_retained(broker.uri(), "fleet/v1/zones", std::string(100'000, 'z'));
+  ASSERT_TRUE(received(++n)) << gw.log();
+  EXPECT_EQ(count_of(gw.log(), "(too_large)"), 1u) << gw.log();
+  // The human rendering names it too.
+  const auto text_out = dir.path() / "status.txt";
+  fleetgw::testing::run_for_exit_code({FLEETGW_BINARY, "status", "--config", config}, text_out);
+  const std::string text = read_file(text_out);
+  EXPECT_NE(text.find("geofence version 2 in force: 1 zones"), std::string::npos) << text;
+  EXPECT_NE(text.find("last refused on fleet/v1/zones"), std::string::npos) << text;
+
+  // Still serving: a newer bundle on the vehicle's own topic is accepted and stored.
+  ASSERT_TRUE(gw.running()) << gw.log();
+  publish_retained(broker.uri(), "fleet/v1/" + vehicle + "/zones", v3);
+  ASSERT_TRUE(wait_until([&] { return geofence_field(status_of(dir, config), "version") == 3; },
+                         30s, 100ms))
+      << gw.log();
+  EXPECT_EQ(read_file(bundle_file), v3);
+  EXPECT_EQ(gw.stop(), 0) << gw.log();
+}
+
+// gpsfake and its gpsd in a process group of their own, ended together.
+class StillGps {
+ public:
+  StillGps(const TempDir& dir, std::uint16_t port) {
+    std::vector<fleetgw::testing::RoutePoint> route(60, {kLat0, kLon0});
+    const auto file = dir.path() / "still.nmea";
+    std::ofstream(file) << fleetgw::testing::nmea_route(route);
+    process_.emplace(std::vector<std::string>{"setsid", "gpsfake", "-q", "-c", "0.5", "-P",
+                                              std::to_string(port), "-S", file.string()},
+                     dir.path() / "gpsfake.log");
+  }
+  ~StillGps() {
+    ::kill(-process_->pid(), SIGKILL);
+    process_->kill();
+  }
+  StillGps(const StillGps&) = delete;
+  StillGps& operator=(const StillGps&) = delete;
+
+ private:
+  std::optional<ChildProcess> process_;
+};
+
+// What a backend sees of one vehicle: zone events, alarms, the latest retained state.
+class VehicleWatcher {
+ public:
+  VehicleWatcher(const std::string& uri, const std::string& vehicle)
+      : client_(uri, "zones-watch-" + std::to_string(getpid())) {
+    client_.set_message_callback([this](mqtt::const_message_ptr m) {
+      fleetgw::v1::Envelope e;
+      std::lock_guard lock(mutex_);
+      if (!e.ParseFromString(m->get_payload())) return;
+      if (e.has_zone()) zones_.push_back(e.zone());
+      if (e.has_alarm()) alarms_.push_back(e.alarm());
+      if (e.has_state()) state_ = e.state();
+    });
+    client_.connect(mqtt::connect_options_builder().clean_session(true).finalize())->wait();
+    client_.subscribe("fleet/v1/" + vehicle + "/#", 1)->wait();
+  }
+  ~VehicleWatcher() {
+    try {
+      client_.disconnect()->wait_for(2s);
+    } catch (...) {
+    }
+  }
+  bool has_zone(const std::string& id, fleetgw::v1::ZoneTransition t) {
+    std::lock_guard lock(mutex_);
+    return std::any_of(zones_.begin(), zones_.end(),
+                       [&](const auto& z) { return z.zone_id() == id && z.transition() == t; });
+  }
+  bool has_alarm(fleetgw::v1::AlarmKind kind, fleetgw::v1::AlarmTransition t) {
+    std::lock_guard lock(mutex_);
+    return std::any_of(alarms_.begin(), alarms_.end(),
+                       [&](const auto& a) { return a.kind() == kind && a.transition() == t; });
+  }
+  bool state_lists(fleetgw::v1::AlarmKind kind) {
+    std::lock_guard lock(mutex_);
+    if (!state_) return false;
+    const auto& a = state_->active_alarms();
+    return std::find(a.begin(), a.end(), kind) != a.end();
+  }
+
+ private:
+  mqtt::async_client client_;
+  std::mutex mutex_;
+  std::vector<fleetgw::v1::ZoneEvent> zones_;
+  std::vector<fleetgw::v1::Alarm> alarms_;
+  std::optional<fleetgw::v1::VehicleState> state_;
+};
+
+bool have_gpsd_tools() {
+  return std::system("command -v gpsfake >/dev/null 2>&1 && command -v gpsd >/dev/null 2>&1") == 0;
+}
+
+TEST(ZonesOverMqtt, AReplacedBundleAppliesAtOnceAndALockOnTheBikeInANoParkingZoneIsReported) {
+  if (!have_gpsd_tools()) GTEST_SKIP() << "gpsd/gpsfake not installed (scripts/install-deps.sh)";
+  TempDir dir;
+  MosquittoBroker broker;
+  broker.start();
+  const std::string vehicle = "zone-mqtt-2";
+  Operator ops(dir);
+  // The bike stands still at (kLat0, kLon0) with its frame lock (lock2) open; the rider locks it
+  // with the key 60 s in.
+  const auto scenario = dir.path() / "stand.toml";
+  std::ofstream(scenario) << "[scenario]\nname = \"stand\"\ndescription = \"stand, lock\"\n"
+                          << "duration_s = 300\n[bike]\nlocks_locked = true\n"
+                          << "[[ride]]\nduration_s = 300\nspeed_kmh = 0\n"
+                          << "[[event]]\nat_s = 1\naction = \"unlock\"\nnode = \"lock2\"\n"
+                          << "[[event]]\nat_s = 60\naction = \"lock\"\nnode = \"lock2\"\n";
+  const std::uint16_t gpsd_port = fleetgw::testing::free_loopback_port();
+  const auto config = gateway_config(dir, vehicle, broker.uri(), gpsd_port, ops.key_line(),
+                                     scenario.string(), "min_dwell_ms = 60000\n");
+  VehicleWatcher watch(broker.uri(), vehicle);
+  StillGps gps(dir, gpsd_port);
+  GatewayProcess gw(FLEETGW_BINARY, config, {"--duration", "240"});
+  ASSERT_TRUE(wait_until(
+      [&] {
+        const auto s = status_of(dir, config);
+        return s.is_object() && s.contains("gnss") && s["gnss"].value("fix", false);
+      },
+      30s, 200ms))
+      << gw.log();
+  // The dwell is a minute: only the evaluation at a bundle's arrival can decide in time.
+  // Version 1: the bike inside its operating area, entered at once.
+  publish_retained(
+      broker.uri(), "fleet/v1/zones",
+      ops.sign(1, {feature("city", "operating_area",
+                           rect(kLon0 - 0.01, kLon0 + 0.01, kLat0 - 0.01, kLat0 + 0.01))}));
+  ASSERT_TRUE(
+      wait_until([&] { return watch.has_zone("city", fleetgw::v1::ZONE_TRANSITION_ENTER); }, 15s))
+      << gw.log();
+
+  // Version 2 moves the area 5 km east and puts a no-parking zone where the bike stands.
+  publish_retained(
+      broker.uri(), "fleet/v1/zones",
+      ops.sign(2, {feature("city", "operating_area",
+                           rect(kLon0 + 0.07, kLon0 + 0.09, kLat0 - 0.01, kLat0 + 0.01)),
+                   feature("station", "no_parking",
+                           rect(kLon0 - 0.001, kLon0 + 0.001, kLat0 - 0.001, kLat0 + 0.001))}));
+  using fleetgw::v1::ALARM_KIND_OUTSIDE_OPERATING_AREA;
+  ASSERT_TRUE(wait_until(
+      [&] {
+        return watch.has_alarm(ALARM_KIND_OUTSIDE_OPERATING_AREA,
+                               fleetgw::v1::ALARM_TRANSITION_RAISED);
+      },
+      15s))
+      << gw.log();
+  EXPECT_TRUE(watch.has_zone("city", fleetgw::v1::ZONE_TRANSITION_EXIT)) << gw.log();
+  EXPECT_TRUE(watch.has_zone("station", fleetgw::v1::ZONE_TRANSITION_ENTER)) << gw.log();
+  // Listed in the retained last-known state while it is raised.
+  EXPECT_TRUE(wait_until([&] { return watch.state_lists(ALARM_KIND_OUTSIDE_OPERATING_AREA); }, 15s))
+      << gw.log();
+  EXPECT_EQ(geofence_field(status_of(dir, config), "outside_operating_area"), true);
+
+  // The rider locks the frame lock with the key, in the no-parking zone: reported.
+  ASSERT_TRUE(wait_until(
+      [&] { return watch.has_zone("station", fleetgw::v1::ZONE_TRANSITION_LOCKED_IN_NO_PARKING); },
+      90s))
+      << gw.log();
+  EXPECT_FALSE(watch.has_zone("station", fleetgw::v1::ZONE_TRANSITION_LOCK_REFUSED));
+  EXPECT_EQ(gw.stop(), 0) << gw.log();
+}
+
+}  // namespace
