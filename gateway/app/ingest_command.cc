@@ -2,6 +2,7 @@
 #include "gateway/app/ingest_command.h"
 
 #include <CLI/CLI.hpp>
+#include <cctype>
 #include <string>
 
 namespace fleetgw::app {
@@ -39,6 +40,19 @@ void add_ingest_options(CLI::App& app, ingest::IngestOptions& o) {
   app.add_option("--log-level", o.log_level, "trace, debug, info, warn, error")
       ->check(CLI::IsMember({"trace", "debug", "info", "warn", "error"}))
       ->capture_default_str();
+  // A service's settings also come from the environment, FLEETGW_INGEST_<OPTION> (the packaged
+  // unit reads them from /etc/fleetgw-ingest/ingest.env, which keeps the broker and database
+  // passwords out of the command line, visible in ps); a command-line value wins. Not --duration
+  // or --gaps: those are one-off runs, not a service's settings.
+  for (const char* name :
+       {"broker", "topic-prefix", "group", "client-id", "pg", "batch", "session-expiry-s",
+        "ca-file", "cert-file", "key-file", "username", "password", "log-level"}) {
+    std::string env = "FLEETGW_INGEST_";
+    for (const char* c = name; *c != '\0'; ++c) {
+      env += *c == '-' ? '_' : static_cast<char>(std::toupper(static_cast<unsigned char>(*c)));
+    }
+    app.get_option(std::string("--") + name)->envname(env);
+  }
 }
 
 }  // namespace fleetgw::app

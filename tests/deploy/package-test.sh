@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# Builds the Debian package, installs it on THIS machine with dpkg, checks what it installed and
+# Builds the Debian packages, checks the gateway's (fleetgw; fleetgw-ingest has
+# ingest-package-test.sh), installs it on THIS machine with dpkg, checks what it installed and
 # that it started nothing, checks that a technician's config edit survives a reinstall (conffile),
 # removes it (data and config stay), purges it (nothing stays). Root required: the test really
 # installs, as issue 7 asks. Idempotent: a leftover fleetgw package from an aborted run is purged
@@ -53,6 +54,18 @@ for f in ./usr/bin/fleetgw ./usr/bin/fleetgw-watch ./etc/fleetgw/fleetgw.toml ./
          ./usr/share/bash-completion/completions/fleetgw; do
   grep -q " $f\$" <<<"$contents" && ok "contains $f" || fail "package lacks $f"
 done
+# The backend consumer is package fleetgw-ingest (ingest-package-test.sh): nothing of it here.
+grep -q "fleetgw-ingest" <<<"$contents" && fail "package contains fleetgw-ingest files" ||
+  ok "no fleetgw-ingest files"
+# A manual page for every subcommand `fleetgw --help` lists (fleetgw-ingest's is in its package).
+subcommands=$("$BUILD/gateway/app/fleetgw" --help |
+  sed -n '/^Subcommands:/,/^$/s/^  \([a-z][a-z0-9-]*\).*/\1/p')
+[ -n "$subcommands" ] || fail "no subcommands in fleetgw --help"
+for sub in $subcommands; do
+  [ "$sub" = ingest ] && continue
+  grep -q " ./usr/share/man/man1/fleetgw-$sub.1.gz\$" <<<"$contents" &&
+    ok "manual page fleetgw-$sub(1)" || fail "no manual page for fleetgw $sub"
+done
 conffiles=$(dpkg-deb --ctrl-tarfile "$deb" | tar -xO ./conffiles)
 [ "$conffiles" = /etc/fleetgw/fleetgw.toml ] && ok "conffile /etc/fleetgw/fleetgw.toml" ||
   fail "conffiles is \"$conffiles\""
@@ -62,6 +75,8 @@ echo "Depends: $depends"
 for lib in libc6 libstdc++6 libpaho-mqttpp3 adduser; do
   grep -q "$lib" <<<"$depends" && ok "depends on $lib" || fail "Depends lacks $lib"
 done
+# A bike never installs PostgreSQL's client library.
+grep -q libpq <<<"$depends" && fail "depends on libpq" || ok "no libpq dependency"
 # protobuf and SQLite are linked statically (FLEETGW_STATIC_DEPS, the default: resident memory).
 static_deps=$(grep -s "^FLEETGW_STATIC_DEPS:" "$BUILD/CMakeCache.txt" | cut -d= -f2 || true)
 for lib in libsqlite3-0 libprotobuf32; do
@@ -81,12 +96,14 @@ rm -rf "$unpacked"
 [[ $kind == *", stripped"* ]] && ok "binary is stripped" || fail "binary: $kind"
 
 echo "== lintian"
-# Debian's own package checker: no error may remain (warnings are printed for the record).
+# Debian's own package checker: no error, and no warning but initial-upload-closes-no-bugs (the
+# first changelog entry closes no ITP bug). The report is printed for the record.
 if command -v lintian >/dev/null; then
-  if report=$(lintian --fail-on error "$deb" 2>&1); then
-    ok "lintian: no errors"
+  if report=$(lintian --fail-on error,warning --suppress-tags initial-upload-closes-no-bugs \
+      "$deb" 2>&1); then
+    ok "lintian: no errors, no new warnings"
   else
-    fail "lintian reports errors"
+    fail "lintian reports errors or warnings"
   fi
   [ -n "$report" ] && sed 's/^/  lintian: /' <<<"$report"
 else
