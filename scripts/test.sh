@@ -9,7 +9,7 @@
 #             runs once, sanitized (one tree, not a plain tree and a sanitizer tree: that halves
 #             the compile, which is most of the run). Alongside it, at the lowest CPU priority,
 #             the product tree build/ (gcc, Release, warnings as errors, unity batches: the
-#             binaries as shipped and the benchmarks, the test executables only when named);
+#             binaries as shipped, the test executables only when named; no benchmarks);
 #   test      the CTest suite in build-san/ (unit, integration with a real mosquitto, real SQLite
 #             files, real gpsd); alongside it, at low priority, what mostly waits or can use the
 #             suite's idle time: the arm64 cross build with its emulated tests, and in the
@@ -105,11 +105,14 @@ deps_pid=$!
 phase_end
 
 # The product tree: the binaries exactly as shipped (gcc, Release, -Os, static protobuf and
-# SQLite) and the benchmarks; test executables are built only when named (the VM test binary and
+# SQLite); test executables are built only when named (the VM test binary and
 # the `memory` tests). Compiled at nice 19, so it only takes CPU the test tree leaves idle.
 product_build() {
+  # No benchmarks: nothing in this run runs them (bench/ scripts and README figures build them),
+  # and their compile was the product tree's longest tail.
   cmake -S . -B build -DCMAKE_BUILD_TYPE=Release -DFLEETGW_WERROR=ON -DFLEETGW_UNITY=ON \
-    -DFLEETGW_UNITY_TESTS=ON -DFLEETGW_TESTS_IN_ALL=OFF "${LAUNCHER[@]}" >/dev/null
+    -DFLEETGW_UNITY_TESTS=ON -DFLEETGW_TESTS_IN_ALL=OFF -DFLEETGW_BUILD_BENCH=OFF \
+    "${LAUNCHER[@]}" >/dev/null
   local targets=(all cli_memory_tests uplink_contract_tests)
   [ "${SKIP_VM:-0}" = 1 ] || targets+=(socketcan_vm_tests)
   nice -n 19 cmake --build build -j "$JOBS" --target "${targets[@]}"
@@ -168,15 +171,20 @@ if [ -n "$product_pid" ]; then
     ( rc=0; ctest --output-on-failure --timeout 900 -L demo >demo-tests.log 2>&1 || rc=$?
       echo "$rc" >demo-tests.rc ) &
     demo_pid=$!
+    # The VM test (one QEMU core, mostly booting) beside the deployment tests (dpkg and lintian,
+    # one at a time: they install packages on this machine), then the memory tests.
+    vm_pid=
     if [ "${SKIP_VM:-0}" != 1 ]; then
-      rc=0; ctest --output-on-failure --timeout 900 -L vm >vm-tests.log 2>&1 || rc=$?
-      echo "$rc" >vm-tests.rc
+      ( rc=0; ctest --output-on-failure --timeout 900 -L vm >vm-tests.log 2>&1 || rc=$?
+        echo "$rc" >vm-tests.rc ) &
+      vm_pid=$!
     fi
     rc=0; ctest --output-on-failure --timeout 900 -L deploy -LE arm64 >deploy-tests.log 2>&1 ||
       rc=$?
     echo "$rc" >deploy-tests.rc
     rc=0; ctest --output-on-failure --timeout 900 -L memory >memory-tests.log 2>&1 || rc=$?
     echo "$rc" >memory-tests.rc
+    [ -z "$vm_pid" ] || wait "$vm_pid"
     wait "$demo_pid"
   ) &
   product_tests_pid=$!

@@ -72,7 +72,11 @@ void check_bus(const config::Config& c, std::vector<std::string>& out) {
       out.push_back(fmt::format("{}: {}", c.where("sim.scenario"), why));
     } else {
       try {
-        (void)sim::load_scenario(c.sim.scenario);
+        const sim::Scenario s = sim::load_scenario(c.sim.scenario);
+        if (!c.sim.nmea_pty.empty() && s.route.empty()) {
+          out.push_back(fmt::format("{}: scenario {} has no [[route]] to serve as NMEA",
+                                    c.where("sim.nmea_pty"), c.sim.scenario));
+        }
       } catch (const std::exception& e) {
         out.push_back(fmt::format("{}: {}", c.where("sim.scenario"), e.what()));
       }

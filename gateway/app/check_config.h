@@ -10,7 +10,8 @@
 //  * check_runnable() never throws. It applies the checks that the service's components would
 //    otherwise apply one at a time at start-up, with their own code where they have it:
 //      - can.replay_file exists and is a readable file (transport replay),
-//      - sim.scenario loads (transport sim), can.udp_local/udp_remote are address:port (udp),
+//      - sim.scenario loads (transport sim; with sim.nmea_pty it has a [[route]]),
+//        can.udp_local/udp_remote are address:port (udp),
 //      - the directory of storage.path exists and storage.path is not a directory (the service
 //        never creates directories),
 //      - [mqtt] (when enabled): uplink::check_uplink_config (URI scheme, no user information,

@@ -347,6 +347,7 @@ Config parse_root(const toml::table& root, const std::string& name) {
       s.number("speed", c.sim.speed, 0.01, 100'000);
       s.integer("seed", c.sim.seed, 0, INT64_MAX);
       s.boolean("start_now", c.sim.start_now);
+      s.string("nmea_pty", c.sim.nmea_pty);
     }
     {
       auto s = top.sub("storage");

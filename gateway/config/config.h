@@ -74,6 +74,9 @@ struct SimConfig {
   // Start the simulated timeline at the current wall-clock time instead of the scenario's
   // start_utc, so records and commands carry present-day times (the live demo).
   bool start_now = true;
+  // Symlink to a pty on which the simulated bike's GNSS receiver writes NMEA for the
+  // scenario's [[route]] (a gpsd reads it); empty = no simulated receiver.
+  std::string nmea_pty;
 };
 
 struct StorageConfig {

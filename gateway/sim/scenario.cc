@@ -9,6 +9,7 @@
 
 #include <toml++/toml.h>
 
+#include "gateway/sim/route.h"
 #include "motinova/faults.h"
 
 namespace fleetgw::sim {
@@ -567,6 +568,7 @@ Scenario parse_scenario(std::string_view toml_text, std::string_view source_name
       }
     }
   }
+  if (const toml::array* route = top.array("route")) s.route = parse_route(*route, file);
   top.finish();
   std::stable_sort(s.events.begin(), s.events.end(),
                    [](const ScenarioEvent& a, const ScenarioEvent& b) { return a.at < b.at; });

@@ -105,6 +105,12 @@ struct ScenarioEvent {
 
 inline constexpr std::size_t kSimLocks = 5;
 
+// One waypoint of the scenario's route (WGS-84 degrees); gateway/sim/route.h walks it.
+struct GeoPoint {
+  double lat_deg = 0;
+  double lon_deg = 0;
+};
+
 struct Scenario {
   std::string name = "unnamed";
   std::string description;
@@ -143,6 +149,8 @@ struct Scenario {
 
   std::vector<RideSegment> ride;
   std::vector<ScenarioEvent> events;
+  // [[route]]: the path the bike follows, by the odometer's distance (empty: no position).
+  std::vector<GeoPoint> route;
 
   Micros ride_duration() const;
   Micros effective_duration() const;

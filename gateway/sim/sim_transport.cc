@@ -6,6 +6,8 @@
 
 #include <asio/post.hpp>
 
+#include "gateway/sim/sim_gnss.h"
+
 namespace fleetgw::sim {
 
 RealtimeDriver::RealtimeDriver(asio::io_context& io, Bike& bike, double acceleration)
@@ -74,6 +76,7 @@ void RealtimeDriver::receive(const motinova::CanFrame& frame) {
   const Micros at = behind_ ? delivered_to_ : std::max(delivered_to_, virtual_now());
   delivered_to_ = at;
   bike_.advance_to(at, bike_emit_);
+  if (on_advanced_) on_advanced_(at);
   bike_.receive(frame, at);
   arm();  // the reaction may be due before the event the timer waits for
 }
@@ -117,6 +120,7 @@ void RealtimeDriver::fire() {
     delivered_to_ = std::min(target, delivered_to_ + step());
     bike_.advance_to(delivered_to_, bike_emit_);
     if (!running_) return;  // the handler stopped us
+    if (on_advanced_) on_advanced_(delivered_to_);
     if (std::chrono::steady_clock::now() - started >= kWorkBudget) break;
   }
   behind_ = delivered_to_ < target;
@@ -143,6 +147,12 @@ SimTransport::~SimTransport() {
   stop();
 }
 
+void SimTransport::serve_nmea(const std::filesystem::path& link) {
+  if (started_) throw std::logic_error("SimTransport::serve_nmea after start");
+  gnss_ = std::make_unique<SimGnss>(bike_, link);
+  driver_.set_on_advanced([this](Micros t) { gnss_->on_bus_time(t); });
+}
+
 void SimTransport::start(FrameHandler on_frame, HealthHandler on_health) {
   if (started_) throw std::logic_error("SimTransport::start called twice");
   started_ = true;
@@ -151,6 +161,7 @@ void SimTransport::start(FrameHandler on_frame, HealthHandler on_health) {
   health_.state = can::ControllerState::kUp;
   health_.detail = "simulated bus, scenario " + bike_.scenario().name;
   if (on_health_) on_health_(health_);
+  if (gnss_) gnss_->on_bus_time(bike_.current_time());  // where the bike stands at the start
   driver_.start([this](const motinova::CanFrame& frame, Micros ts) {
     ++health_.rx_frames;
     if (on_frame_) on_frame_(frame, ts);

@@ -21,6 +21,7 @@
 // (a command waits for the lock's answer). Window 0 (the default): one wake-up per bike event.
 #pragma once
 
+#include <filesystem>
 #include <functional>
 #include <memory>
 #include <optional>
@@ -34,6 +35,8 @@
 #include "gateway/sim/bike.h"
 
 namespace fleetgw::sim {
+
+class SimGnss;  // gateway/sim/sim_gnss.h
 
 class RealtimeDriver {
  public:
@@ -56,6 +59,8 @@ class RealtimeDriver {
   void receive(const motinova::CanFrame& frame);
   Micros virtual_now() const;
   bool running() const { return running_; }
+  // Called after each step the bike has run, with the bus time it has reached (SimGnss).
+  void set_on_advanced(std::function<void(Micros)> hook) { on_advanced_ = std::move(hook); }
 
  private:
   // One wake-up delivers what is due in steps of kStep of real time's worth of bus time, and
@@ -78,6 +83,7 @@ class RealtimeDriver {
   std::optional<std::chrono::steady_clock::time_point> armed_for_;
   Emit emit_;
   Bike::Emit bike_emit_;
+  std::function<void(Micros)> on_advanced_;
   std::chrono::steady_clock::time_point real_start_{};
   Micros virtual_start_{0};
   bool running_ = false;
@@ -102,12 +108,16 @@ class SimTransport final : public can::Transport {
   void flush() { driver_.flush(); }
   Bike& bike() { return bike_; }
   const Bike& bike() const { return bike_; }
+  // Serves the scenario's route as NMEA on a pty linked at `link` (see SimGnss); before start().
+  void serve_nmea(const std::filesystem::path& link);
+  const SimGnss* gnss() const { return gnss_.get(); }
 
  private:
   asio::io_context& io_;
   Bike bike_;
   RealtimeDriver driver_;
   std::string name_;
+  std::unique_ptr<SimGnss> gnss_;
   can::BusHealth health_;
   FrameHandler on_frame_;
   HealthHandler on_health_;

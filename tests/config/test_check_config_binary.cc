@@ -118,6 +118,17 @@ TEST_F(CheckConfig, MissingReplayFileIsRefused) {
                                "' does not exist");
 }
 
+// Issue 14: the simulated GNSS receiver serves the scenario's route; demo.toml has none.
+TEST_F(CheckConfig, NmeaPtyWithoutARouteIsRefused) {
+  const std::string scenario = kSource + "/config/scenarios/demo.toml";
+  const std::string text = "[can]\ntransport = \"sim\"\n[sim]\nscenario = \"" + scenario +
+                           "\"\nnmea_pty = \"" + (dir_.path() / "gps").string() +
+                           "\"\n[storage]\npath = \"" + (dir_.path() / "fleetgw.db").string() +
+                           "\"\n[status]\nsocket = \"\"\n";
+  expect_both_refuse(write(text), "sim.nmea_pty: scenario " + scenario + " has no [[route]]");
+  EXPECT_FALSE(fs::exists(dir_.path() / "gps"));
+}
+
 TEST_F(CheckConfig, MissingStorageDirectoryIsRefusedAndNotCreated) {
   const fs::path missing = dir_.path() / "no-such-dir";
   const std::string text = base((missing / "fleetgw.db").string());
