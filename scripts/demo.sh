@@ -2,12 +2,16 @@
 # The live demo, as a story told in about a minute once fleetgw is built: a simulated MOTINOVA
 # e-bike on an in-process CAN bus, the fleetgw service decoding it into SQLite and publishing to
 # a private mosquitto, a subscriber decoding what reaches the broker, and an operator sending
-# signed remote commands. In order: the operator unlocks the frame lock remotely; the bike is
-# ridden for 20 minutes (the simulator runs 40x real time, so that takes 30 s), during which the
-# motor overheats and recovers and the operator's attempt to lock the frame lock is refused
-# because the bike is moving; the bike stops, the operator locks it, the ride ends and reaches
-# the broker; at night the locked bike is ridden away: a theft alarm. Every step prints one plain
-# line as it happens; the end is `fleetgw db summary` and the commands to look further.
+# signed remote commands and a signed zone bundle. The bike's GNSS receiver follows the
+# scenario's route through Ljubljana, read by a real gpsd. In order: the operator publishes the
+# city's zones and unlocks the frame lock remotely; the bike is ridden for 23 minutes (the
+# simulator runs 40x real time, so that takes 35 s), during which the operator caps its speed
+# at 15 km/h (confirmed by the MC), the motor overheats and recovers, the operator's attempt to
+# lock the frame lock is refused because the bike is moving, and the bike crosses the Old Town
+# slow zone (10 km/h, applied along a ramp and lifted on exit, back to the operator's 15); the
+# bike stops, the operator locks it, the ride ends with its GNSS track and reaches the broker;
+# at night the locked bike is ridden away: a theft alarm. Every step prints one plain line as
+# it happens; the end is `fleetgw db summary` and the commands to look further.
 #
 # The script reacts to what the bike does, not to fixed sleeps: it polls `fleetgw status` (speed,
 # open ride) and the store (`fleetgw db ... --format json`, read-only) for each condition.
@@ -33,7 +37,8 @@ while [ $# -gt 0 ]; do
 done
 SPEED=${SPEED:-40}
 SCENARIO=$ROOT/config/scenarios/demo-story.toml
-BUS_SECONDS=2320  # the scenario's length in bus time
+BUS_SECONDS=2500  # the scenario's length in bus time
+ZONES_GEOJSON=$ROOT/config/demo-zones.geojson
 
 SECONDS=0
 section() { echo "== $1"; }
@@ -99,9 +104,9 @@ persistence false
 set_tcp_nodelay true
 log_dest stderr
 CONF
-BROKER="" SUBSCRIBER="" SERVICE=""
+BROKER="" SUBSCRIBER="" SERVICE="" GPSD_PID=""
 cleanup() {
-  for pid in $SERVICE $SUBSCRIBER $BROKER; do kill "$pid" 2>/dev/null || true; done
+  for pid in $SERVICE $GPSD_PID $SUBSCRIBER $BROKER; do kill "$pid" 2>/dev/null || true; done
 }
 trap cleanup EXIT
 MOSQUITTO=$(command -v mosquitto || echo /usr/sbin/mosquitto)
@@ -113,12 +118,26 @@ for _ in $(seq 100); do  # until the broker accepts connections (at most 10 s)
   sleep 0.1
 done
 
+# The bike's GNSS: the simulator writes NMEA on a pty, a real gpsd reads it like a serial receiver.
+GPSD=$(command -v gpsd || echo /usr/sbin/gpsd)
+[ -x "$GPSD" ] || { echo "demo: gpsd is not installed (scripts/install-deps.sh installs it)" >&2; exit 1; }
+GPSD_PORT=$(python3 -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1",0)); print(s.getsockname()[1])')
+PTY=$OUT/sim-gps
+
 CONFIG=$OUT/fleetgw.toml
 sed -e "s#@PORT@#$PORT#g" -e "s#@DB@#$OUT/fleetgw.db#g" -e "s#@SCENARIO@#$SCENARIO#g" \
-  -e "s#@SPEED@#$SPEED#g" -e "s#@SOCKET@#$OUT/status.sock#g" config/demo.toml.in > "$CONFIG"
+  -e "s#@SPEED@#$SPEED#g" -e "s#@SOCKET@#$OUT/status.sock#g" -e "s#@PTY@#$PTY#g" \
+  -e "s#@GPSD_PORT@#$GPSD_PORT#g" -e "s#@ZONES@#$OUT/zones.pb#g" config/demo.toml.in > "$CONFIG"
 KEYLINE=$("$FLEETGW" keygen "$OUT/operator" 2>/dev/null)  # the operator's key, trusted below
 printf '\n[command.trusted_keys]\n%s\n' "$KEYLINE" >> "$CONFIG"
 BROKER_URI=tcp://127.0.0.1:$PORT
+
+# The city's zones, drawn as GeoJSON, signed by the operator and published retained: every bike
+# of the fleet gets them when it connects, and keeps them for when it is offline.
+"$FLEETGW" zones sign "$ZONES_GEOJSON" --version 1 --key "$OUT/operator.pem" \
+  --out "$OUT/zones-v1.pb" > "$OUT/zones-sign.log" 2>&1 ||
+  { cat "$OUT/zones-sign.log"; exit 1; }
+mosquitto_pub -h 127.0.0.1 -p "$PORT" -t fleet/v1/zones -r -f "$OUT/zones-v1.pb"
 "$FLEETGW" watch --broker "$BROKER_URI" --topic 'fleet/v1/#' > "$OUT/subscriber.log" 2>&1 &
 SUBSCRIBER=$!
 
@@ -137,15 +156,22 @@ def walk(doc, path):  # "a.b", "a.0", "locks.kind=frame.state"
         if doc is None:
             return None
     return doc
+DIGITS = 1
 def show(v):
     if v is None: return ""
-    if isinstance(v, float): return f"{v:.1f}"
+    if isinstance(v, float): return f"{v:.{DIGITS}f}"
     return str(v)
+text = sys.stdin.read()
 try:
-    doc = json.load(sys.stdin)
-except ValueError:
-    sys.exit(0)
+    doc = json.loads(text)
+except ValueError:  # JSON lines (db export), oldest first: a list, newest first
+    try:
+        doc = [json.loads(line) for line in text.splitlines() if line.strip()][::-1]
+    except ValueError:
+        sys.exit(0)
 mode, args = sys.argv[1], sys.argv[2:]
+if mode.endswith("-fine"):  # coordinates: five decimals (about a metre)
+    mode, DIGITS = mode[:-len("-fine")], 5
 if mode == "get":      # get PATH...: one value per line ('' when missing)
     for p in args: print(show(walk(doc, p)))
 elif mode == "first":  # first KEY=VALUE... -- FIELD...: the newest row that matches
@@ -159,6 +185,7 @@ PY
 q() { python3 "$OUT/q.py" "$@"; }
 status_json() { "$FLEETGW" status --config "$CONFIG" --format json 2>/dev/null || true; }
 db_json() { "$FLEETGW" db "$1" --config "$CONFIG" --format json --limit 0 2>/dev/null || echo '[]'; }
+db_rows() { "$FLEETGW" db export --table "$1" --config "$CONFIG" --format jsonl 2>/dev/null || true; }
 
 FAILED=0
 T0=$SECONDS
@@ -198,14 +225,18 @@ command_step() {
 }
 
 # Conditions the story waits for.
-S_SPEED="" S_SOC="" S_RIDE_KM="" S_RIDE_MIN="" S_FRAME=""
+S_SPEED="" S_SOC="" S_RIDE_KM="" S_RIDE_MIN="" S_FRAME="" S_LIMIT="" S_FIX="" S_LAT="" S_LON=""
+S_ZONES_VERSION=""
 read_status() {
   { read -r S_SPEED; read -r S_SOC; read -r S_RIDE_KM; read -r S_RIDE_S; read -r S_FRAME
-    read -r S_BROKER; } < <(status_json | q get vehicle.speed_kmh vehicle.soc_pct \
-      vehicle.ride.distance_km vehicle.ride.duration_s locks.kind=frame.state broker.connected) || true
+    read -r S_BROKER; read -r S_LIMIT; read -r S_FIX; read -r S_LAT; read -r S_LON
+    read -r S_ZONES_VERSION; } < <(status_json | q get vehicle.speed_kmh vehicle.soc_pct \
+      vehicle.ride.distance_km vehicle.ride.duration_s locks.kind=frame.state broker.connected \
+      vehicle.speed_limit_kmh gnss.fix gnss.lat gnss.lon geofence.version) || true
   S_RIDE_MIN=$(awk -v s="${S_RIDE_S:-0}" 'BEGIN { printf "%.1f", s / 60 }')
 }
 gateway_ready() { read_status; [ "$S_FRAME" = locked ] && [ "$S_BROKER" = True ]; }
+located() { read_status; [ "$S_FIX" = True ] && [ "$S_ZONES_VERSION" = 1 ]; }
 riding_fast() {
   read_status
   [ -n "$S_RIDE_KM" ] && awk -v v="${S_SPEED:-0}" 'BEGIN { exit !(v >= 12) }'
@@ -217,9 +248,9 @@ standing_after_ride() {  # two readings in a row at walking pace or less
   [ $STILL -ge 2 ]
 }
 FAULT_NODE="" FAULT_NAME="" FAULT_SEV="" FAULT_AT=""
-fault_event() {  # fault_event raised|cleared
+fault_event() {  # fault_event raised|cleared [NODE]: the newest such event (of the MC by default)
   { read -r FAULT_NODE; read -r FAULT_NAME; read -r FAULT_SEV; read -r FAULT_AT; } < <(db_json faults |
-    q first event="$1" -- node fault severity time) || true
+    q first event="$1" node="${2:-mc}" -- node fault severity time) || true
   [ -n "$FAULT_NAME" ]
 }
 RIDE_ID="" RIDE_KM="" RIDE_MIN=""
@@ -237,17 +268,44 @@ alarm_event() {  # alarm_event raised|cleared
   [ -n "$at" ]
 }
 
+ZONE_NAME="" ZONE_LIMIT="" ZONE_LAT="" ZONE_LON=""
+zone_event() {  # zone_event enter|exit: the slow zone's newest such event in the store
+  { read -r ZONE_NAME; read -r ZONE_LIMIT; read -r ZONE_LAT; read -r ZONE_LON; } < <(db_rows zone_events |
+    q first-fine kind=slow transition="$1" -- zone_name speed_limit_kmh lat_deg lon_deg) || true
+  [ -n "$ZONE_NAME" ]
+}
+limit_is() { read_status; [ "${S_LIMIT%.*}" = "$1" ]; }  # the MC's limit in force, whole km/h
+
 section "the story (simulator at ${SPEED}x real time; store, logs and config in $OUT)"
 "$FLEETGW" run --config "$CONFIG" --bus-duration $BUS_SECONDS --duration $((240 * SCALE)) \
   > "$OUT/fleetgw.log" 2>&1 &
 SERVICE=$!
+# The simulated receiver's pty exists once the simulator runs; gpsd reads it from then on.
+if wait_for 10 test -L "$PTY"; then
+  "$GPSD" -N -n -b -S "$GPSD_PORT" "$PTY" > "$OUT/gpsd.log" 2>&1 &
+  GPSD_PID=$!
+else
+  missed "GNSS: the simulator made no NMEA pty at $PTY"
+fi
 if wait_for 20 gateway_ready; then
   say "gateway: up, bike heard on the CAN bus, frame lock locked, broker connected"
 else
   missed "gateway: not ready within 20 s (see $OUT/fleetgw.log)"
 fi
-
 command_step "remote unlock (frame lock)" frame unlock succeeded
+if wait_for 20 located; then
+  { read -r S_LAT; read -r S_LON; } < <(status_json | q get-fine gnss.lat gnss.lon) || true
+  say "GNSS: fix at $S_LAT,$S_LON through gpsd; zones: bundle v1 from fleet/v1/zones accepted and stored"
+  # Until the first fix the IoT node reports its GNSS fault (bit 0x0004), as a bike does at
+  # power-up: the gateway says so on the bus and in the store, and clears it with the fix.
+  if wait_for 10 fault_event cleared iot; then
+    say "fault: $FAULT_NODE $FAULT_NAME ($FAULT_SEV) raised until the first fix, now cleared"
+  else
+    missed "fault: the IoT node's gps fault was not cleared within 10 s of the fix"
+  fi
+else
+  missed "GNSS/zones: no fix or no zone bundle in force within 20 s (gnss.fix=$S_FIX, geofence.version=$S_ZONES_VERSION)"
+fi
 
 if wait_for 30 riding_fast; then
   say "ride: started; the bike rides at ${S_SPEED} km/h (fleetgw status)"
@@ -300,6 +358,29 @@ else
   missed "fault: not cleared within 40 s"
 fi
 
+# The Old Town slow zone on the route: the gateway lowers the MC's limit along a ramp on entry
+# (each step written and read back) and writes the operator's 15 km/h back on exit.
+if wait_for 40 zone_event enter; then
+  say "zone: entered slow zone '$ZONE_NAME' at $ZONE_LAT,$ZONE_LON: the limit ramps down to $ZONE_LIMIT km/h"
+  SPEED_CAP=$ZONE_LIMIT
+  if wait_for 20 under_the_cap; then
+    say "status: the bike rides at ${S_SPEED} km/h in the slow zone, the MC's limit is ${S_LIMIT%.*} km/h"
+  else
+    missed "slow zone: the bike did not slow under $ZONE_LIMIT km/h within 20 s"
+  fi
+else
+  missed "slow zone: not entered within 40 s"
+fi
+if wait_for 40 zone_event exit; then
+  if wait_for 20 limit_is 15; then
+    say "zone: left '$ZONE_NAME' at $ZONE_LAT,$ZONE_LON: the MC's limit is back to 15 km/h (the operator's cap)"
+  else
+    missed "slow zone: the limit did not return to 15 km/h within 20 s (now ${S_LIMIT:-?})"
+  fi
+else
+  missed "slow zone: not left within 40 s"
+fi
+
 if wait_for 40 standing_after_ride; then
   say "ride: the bike stands (${S_RIDE_KM} km so far)"
   command_step "remote lock (frame lock)" frame lock succeeded
@@ -308,6 +389,19 @@ else
 fi
 if wait_for 20 ride_closed && wait_for 20 ride_at_broker; then
   say "ride: ended by the lock and reached the broker: $RIDE_KM km in $RIDE_MIN min"
+  { read -r TRACK_POINTS; read -r GNSS_KM; } < <(db_rows rides | python3 -c '
+import json, sys
+rows = [json.loads(l) for l in sys.stdin if l.strip()]
+ride = next((r for r in rows if r.get("ride_id") == sys.argv[1]), {})
+track = json.loads(ride.get("track") or "[]") if isinstance(ride.get("track"), str) else ride.get("track") or []
+gnss_m = ride.get("gnss_distance_m") or 0
+print(len(track)); print("%.2f" % (gnss_m / 1000))' "$RIDE_ID") || true
+  "$FLEETGW" db export --table rides --format geojson --config "$CONFIG" > "$OUT/rides.geojson" 2>/dev/null || true
+  if [ "${TRACK_POINTS:-0}" -ge 2 ]; then
+    say "ride: GNSS track of $TRACK_POINTS points, ${GNSS_KM} km (odometer $RIDE_KM km): ${OUT#"$ROOT"/}/rides.geojson"
+  else
+    missed "ride: no GNSS track in the ride record"
+  fi
 else
   missed "ride: no closed ride at the broker within 40 s"
 fi
@@ -337,10 +431,12 @@ cat <<NEXT
   each command and its reason: $F db commands --config $C
   the faults, the alarm:       $F db faults --config $C; $F db alarms --config $C
   the ride as a picture:       $F ride plot latest --config $C --out ride.svg
+  the route on any map:        ${OUT#"$ROOT"/}/rides.geojson (fleetgw db export --table rides --format geojson)
+  the zone crossings:          $F db export --table zone_events --config $C
   the telemetry for a sheet:   $F db export --table telemetry --format csv --config $C
   what reached the broker:     less ${OUT#"$ROOT"/}/subscriber.log
   the gateway's health:        $F status --config $C   (while the demo runs)
-  the story in real time:      SPEED=1 ./scripts/demo.sh   (39 minutes)
+  the story in real time:      SPEED=1 ./scripts/demo.sh   (42 minutes)
 NEXT
 echo
 if [ $FAILED = 0 ]; then

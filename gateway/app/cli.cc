@@ -260,6 +260,9 @@ int run_cli(int argc, char** argv) {
                       "udp:<local port>:<remote port>, udp:<laddr>:<lport>:<raddr>:<rport> or "
                       "socketcan:<ifname>");
   sim_cmd->add_option("--record", sim_options.record, "write a candump -L log instead");
+  sim_cmd->add_option("--nmea-pty", sim_options.nmea_pty,
+                      "serve the scenario's [[route]] as NMEA (GGA+RMC, 1 Hz of bus time) on a "
+                      "pty linked at PATH, for gpsd");
 
   // db
   auto db = add_db_command(app);

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "gateway/app/ride_plot.h"
+#include "gateway/app/ride_plot_map.h"
 #include "gateway/app/store_open.h"
 #include "gateway/app/table_format.h"
 #include "gateway/config/config.h"
@@ -39,13 +40,16 @@ std::optional<storage::Ride> find_ride(storage::Store& store, const std::string&
 }
 
 RidePlot plot_of(const storage::Ride& ride, const std::vector<storage::TelemetrySample>& telemetry,
-                 const motinova::DecodeOptions& protocol) {
+                 const motinova::DecodeOptions& protocol, std::ostream& err) {
   RidePlot plot;
   plot.ride_id = ride.ride_id;
   plot.start_us = ride.start_us;
   plot.open = ride.state == storage::RideState::kOpen || !ride.end_us;
   const bool odometer = ride.start_odo_km && ride.end_odo_km;
   plot.distance_km = odometer ? ride.distance_km : ride.distance_integrated_km;
+  if (odometer) plot.odometer_km = ride.distance_km;
+  plot.gnss_distance_m = ride.gnss_distance_m;
+  plot.track = plot_track(ride.ride_id, ride.track, err);
   for (const auto& t : telemetry) {
     PlotSample s;
     s.t_s = static_cast<double>(t.ts_us - ride.start_us) / kMicros;
@@ -73,7 +77,8 @@ std::unique_ptr<RideCommand> add_ride_command(CLI::App& app) {
   ride->command = app.add_subcommand("ride", "look at one ride from the SQLite store (read-only)");
   ride->command->require_subcommand(1);
   ride->plot = ride->command->add_subcommand(
-      "plot", "speed, power, SOC and assist over the ride as a self-contained SVG");
+      "plot",
+      "speed, power, SOC and assist over the ride, and its GNSS track, as a self-contained SVG");
   ride->plot
       ->add_option("ride_id", ride->ride_id, "ride id as `fleetgw db rides` shows it, or latest")
       ->required();
@@ -106,7 +111,7 @@ int run_ride_command(const RideCommand& ride, std::ostream& out, std::ostream& e
   }
   const std::int64_t end_us = found->end_us.value_or(std::numeric_limits<std::int64_t>::max());
   const RidePlot plot =
-      ride_cli::plot_of(*found, store->telemetry_between(found->start_us, end_us), protocol);
+      ride_cli::plot_of(*found, store->telemetry_between(found->start_us, end_us), protocol, err);
   const std::string svg = render_ride_svg(plot);
   if (ride.out_path == "-") {
     out << svg;

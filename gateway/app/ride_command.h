@@ -14,6 +14,10 @@
 //    read (--config given, or no --db), else the built-in U7 names. Gaps: gap_threshold_s().
 //    Distance as in `db rides`: the odometer distance when the ride has odometer readings,
 //    else the integrated one.
+//  * The ride row's GNSS track (`rides.track`, schema v6) becomes the map panel
+//    (ride_plot_map.h), captioned with its GNSS distance and the odometer distance; a stored
+//    track that is not valid is left out with one warning on `err` naming the ride, and the
+//    plot is still written (exit 0).
 //  * `--out -` writes the SVG to `out`; otherwise the file is written (replaced) and one line
 //    on `out` says what was written. A file that cannot be written exits 1.
 //  * Usage errors (no RIDE_ID, no --out) are CLI11's: exit 2 in run_cli.

@@ -7,6 +7,7 @@
 #include <functional>
 #include <type_traits>
 
+#include "gateway/app/ride_plot_map.h"
 #include "gateway/app/time_arg.h"
 #include "gateway/common/untrusted_text.h"
 
@@ -24,9 +25,8 @@ constexpr int kPanelCount = 4;
 constexpr double kPanelHeight =
     (kPanelsBottom - kPanelsTop - (kPanelCount - 1) * kPanelGap) / kPanelCount;
 constexpr double kPlotWidth = kAxisRight - kAxisLeft;
-constexpr double kHeadroom = 6;
-constexpr int kMaxTicks = 20;  // bounds the tick loops whatever the values  // the top of a panel's
-                               // value range sits this far below its top
+constexpr double kHeadroom = 6;  // the top of a panel's value range sits this far below its top
+constexpr int kMaxTicks = 20;    // bounds the tick loops whatever the values
 constexpr std::string_view kAxisColour = "#222222";
 constexpr std::string_view kGridColour = "#e2e2e2";
 constexpr std::string_view kTextColour = "#333333";
@@ -116,16 +116,18 @@ class Builder {
   }
 
   std::string build() {
+    // The map first: whether there is one decides the document's height.
+    const auto map = map_panel_svg(plot_, kSvgHeight);
+    const int height = kSvgHeight + (map ? kMapPanelHeight : 0);
     out_ += "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n";
     out_ += fmt::format(
         "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{0}\" height=\"{1}\" "
         "viewBox=\"0 0 {0} {1}\" font-family=\"DejaVu Sans, Liberation Sans, Arial, "
         "sans-serif\" fill=\"{2}\">\n",
-        kSvgWidth, kSvgHeight, kTextColour);
+        kSvgWidth, height, kTextColour);
     const std::string id = xml_text(plot_.ride_id);
     out_ += "<title>Ride " + id + "</title>\n";
-    out_ +=
-        fmt::format("<rect width=\"{}\" height=\"{}\" fill=\"#ffffff\"/>\n", kSvgWidth, kSvgHeight);
+    out_ += fmt::format("<rect width=\"{}\" height=\"{}\" fill=\"#ffffff\"/>\n", kSvgWidth, height);
     out_ += fmt::format(
         "<text class=\"title\" x=\"{}\" y=\"{}\" font-size=\"18\" font-weight=\"bold\">Ride "
         "{}</text>\n",
@@ -149,6 +151,7 @@ class Builder {
         "<text class=\"xlabel\" x=\"{}\" y=\"{}\" font-size=\"12\" text-anchor=\"middle\">"
         "minutes from ride start</text>\n",
         num(kAxisLeft + kPlotWidth / 2), num(kPanelsBottom + 40));
+    out_ += map ? *map : no_track_note(kPanelsBottom + 56);
     out_ += "</svg>\n";
     return std::move(out_);
   }

@@ -21,6 +21,10 @@
 //    treated as missing.
 //  * gap_threshold_s(samples) = max(5 s, 3 x the median interval between samples): the
 //    default gap for telemetry sampled at 1 Hz while riding.
+//  * The ride's GNSS track (`track`, two or more valid positions) adds a map panel under the
+//    time panels (ride_plot_map.h) and makes the document kMapPanelHeight taller; without one
+//    the document keeps its size and a note line under the time axis says "no GNSS track for
+//    this ride". The time panels are the same either way.
 #pragma once
 
 #include <cstdint>
@@ -29,6 +33,8 @@
 #include <string_view>
 #include <utility>
 #include <vector>
+
+#include "storage/track_text.h"
 
 namespace fleetgw::app {
 
@@ -54,6 +60,12 @@ struct RidePlot {
   std::vector<PlotSample> samples;                        // in time order
   std::vector<std::pair<int, std::string>> assist_names;  // level -> name
   double gap_s = 5;
+  // Where the ride went (ride_plot_map.h): positions in ride order (RidePlot is plain values;
+  // plot_track() makes them from the store's column), the GNSS distance and, for the map's
+  // caption, the odometer's distance (empty without odometer readings).
+  std::vector<storage::TrackPoint> track;
+  std::optional<double> gnss_distance_m;
+  std::optional<double> odometer_km;
 };
 
 std::string render_ride_svg(const RidePlot& plot);

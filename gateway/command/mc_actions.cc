@@ -57,6 +57,7 @@ struct McActionRunner::Job {
   Micros started{0};
   Micros write_sent{0};
   int writes = 0;
+  int rereads = 0;  // verification reads repeated after a stale-looking report (see on_settings)
   // Speed limit: the write, built from the first report.
   std::optional<Settings> before;
   std::int64_t target_offset = 0;
@@ -323,6 +324,14 @@ void McActionRunner::on_settings(const node::RequestResult& res) {
   // Verification read after a write.
   if (s->offset_kmh == j.target_offset) {
     finish(v1::COMMAND_RESULT_CODE_SUCCEEDED, {}, now);
+    return;
+  }
+  // A report that still shows the offset from before the write may be the late answer to an
+  // earlier read the request engine retried (a slow MC answers the first try and the retry):
+  // the reply carries no request id, so read once more before concluding the write was lost.
+  if (j.before && s->offset_kmh == j.before->offset_kmh && j.rereads < j.writes) {
+    ++j.rereads;
+    read_settings(now);
     return;
   }
   if (j.writes <= config_.retries) {

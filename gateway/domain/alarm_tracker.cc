@@ -348,8 +348,11 @@ void AlarmTracker::tick(Micros now) {
     evidence_since_.reset();
     storage::AlarmRecord rec =
         record("unauthorised_movement", storage::AlarmTransition::kCleared, now, movement_.first);
-    rec.detail =
-        format("no movement for %.0f s", static_cast<double>(config_.movement_clear.count()) / 1e6);
+    // Evidence stops either because the bike stood still or because it was unlocked (riding on
+    // is then authorised): the detail says which, so a cleared alarm at speed is not a riddle.
+    rec.detail = format(
+        locked() ? "no movement for %.0f s" : "unlocked; no movement while locked for %.0f s",
+        static_cast<double>(config_.movement_clear.count()) / 1e6);
     emit(std::move(rec));
   }
   const bool still = !evidence_since_ && !movement_.active;

@@ -44,7 +44,9 @@ GatewayCore::GatewayCore(const config::Config& config, node::FrameSender& sender
                                                 .crc_order = config.protocol.crc_order}),
       echo_(sender, *this),
       node_(std::make_unique<node::IotNode>(make_node_config(config), options_, echo_,
-                                            std::move(hooks))) {}
+                                            std::move(hooks))) {
+  live_.settings_limit_is_factory = config.command.mc_settings_limit == "factory";
+}
 
 bool GatewayCore::EchoSender::send(const motinova::AppFrame& frame) {
   if (!inner_.send(frame)) return false;

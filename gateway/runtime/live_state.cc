@@ -26,7 +26,11 @@ void LiveState::update(const motinova::DecodedMessage& m, const motinova::Decode
     if (auto t = m.number("motor_temp_c")) motor_temp_c = t;
     if (auto o = m.number("odo_km"); o && !odo_km) odo_km = o;
   } else if (name == "mc_settings") {
-    if (auto l = m.number("speed_limit_kmh")) speed_limit_kmh = l;
+    auto limit = m.number("speed_limit_kmh");
+    const auto offset = m.number("speed_limit_offset_kmh");
+    // A report without an offset field (older MC firmware) states the limit in force itself.
+    if (limit && offset && settings_limit_is_factory) limit = *limit + *offset;
+    if (limit) speed_limit_kmh = limit;
   } else if (name == "mc_odometer") {
     odo_km = m.number("odo_km");
   } else if (name == "bms_status") {

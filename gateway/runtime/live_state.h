@@ -32,8 +32,11 @@ struct LiveState {
   std::optional<double> speed_kmh;
   std::optional<std::string> assist;
   std::optional<int64_t> assist_raw;
-  std::optional<double> range_km;         // MC estimate (mc_status)
-  std::optional<double> speed_limit_kmh;  // as the MC's settings report (0x5408) gives it
+  std::optional<double> range_km;  // MC estimate (mc_status)
+  // The limit in force from the MC's settings report (0x5408): its speed-limit field plus the
+  // offset when that field is the factory limit (`[command] mc_settings_limit`, a [G] reading).
+  std::optional<double> speed_limit_kmh;
+  bool settings_limit_is_factory = true;
   std::optional<bool> headlight;
   std::optional<double> soc_pct;
   std::optional<double> pack_voltage_v;

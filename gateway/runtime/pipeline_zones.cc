@@ -11,6 +11,8 @@
 // retained zone topics (Uplink::take_zone_bundles), judged and enforced here, on the loop.
 #include <spdlog/spdlog.h>
 
+#include <cmath>
+
 #include "gateway/common/untrusted_text.h"
 #include "gateway/domain/alarm_payload.h"
 #include "gateway/geofence/zone_payload.h"
@@ -35,6 +37,22 @@ storage::ZoneEventRecord zone_record(const geofence::ZoneEvent& e) {
   }
   if (e.kind == geofence::ZoneKind::kSlow) r.speed_limit_kmh = e.speed_limit_kmh;
   return r;
+}
+
+// The enforcer's ladder, lowest first: the configured names (`[protocol] assist_names`, U7) of
+// the plain levels 0 (off) to 4 (turbo). Other values (walk, the "2" variants) are not on it, so
+// the enforcer counts them as the highest and lowers them in a fade.
+std::vector<std::string> enforcer_assist_levels(const motinova::DecodeOptions& protocol) {
+  std::vector<std::string> levels;
+  for (std::uint8_t value = 0; value <= 4; ++value) {
+    for (const auto& a : protocol.assist_names) {
+      if (a.value == value) {
+        levels.push_back(a.name);
+        break;
+      }
+    }
+  }
+  return levels;
 }
 
 std::span<const std::uint8_t> bytes_of(const std::string& s) {
@@ -99,6 +117,7 @@ void Pipeline::start_zones(const config::Config& config) {
   zc.engine.unrestricted_kmh = g.own_limit_kmh;
   zc.engine.refuse_ride_ending_locks = g.refuse_ride_ending_locks;
   zc.enforcer.own_limit_kmh = g.own_limit_kmh;
+  zc.enforcer.assist_levels = enforcer_assist_levels(config.protocol);
   zc.trusted_keys = config.command.trusted_keys;
   zc.bundle_file = g.bundle_file;
   zone_bundle_file_ = g.bundle_file;
@@ -207,6 +226,7 @@ std::optional<GeofenceStatus> Pipeline::geofence_status() const {
   g.bundle_file = zone_bundle_file_;
   g.topics = zone_topics_;
   g.counters = zones_->counters();
+  if (uplink_) g.dropped = uplink_->stats().zone_bundles_dropped;
   g.last_refusal_topic = bundle_refusal_topic_;
   g.outside_operating_area = outside_operating_area_;
   return g;
@@ -216,6 +236,10 @@ void Pipeline::tick_zones() {
   const Micros wall = system_now();
   geofence::McView mc;
   mc.assist_level = core_.live().assist;
+  // The limit in force as the MC last reported it (an operator's cap included), so leaving the
+  // zones writes that back rather than the bike's own limit.
+  if (const auto limit = core_.live().speed_limit_kmh)
+    mc.speed_limit_kmh = static_cast<int>(std::lround(*limit));
   mc.busy = zone_write_running_ || commands_->busy();
   const auto write = zones_->tick(wall, mc);
   if (!write) return;

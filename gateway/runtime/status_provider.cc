@@ -14,13 +14,18 @@ nlohmann::json or_null(const std::optional<T>& v) {
   return v ? nlohmann::json(*v) : nlohmann::json(nullptr);
 }
 
-// What the bike is doing: the latest decoded values (null until heard) and the open ride, its
+// What the bike is doing: the latest decoded values (null until heard; the speed limit in force
+// once the MC's settings were read, by a speed-limit command or a zone) and the open ride, its
 // distance as `fleetgw db rides` reports it (odometer when known, else integrated speed).
 nlohmann::json vehicle_json(const LiveState& live, const std::optional<storage::Ride>& ride,
                             std::optional<bool> parked) {
-  nlohmann::json v = {{"speed_kmh", or_null(live.speed_kmh)}, {"soc_pct", or_null(live.soc_pct)},
-                      {"odo_km", or_null(live.odo_km)},       {"assist", or_null(live.assist)},
-                      {"riding", ride.has_value()},           {"ride", nullptr}};
+  nlohmann::json v = {{"speed_kmh", or_null(live.speed_kmh)},
+                      {"soc_pct", or_null(live.soc_pct)},
+                      {"odo_km", or_null(live.odo_km)},
+                      {"assist", or_null(live.assist)},
+                      {"speed_limit_kmh", or_null(live.speed_limit_kmh)},
+                      {"riding", ride.has_value()},
+                      {"ride", nullptr}};
   v["mode"] = parked ? nlohmann::json(*parked ? "parked" : "riding") : nlohmann::json(nullptr);
   if (ride) {
     const bool odometer = ride->start_odo_km && ride->end_odo_km;
@@ -49,6 +54,7 @@ nlohmann::json geofence_json(const GeofenceStatus& g, Micros wall_now) {
               {"bundles_received", g.counters.offered},
               {"bundles_accepted", g.counters.accepted},
               {"bundles_refused", g.counters.refused},
+              {"bundles_dropped", g.dropped},
               {"last_refusal", ""},
               {"last_refusal_reason", ""},
               {"last_refusal_topic", ""},

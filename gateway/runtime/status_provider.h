@@ -40,6 +40,7 @@ struct GeofenceStatus {
   std::string bundle_file;
   std::vector<std::string> topics;  // subscribed (empty with [mqtt] disabled)
   geofence::BundleCounters counters;
+  std::uint64_t dropped = 0;       // arrived while the uplink's queue of 4 was full (UplinkStats)
   std::string last_refusal_topic;  // where the latest refused bundle came from
   bool outside_operating_area = false;
 };

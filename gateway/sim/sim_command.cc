@@ -14,6 +14,7 @@
 #include "gateway/can/udp_transport.h"
 #include "gateway/sim/bus_log_writer.h"
 #include "gateway/sim/scenario.h"
+#include "gateway/sim/sim_gnss.h"
 #include "gateway/sim/sim_transport.h"
 
 namespace fleetgw::sim {
@@ -84,6 +85,20 @@ int run_sim(const SimCliOptions& options) {
     scenario.duration = Micros(static_cast<int64_t>(*options.duration_s * 1e6));
   }
   const Micros duration = scenario.effective_duration();
+  if (!options.nmea_pty.empty()) {
+    // Checked before anything is opened: a pty without a position to serve is a usage error.
+    if (scenario.route.size() < 2) {
+      std::cerr << "fleetgw sim: --nmea-pty " << options.nmea_pty.string() << ": scenario "
+                << options.scenario.string()
+                << " has no [[route]], so the simulated bike has no position to serve\n";
+      return 2;
+    }
+    if (!options.record.empty()) {
+      std::cerr << "fleetgw sim: --nmea-pty serves the route in real time; it cannot be combined "
+                   "with --record\n";
+      return 2;
+    }
+  }
 
   if (!options.record.empty()) {
     std::ofstream out(options.record, std::ios::binary | std::ios::trunc);
@@ -123,7 +138,22 @@ int run_sim(const SimCliOptions& options) {
   }
 
   Bike bike(scenario);
+  // Declared before the driver, whose hook calls it: destroyed after it, and the link with it.
+  std::unique_ptr<SimGnss> gnss;
+  if (!options.nmea_pty.empty()) {
+    try {
+      gnss = std::make_unique<SimGnss>(bike, options.nmea_pty);
+    } catch (const std::exception& e) {
+      // SimGnss names the configuration key of `fleetgw run`; here the option is the name.
+      std::string_view why = e.what();
+      if (why.starts_with("sim.nmea_pty: ")) why.remove_prefix(14);
+      std::cerr << "fleetgw sim: --nmea-pty " << options.nmea_pty.string() << ": " << why << '\n';
+      return 1;
+    }
+  }
   RealtimeDriver driver(io, bike, options.speed);
+  // The same wiring as SimTransport::serve_nmea: one fix per second of bus time.
+  if (gnss) driver.set_on_advanced([&](Micros t) { gnss->on_bus_time(t); });
   const Micros end = scenario.start + duration;
   uint64_t tx_failures = 0;
   asio::signal_set signals(io, SIGINT, SIGTERM);
@@ -140,6 +170,7 @@ int run_sim(const SimCliOptions& options) {
                      spdlog::info("sim: bus {} ({})", can::controller_state_name(h.state),
                                   h.detail);
                    });
+  if (gnss) gnss->on_bus_time(bike.current_time());  // where the bike stands at the start
   driver.start([&](const motinova::CanFrame& frame, Micros) {
     if (!transport->send(frame)) ++tx_failures;
   });
@@ -161,11 +192,19 @@ int run_sim(const SimCliOptions& options) {
   check();
   spdlog::info("sim: scenario '{}' (seed {}) on {} at x{} for {} s of virtual time", scenario.name,
                scenario.seed, transport->name(), options.speed, duration.count() / 1'000'000);
+  if (gnss) {
+    spdlog::info("sim: serving the route as NMEA on {} -> {}", options.nmea_pty.string(),
+                 gnss->pty().slave_path());
+  }
   io.run();
 
   const BikeStats& s = bike.stats();
   spdlog::info("sim: done: {} messages / {} CAN frames sent, {} frames heard, {} tx failures",
                s.messages_sent, s.can_frames_sent, s.external_frames, tx_failures);
+  if (gnss) {
+    spdlog::info("sim: {} NMEA fixes written, {} dropped (the pty was full: nobody read it)",
+                 gnss->fixes_written(), gnss->fixes_dropped());
+  }
   return 0;
 }
 

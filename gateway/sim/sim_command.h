@@ -4,7 +4,8 @@
 //
 // Contract: run_sim() returns a process exit code (0 ok, 2 bad scenario/options, 1 runtime
 // failure) and reports problems on stderr with the file/line/key or the transport's message;
-// it stops after the duration, or on SIGINT/SIGTERM.
+// it stops after the duration, or on SIGINT/SIGTERM. With nmea_pty, the pty's link exists while
+// the bike runs and is removed when run_sim returns.
 #pragma once
 
 #include <cstdint>
@@ -32,7 +33,10 @@ struct SimCliOptions {
   // --bus: "udp:<local port>:<remote port>" (127.0.0.1),
   //        "udp:<local addr>:<local port>:<remote addr>:<remote port>", or "socketcan:<ifname>".
   std::string bus = "udp:29537:29536";
-  std::filesystem::path record;        // --record FILE: write candump -L instead of a bus
+  std::filesystem::path record;  // --record FILE: write candump -L instead of a bus
+  // --nmea-pty PATH: serve the scenario's [[route]] as NMEA on a pty linked at PATH, as
+  // `fleetgw run` does with [sim] nmea_pty (SimGnss); a scenario without a route is exit 2.
+  std::filesystem::path nmea_pty;
   TransportFactory transport_factory;  // empty = make_bus_transport (tests inject their own)
 };
 

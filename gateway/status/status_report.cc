@@ -322,6 +322,10 @@ std::string format_summary(const json& s, const std::vector<Attention>& findings
     text += fmt::format("\n         bundles: {} received, {} accepted, {} refused",
                         count(*g, "bundles_received"), count(*g, "bundles_accepted"),
                         count(*g, "bundles_refused"));
+    if (const auto dropped = count(*g, "bundles_dropped"); dropped > 0) {
+      // The newcomer is dropped: a retained bundle comes again at the next connect.
+      text += fmt::format(", {} dropped (queue full)", dropped);
+    }
     if (const std::string r = str(*g, "last_refusal", ""); !r.empty()) {
       const auto age = num(*g, "last_refusal_age_s");
       const std::string topic = str(*g, "last_refusal_topic", "");

@@ -35,7 +35,7 @@
 //     "geofence": {"enabled": true, "version": 3 | null, "zones": 4, "vertices": 80,
 //                "key_id": "ops", "issued_at_us": 0, "bundle_file": "/var/lib/fleetgw/zones.pb",
 //                "topics": ["fleet/v1/zones"], "bundles_received": 5, "bundles_accepted": 2,
-//                "bundles_refused": 3, "last_refusal_reason": "not_newer",
+//                "bundles_refused": 3, "bundles_dropped": 0, "last_refusal_reason": "not_newer",
 //                "last_refusal": "not_newer: version 1 is older than ...",
 //                "last_refusal_topic": "fleet/v1/zones", "last_refusal_age_s": 2.0 | null,
 //                "outside_operating_area": false}  // optional section ([geofence] enabled)

@@ -2,12 +2,16 @@
 // `fleetgw run` (child process) on the simulated bike -> the settings read, the 0x3408 write
 // and the read-back on its bus -> the result over MQTT -> the tool's JSON line and exit code.
 #include <gtest/gtest.h>
+#include <mqtt/async_client.h>
 
 #include <algorithm>
 #include <fstream>
+#include <mutex>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <sstream>
 
+#include "fleetgw/v1/envelope.pb.h"
 #include "gateway/command/ed25519.h"
 #include "tests/runtime/service_process.h"
 #include "tests/support/mosquitto_fixture.h"
@@ -36,13 +40,21 @@ std::string mc_e2e_read(const std::filesystem::path& p) {
 
 struct McE2e {
   // Default: the parked bike at speed 1 (bus time = wall time: the round trip is what an
-  // operator would see).
-  explicit McE2e(const std::string& scenario = "parked", double speed = 1) {
+  // operator would see). `scenario_text`, when given, is the scenario itself (written to the
+  // rig's directory) instead of config/scenarios/<scenario>.toml.
+  explicit McE2e(const std::string& scenario = "parked", double speed = 1,
+                 const std::string& scenario_text = {}) {
     broker.start();
     fleetgw::testing::ServiceConfigText c;
     c.scenario = mc_e2e_scenario(scenario);
+    if (!scenario_text.empty()) {
+      c.scenario = dir.path() / (scenario + ".toml");
+      std::ofstream(c.scenario) << scenario_text;
+    }
     c.speed = speed;
     c.db = dir.path() / "fleetgw.db";
+    // The status socket in the rig's directory, not /run/fleetgw (`fleetgw status` reads it).
+    c.storage_extra = "[status]\nsocket = \"" + (dir.path() / "status.sock").string() + "\"\n";
     c.broker_uri = broker.uri();
     c.vehicle = "rt-mc";
     c.key_id = "ops";
@@ -88,6 +100,22 @@ struct McE2e {
     return r;
   }
   std::string log() const { return mc_e2e_read(dir.path() / "service.log"); }
+  // `fleetgw status --format json` of the running service (null when it does not answer).
+  nlohmann::json status() {
+    const auto out = dir.path() / ("status-" + std::to_string(++runs) + ".out");
+    fleetgw::testing::run_for_exit_code(
+        {FLEETGW_BIN, "status", "--config", (dir.path() / "fleetgw.toml").string(), "--format",
+         "json"},
+        out, dir.path() / "status.err");
+    return nlohmann::json::parse(mc_e2e_read(out), nullptr, false);
+  }
+  // The assist level `fleetgw status` shows ("" until heard).
+  std::string status_assist() {
+    const auto doc = status();
+    if (!doc.is_object() || !doc.contains("vehicle") || !doc["vehicle"]["assist"].is_string())
+      return {};
+    return doc["vehicle"]["assist"].get<std::string>();
+  }
 
   fleetgw::testing::TempDir dir{"fleetgw-mc-e2e"};
   fleetgw::testing::MosquittoBroker broker;
@@ -202,6 +230,138 @@ TEST(CommandMqttMc, UsageErrorsExitTwoWithoutPublishing) {
     EXPECT_TRUE(r.result.is_null()) << line;
   }
   EXPECT_EQ(rig.log().find("command received"), std::string::npos) << rig.log();
+}
+
+// The retained last-known state on fleet/v1/rt-mc/state as a dashboard sees it: the assist level
+// there comes from the MC's running data through the service's state, not from the result.
+class StateWatch {
+ public:
+  explicit StateWatch(const std::string& uri) : client_(uri, "mc-e2e-state-watch") {
+    client_.set_message_callback([this](mqtt::const_message_ptr m) {
+      v1::Envelope e;
+      if (!e.ParseFromString(m->get_payload()) || !e.has_state()) return;
+      std::lock_guard lock(mu_);
+      last_ = e.state();
+    });
+    client_.connect(mqtt::connect_options_builder().clean_session(true).finalize())->wait();
+    client_.subscribe("fleet/v1/rt-mc/state", 1)->wait();
+  }
+  ~StateWatch() {
+    try {
+      client_.disconnect()->wait_for(2s);
+    } catch (...) {
+    }
+  }
+  StateWatch(const StateWatch&) = delete;
+  StateWatch& operator=(const StateWatch&) = delete;
+  std::string assist_name() {
+    std::lock_guard lock(mu_);
+    return last_ ? last_->assist_name() : std::string();
+  }
+
+ private:
+  mqtt::async_client client_;
+  std::mutex mu_;
+  std::optional<v1::VehicleState> last_;
+};
+
+// A bike ridden at 18 km/h from the start, unlocked, NORM and the headlight on, so that every
+// command below changes something the MC then has to show.
+constexpr const char* kRidingScenario =
+    "[scenario]\nname = \"assist-e2e\"\nduration_s = 1200\n[bike]\nseed = 13\nsoc_pct = 80\n"
+    "assist = \"norm\"\nheadlight = true\nlocks_locked = false\n[[ride]]\nduration_s = 1200\n"
+    "speed_kmh = 18\n";
+
+TEST(CommandMqttMc, AssistAndHeadlightAreConfirmedOnARidingBike) {
+  McE2e rig("assist-e2e", 1, kRidingScenario);
+  ASSERT_TRUE(rig.ready) << rig.log();
+  StateWatch state(rig.broker.uri());
+  // Riding, and the service shows the scenario's level before anything is commanded.
+  nlohmann::json doc;
+  ASSERT_TRUE(fleetgw::testing::wait_until(
+      [&] {
+        doc = rig.status();
+        if (!doc.is_object() || !doc.contains("vehicle")) return false;
+        const auto& v = doc["vehicle"];
+        return v["speed_kmh"].is_number() && v["speed_kmh"].get<double>() > 5 &&
+               v["assist"] == "norm";
+      },
+      30s, 200ms))
+      << doc.dump() << rig.log();
+
+  const auto sport = rig.until_mc_known({"--assist", "sport"});
+  ASSERT_TRUE(sport.result.is_object()) << sport.err << rig.log();
+  EXPECT_EQ(sport.exit_code, 0) << sport.err << sport.result.dump();
+  EXPECT_EQ(sport.result["result"], "succeeded") << sport.result.dump();
+  EXPECT_EQ(sport.result["mc"]["action"], "assist_level");
+  EXPECT_EQ(sport.result["mc"]["assist_level"], "sport") << sport.result.dump();
+  // The other half of 0x3002 is kept: the headlight stays on.
+  EXPECT_EQ(sport.result["mc"]["headlight_on"], true) << sport.result.dump();
+  EXPECT_EQ(sport.result["mc"]["writes_sent"], 1);
+  EXPECT_TRUE(sport.result["stored"].get<bool>());
+  // Independently of the result: `fleetgw status` and the retained state show the new level.
+  EXPECT_TRUE(
+      fleetgw::testing::wait_until([&] { return rig.status_assist() == "sport"; }, 10s, 200ms))
+      << rig.status().dump();
+  EXPECT_TRUE(
+      fleetgw::testing::wait_until([&] { return state.assist_name() == "sport"; }, 15s, 200ms))
+      << "retained state assist: '" << state.assist_name() << "'";
+
+  const auto off = rig.tool({"--lights", "off"});
+  EXPECT_EQ(off.exit_code, 0) << off.err << off.result.dump();
+  EXPECT_EQ(off.result["result"], "succeeded") << off.result.dump();
+  EXPECT_EQ(off.result["mc"]["action"], "headlight");
+  EXPECT_EQ(off.result["mc"]["headlight_on"], false) << off.result.dump();
+  EXPECT_EQ(off.result["mc"]["assist_level"], "sport") << off.result.dump();  // kept
+
+  const auto on = rig.tool({"--lights", "on"});
+  EXPECT_EQ(on.exit_code, 0) << on.err << on.result.dump();
+  EXPECT_EQ(on.result["result"], "succeeded") << on.result.dump();
+  EXPECT_EQ(on.result["mc"]["headlight_on"], true) << on.result.dump();
+  EXPECT_EQ(on.result["mc"]["assist_level"], "sport") << on.result.dump();
+
+  // A well-formed name the gateway has not configured: the tool sends it (names are the
+  // gateway's), the gateway refuses it before writing, and the MC keeps SPORT.
+  const auto warp = rig.tool({"--assist", "warp"});
+  EXPECT_EQ(warp.exit_code, 1) << warp.err << warp.result.dump();
+  EXPECT_EQ(warp.result["result"], "rejected") << warp.result.dump();
+  EXPECT_EQ(warp.result["reason"].get<std::string>().rfind("unknown_assist_level", 0), 0u)
+      << warp.result.dump();
+  const auto still = rig.tool({"--lights", "on"});  // confirmed from the MC's running data
+  EXPECT_EQ(still.exit_code, 0) << still.err << still.result.dump();
+  EXPECT_EQ(still.result["mc"]["assist_level"], "sport") << still.result.dump();
+  EXPECT_EQ(rig.status_assist(), "sport");
+  // A malformed name is a usage error: exit 2, nothing published.
+  const auto bad = rig.tool({"--assist", "Warp"});
+  EXPECT_EQ(bad.exit_code, 2) << bad.err;
+  EXPECT_TRUE(bad.result.is_null()) << bad.result.dump();
+  EXPECT_NE(bad.err.find("--assist"), std::string::npos) << bad.err;
+  EXPECT_EQ(rig.service->stop(), 0) << rig.log();
+}
+
+TEST(CommandMqttMc, AssistAndHeadlightIgnoredByTheMcFail) {
+  // The MC answers reads and keeps sending its running data but drops every write.
+  McE2e rig("mc-ignores", 1,
+            "[scenario]\nname = \"mc-ignores\"\nduration_s = 600\n[bike]\nseed = 99\n"
+            "assist = \"eco\"\nheadlight = false\nvehicle_locked = true\nlocks_locked = true\n"
+            "mc_ignores_writes = true\n");
+  ASSERT_TRUE(rig.ready) << rig.log();
+  const auto assist = rig.until_mc_known({"--assist", "sport"});
+  ASSERT_TRUE(assist.result.is_object()) << assist.err << rig.log();
+  EXPECT_EQ(assist.exit_code, 1) << assist.err << assist.result.dump();
+  EXPECT_EQ(assist.result["result"], "failed") << assist.result.dump();
+  EXPECT_EQ(assist.result["reason"].get<std::string>().rfind("not_confirmed", 0), 0u)
+      << assist.result.dump();
+  // Written, unconfirmed, written again (retries = 1), and what the MC still shows.
+  EXPECT_EQ(assist.result["mc"]["writes_sent"], 2) << assist.result.dump();
+  EXPECT_EQ(assist.result["mc"]["assist_level"], "eco") << assist.result.dump();
+  EXPECT_EQ(rig.status_assist(), "eco");
+
+  const auto lights = rig.tool({"--lights", "on"});
+  EXPECT_EQ(lights.exit_code, 1) << lights.err << lights.result.dump();
+  EXPECT_EQ(lights.result["result"], "failed") << lights.result.dump();
+  EXPECT_EQ(lights.result["mc"]["headlight_on"], false) << lights.result.dump();
+  EXPECT_EQ(rig.service->stop(), 0) << rig.log();
 }
 
 }  // namespace

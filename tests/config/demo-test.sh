@@ -2,7 +2,8 @@
 # demo.story: runs scripts/demo.sh on an already built tree (--build-dir: no packages, no build)
 # with a real mosquitto, and checks that the story was told: each step's line as it happened and
 # the summary sentence naming the ride, the fault, the succeeded unlock, the interlock refusal
-# and the theft alarm.
+# and the theft alarm; the route through gpsd, the slow zone applied and lifted (back to the
+# operator's cap, not the bike's own limit) and the ride's GNSS track.
 #   demo-test.sh BUILD_DIR OUT_DIR       exit 0 pass, 1 fail, 77 skipped (no mosquitto)
 set -uo pipefail
 build=${1:?usage: demo-test.sh BUILD_DIR OUT_DIR}
@@ -39,16 +40,27 @@ check "lock succeeded when parked" '^  \[ *[0-9]+ s\] remote lock \(frame lock\)
 check "speed limit confirmed by the MC" \
   '^  \[ *[0-9]+ s\] remote speed limit 15 km/h: succeeded, the MC reads back 15 km/h' "$log"
 check "the bike rides under the cap" 'status: the bike rides at [0-9.]+ km/h, under the 15 km/h cap' "$log"
+check "GNSS fix through gpsd and the zone bundle in force" \
+  'GNSS: fix at 46\.05[0-9]+,14\.50[0-9]+ through gpsd; zones: bundle v1 from fleet/v1/zones accepted' "$log"
+check "slow zone entered" "zone: entered slow zone 'Old Town' at 46\.06[0-9]+,14\.5[234][0-9]+: the limit ramps down to 10 km/h" "$log"
+check "the bike rides under the zone's limit" \
+  'status: the bike rides at [0-9.]+ km/h in the slow zone, the MC.s limit is 10 km/h' "$log"
+check "slow zone left, the operator's cap restored" \
+  "zone: left 'Old Town' at [0-9.]+,[0-9.]+: the MC's limit is back to 15 km/h" "$log"
+check "the ride's GNSS track" 'ride: GNSS track of [0-9]+ points, [3-9]\.[0-9]+ km' "$log"
 check "fault raised" 'fault: mc over_heat_protect raised' "$log"
 check "fault cleared" 'fault: mc over_heat_protect cleared' "$log"
 check "status shows the open ride" 'status: [0-9.]+ km/h, SOC [0-9.]+ %, open ride [0-9.]+ km' "$log"
 check "ride reached the broker" 'ride: ended by the lock and reached the broker: [0-9.]+ km' "$log"
 check "theft alarm" 'theft alarm: .*unauthorised_movement raised' "$log"
-# The summary sentence: one ride of several km, one fault raised and cleared, the four
+# The summary sentence: one ride of several km, two faults raised and cleared, the four
 # commands (unlock, speed limit and lock succeeded, the interlock refusal), the theft.
 summary=$out/summary.txt
 check "summary: the ride" '^1 ride, [3-9]\.[0-9] km, [0-9]+ min; ' "$summary"
-check "summary: the fault" '; 1 fault raised, 1 cleared; ' "$summary"
+check "GNSS fault until the first fix" 'fault: iot gps \(warning\) raised until the first fix, now cleared' "$log"
+check "summary: the faults (GNSS until the first fix, the over-heat)" \
+  '; 2 faults raised, 2 cleared; ' "$summary"
+check "summary: which faults" ' 1 iot:gps, 1 mc:over_heat_protect; 2 cleared' "$summary"
 check "summary: the commands" \
   '; 4 commands: 3 succeeded, 1 refused \(interlock_moving\); ' "$summary"
 check "summary: the alarm" '; 1 alarm \(theft\)$' "$summary"

@@ -10,9 +10,11 @@ Writes the store, plots its latest ride (the one with a hostile id: markup that 
 document if it were not escaped) with the real binary, parses the SVG as XML (Python's
 standard library), renders it with `chromium --headless --screenshot`, decodes the PNG with
 zlib + struct (no PIL) and checks that the screenshot is not blank (many distinct colours, the
-four series colours present) and that every axis line the SVG declares (<line class="axis
-...">) is a long run of dark pixels at its position. Exit 77 (ctest SKIP_RETURN_CODE) when
-chromium is not installed; every other problem fails.
+four series colours present), that every axis line the SVG declares (<line class="axis
+...">) is a long run of dark pixels at its position, and that the ride's GNSS track is drawn in
+the map panel (<g id="panel-map">): many pixels of the track colour inside the panel's frame,
+none in the time panels above it. Exit 77 (ctest SKIP_RETURN_CODE) when chromium is not
+installed; every other problem fails.
 """
 
 import os
@@ -28,6 +30,7 @@ SKIP = 77
 SVG_NS = "{http://www.w3.org/2000/svg}"
 SERIES_COLOURS = {"speed": (0x1F, 0x77, 0xB4), "power": (0xD6, 0x27, 0x28),
                   "soc": (0x2C, 0xA0, 0x2C), "assist": (0x94, 0x67, 0xBD)}
+TRACK_COLOUR = (0xFF, 0x7F, 0x0E)  # kTrackColour, gateway/app/ride_plot_map.h
 
 
 def fail(message):
@@ -130,6 +133,17 @@ def main():
         axes = [e for e in root.iter(SVG_NS + "line") if "axis" in e.get("class", "").split()]
         if len(axes) < 8:
             fail(f"{len(axes)} axis lines in the SVG, expected 8 (4 panels)")
+        # The fixture's latest ride has a track: the map panel, its frame and the polyline.
+        panel = next((g for g in root.iter(SVG_NS + "g") if g.get("id") == "panel-map"), None)
+        if panel is None:
+            fail("no map panel (<g id=\"panel-map\">) for a ride with a track")
+        frame = next((r for r in panel.iter(SVG_NS + "rect") if r.get("class") == "map-frame"),
+                     None)
+        track = next((p for p in panel.iter(SVG_NS + "polyline") if p.get("class") == "track"),
+                     None)
+        if frame is None or track is None:
+            fail("the map panel has no frame or no track polyline")
+        fx, fy, fw, fh = (float(frame.get(k)) for k in ("x", "y", "width", "height"))
 
         command = [chromium, "--headless", "--no-sandbox", "--disable-gpu",
                    "--disable-background-networking", "--disable-component-update",
@@ -164,6 +178,17 @@ def main():
             if seen < 100:
                 fail(f"the {name} series is missing ({seen} pixels of its colour)")
 
+        # The track: drawn inside the map's frame (a 3-pixel line several hundred pixels long),
+        # and its colour nowhere in the time panels above the map.
+        inside = sum(1 for y in range(int(fy), min(h, int(fy + fh)))
+                     for x in range(int(fx), min(w, int(fx + fw))) if near(rows[y][x], TRACK_COLOUR))
+        above = sum(1 for y in range(0, int(fy) - 30) for x in range(w)
+                    if near(rows[y][x], TRACK_COLOUR))
+        if inside < 1000:
+            fail(f"the track is missing from the map panel ({inside} pixels of its colour)")
+        if above > 0:
+            fail(f"{above} pixels of the track colour above the map panel")
+
         # Every axis: at least 95 % of its length dark, within a pixel of where the SVG puts it.
         for e in axes:
             x1, y1, x2, y2 = (float(e.get(k)) for k in ("x1", "y1", "x2", "y2"))
@@ -183,7 +208,8 @@ def main():
         margin = [rows[y][w - 5] for y in range(h)]
         if any(is_dark(p) for p in margin):
             fail("dark pixels in the right margin")
-        print(f"render_ride_plot: OK: {w}x{h}, {len(colours)} colours, {len(axes)} axes dark")
+        print(f"render_ride_plot: OK: {w}x{h}, {len(colours)} colours, {len(axes)} axes dark, "
+              f"{inside} track pixels in the map")
         return 0
     finally:
         shutil.rmtree(work, ignore_errors=True)

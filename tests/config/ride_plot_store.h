@@ -7,6 +7,8 @@
 //    an ampersand, ESC, a newline, invalid UTF-8). Samples every second, except: none between
 //    10 and 12 min (the gateway was down), speed missing from 20 to 21 min; assist eco, then
 //    norm from 5 min, sport from 15 min, eco from 24 min (kLatestSamples samples).
+// The latest ride has a GNSS track (kLatestTrack: a square that does not close, 6.7 km of GNSS
+// distance against 8.1 km of odometer); ride-normal had no fix (no track).
 // Telemetry outside both windows (before, between and after the rides) has a speed of 999 km/h,
 // so a plot that takes it in shows it.
 #pragma once
@@ -17,8 +19,10 @@
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 #include "storage/store.h"
+#include "storage/track_text.h"
 
 namespace fleetgw::testing::ride_plot_store {
 
@@ -29,6 +33,11 @@ inline constexpr int kLatestSeconds = 28 * 60;
 inline constexpr int kNormalSeconds = 10 * 60;
 // 0..1680 s every second, without 601..719 s.
 inline constexpr std::size_t kLatestSamples = kLatestSeconds + 1 - 119;
+// Berlin: east 0.0295 degrees (2.0 km), north 0.0135 degrees (1.5 km), west back, then south
+// to 0.3 km north of the start.
+inline const std::vector<storage::TrackPoint> kLatestTrack = {
+    {52.52, 13.405}, {52.52, 13.4345}, {52.5335, 13.4345}, {52.5335, 13.405}, {52.5227, 13.405}};
+inline constexpr double kLatestGnssM = 6693;
 inline const std::string kHostileRideId = "<script>alert(\"x\")</script> & 'q' \x1b[2J\nnext\xff";
 
 inline storage::Ride plotted_ride(const std::string& id, std::int64_t start_us, int seconds,
@@ -79,8 +88,14 @@ inline void write_ride_store(const std::filesystem::path& path) {
   b.now_us = kLatestStartUs;
   b.rides.push_back(
       {plotted_ride("ride-normal", kNormalStartUs, kNormalSeconds, 3.0), std::nullopt});
-  b.rides.push_back(
-      {plotted_ride(kHostileRideId, kLatestStartUs, kLatestSeconds, 8.1), std::nullopt});
+  storage::Ride latest = plotted_ride(kHostileRideId, kLatestStartUs, kLatestSeconds, 8.1);
+  latest.start_lat_deg = kLatestTrack.front().lat_deg;
+  latest.start_lon_deg = kLatestTrack.front().lon_deg;
+  latest.end_lat_deg = kLatestTrack.back().lat_deg;
+  latest.end_lon_deg = kLatestTrack.back().lon_deg;
+  latest.gnss_distance_m = kLatestGnssM;
+  latest.track = storage::track_text(kLatestTrack);
+  b.rides.push_back({latest, std::nullopt});
   for (std::int64_t at :
        {kNormalStartUs - 30 * kSec, kNormalStartUs - 1,
         kNormalStartUs + (kNormalSeconds + 1) * kSec, kLatestStartUs - 1,

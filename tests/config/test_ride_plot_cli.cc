@@ -1,6 +1,7 @@
 // `fleetgw ride plot` against the real binary on a store written through the real Store
 // (ride_plot_store.h): `latest` and a ride id, only the ride's window of telemetry, the hostile
-// ride id escaped, gaps kept, `--out -`, the store left untouched, and the exit codes (unknown
+// ride id escaped, gaps kept, `--out -`, the store left untouched, the GNSS track as a map panel
+// (a note without one, a warning and no panel for a damaged one), and the exit codes (unknown
 // ride 1, not a store 2, usage errors 2, unwritable output 1).
 #include <gtest/gtest.h>
 
@@ -8,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "storage/sqlite.h"
 #include "tests/config/cli_test_util.h"
 #include "tests/config/ride_plot_store.h"
 #include "tests/support/temp_dir.h"
@@ -79,6 +81,14 @@ TEST_F(RidePlotCli, LatestRideWithItsWindowGapsAndEscapedId) {
     EXPECT_NE(svg.find(name), std::string::npos) << name;
   }
   EXPECT_EQ(occurrences(svg, "class=\"axis axis-y\""), 4u);
+  // The ride's GNSS track: a map panel with its five positions and the caption.
+  EXPECT_NE(svg.find("id=\"panel-map\""), std::string::npos);
+  EXPECT_EQ(occurrences(svg, "<polyline class=\"track\""), 1u);
+  const auto points = svg.find(" points=\"", svg.find("<polyline class=\"track\""));
+  EXPECT_EQ(occurrences(svg.substr(points, svg.find('"', points + 9) - points), ","),
+            rs::kLatestTrack.size());
+  EXPECT_NE(svg.find(">GNSS 6.7 km, odometer 8.1 km</text>"), std::string::npos);
+  EXPECT_EQ(svg.find("no GNSS track"), std::string::npos);
   // Inspection never modifies the store.
   EXPECT_EQ(slurp(db_), before);
 }
@@ -93,6 +103,39 @@ TEST_F(RidePlotCli, RideByIdToStdout) {
             std::string::npos);
   EXPECT_EQ(occurrences(series_d(r.out, "speed"), "M"), 1u);
   EXPECT_FALSE(fs::exists(dir_.path() / "-"));
+  // No fix during this ride: no map, a note.
+  EXPECT_EQ(occurrences(r.out, ">no GNSS track for this ride</text>"), 1u);
+  EXPECT_EQ(r.out.find("panel-map"), std::string::npos);
+  EXPECT_EQ(r.err, "");
+}
+
+TEST_F(RidePlotCli, DamagedTrackIsLeftOutWithAWarningNamingTheRide) {
+  {
+    // Past the Store, which refuses such tracks: a damaged or edited file.
+    storage::Database raw(db_.string());
+    raw.exec("UPDATE rides SET track = '[[13.4,52.5],[13.5' WHERE ride_id = 'ride-normal'");
+    raw.exec("UPDATE rides SET track = '[[13.4,52.5],[\"x\",1]]' WHERE ride_id <> 'ride-normal'");
+  }
+  const Result normal = plot({"ride-normal", "--db", db_.string(), "--out", svg_.string()});
+  ASSERT_EQ(normal.code, 0) << normal.err;
+  EXPECT_EQ(normal.err,
+            "fleetgw ride plot: ride 'ride-normal': track: not valid JSON; plotted without it\n");
+  std::string svg = slurp(svg_);
+  EXPECT_EQ(svg.find("panel-map"), std::string::npos);
+  EXPECT_EQ(occurrences(svg, ">no GNSS track for this ride</text>"), 1u);
+  EXPECT_TRUE(svg.ends_with("</svg>\n"));
+
+  const Result latest = plot({"latest", "--db", db_.string(), "--out", svg_.string()});
+  ASSERT_EQ(latest.code, 0) << latest.err;
+  EXPECT_EQ(occurrences(latest.err, "\n"), 1u) << "the hostile id broke the line: " << latest.err;
+  EXPECT_NE(latest.err.find("ride '<script>alert(\"x\")</script> & 'q' \\x1b[2J\\nnext"),
+            std::string::npos)
+      << latest.err;
+  EXPECT_NE(latest.err.find("': track: position 1: not an array of two numbers"), std::string::npos)
+      << latest.err;
+  svg = slurp(svg_);
+  EXPECT_EQ(svg.find("panel-map"), std::string::npos);
+  EXPECT_EQ(occurrences(svg, ">no GNSS track for this ride</text>"), 1u);
 }
 
 TEST_F(RidePlotCli, UnknownRideExitsOneNamingItAndTheStore) {

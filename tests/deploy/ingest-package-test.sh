@@ -11,18 +11,12 @@
 # Exit: 0 pass, 1 fail, 77 skip (not root, or dpkg absent).
 set -euo pipefail
 BUILD=$(cd "$1" && pwd)
-SECONDS=0
 
-[ "$(id -u)" -eq 0 ] || { echo "SKIP: must run as root (it installs the package)"; exit 77; }
-command -v dpkg >/dev/null || { echo "SKIP: not a dpkg system"; exit 77; }
+# fail/ok, the skip and the install lock, the package build, lintian: lib-package.sh.
+# shellcheck source=tests/deploy/lib-package.sh
+. "$(dirname "$0")/lib-package.sh"
+begin_package_test
 
-# The same lock as package-test.sh: two builds' runs must not install at the same time.
-exec 9>/var/lock/fleetgw-package-test.lock
-flock -w 600 9 || { echo "FAIL: another package test holds the lock" >&2; exit 1; }
-
-failures=0
-fail() { echo "FAIL: $*"; failures=$((failures + 1)); }
-ok() { echo "ok: $*"; }
 status_of() { dpkg-query -W -f='${Status}' "$1" 2>/dev/null || true; }
 purge() {
   local p
@@ -43,9 +37,7 @@ trap cleanup EXIT
 purge
 
 echo "== build the packages"
-rm -f "$BUILD"/fleetgw_*.deb "$BUILD"/fleetgw-ingest_*.deb
-cmake --build "$BUILD" --target package >"$BUILD/package-build.log" 2>&1 ||
-  { tail -30 "$BUILD/package-build.log"; exit 1; }
+build_packages "$BUILD"
 deb=$(ls -t "$BUILD"/fleetgw-ingest_*.deb 2>/dev/null | head -1)
 [ -n "$deb" ] || { echo "FAIL: no fleetgw-ingest_*.deb in $BUILD"; exit 1; }
 echo "package: $(basename "$deb") ($(stat -c %s "$deb") bytes)"
@@ -83,26 +75,10 @@ for lib in libpq5 libc6 libstdc++6 libpaho-mqttpp3 adduser; do
 done
 grep -qw fleetgw <<<"${depends//fleetgw-ingest/}" && fail "depends on the gateway's package" ||
   ok "does not depend on fleetgw"
-unpacked=$(mktemp -d)
-dpkg-deb -x "$deb" "$unpacked"
-kind=$(file -b "$unpacked/usr/bin/fleetgw-ingest")
-rm -rf "$unpacked"
-[[ $kind == *", stripped"* ]] && ok "binary is stripped" || fail "binary: $kind"
+check_stripped "$deb" /usr/bin/fleetgw-ingest
 
 echo "== lintian"
-# No error, and no warning but initial-upload-closes-no-bugs (the gateway's package has it too:
-# the first changelog entry closes no ITP bug). Every other tag fails the test.
-if command -v lintian >/dev/null; then
-  if report=$(lintian --fail-on error,warning --suppress-tags initial-upload-closes-no-bugs \
-      "$deb" 2>&1); then
-    ok "lintian: no errors, no new warnings"
-  else
-    fail "lintian reports errors or warnings"
-  fi
-  [ -n "$report" ] && sed 's/^/  lintian: /' <<<"$report"
-else
-  fail "lintian is not installed (scripts/install-deps.sh installs it)"
-fi
+check_lintian "$deb"
 
 echo "== install on a backend host (without the gateway's package)"
 dpkg -i "$deb" || { fail "dpkg -i failed"; exit 1; }

@@ -10,18 +10,12 @@
 # Exit: 0 pass, 1 fail, 77 skip (not root, or dpkg absent).
 set -euo pipefail
 BUILD=$(cd "$1" && pwd)
-SECONDS=0
 
-[ "$(id -u)" -eq 0 ] || { echo "SKIP: must run as root (it installs the package)"; exit 77; }
-command -v dpkg >/dev/null || { echo "SKIP: not a dpkg system"; exit 77; }
+# fail/ok, the skip and the install lock, the package build, lintian: lib-package.sh.
+# shellcheck source=tests/deploy/lib-package.sh
+. "$(dirname "$0")/lib-package.sh"
+begin_package_test
 
-# Two builds' test runs must not install at the same time.
-exec 9>/var/lock/fleetgw-package-test.lock
-flock -w 600 9 || { echo "FAIL: another package test holds the lock" >&2; exit 1; }
-
-failures=0
-fail() { echo "FAIL: $*"; failures=$((failures + 1)); }
-ok() { echo "ok: $*"; }
 installed() { dpkg-query -W -f='${Status}' fleetgw 2>/dev/null | grep -q "ok installed"; }
 known() { dpkg-query -W -f='${Status}' fleetgw >/dev/null 2>&1; }
 purge() { if known; then dpkg --purge fleetgw >/dev/null 2>&1 || true; fi; }
@@ -38,9 +32,7 @@ trap purge EXIT
 purge
 
 echo "== build the package"
-rm -f "$BUILD"/fleetgw_*.deb
-cmake --build "$BUILD" --target package >"$BUILD/package-build.log" 2>&1 ||
-  { tail -30 "$BUILD/package-build.log"; exit 1; }
+build_packages "$BUILD"
 deb=$(ls -t "$BUILD"/fleetgw_*.deb | head -1)
 echo "package: $(basename "$deb") ($(stat -c %s "$deb") bytes)"
 
@@ -89,26 +81,10 @@ for lib in libsqlite3-0 libprotobuf32; do
 done
 [ "$(dpkg-deb -f "$deb" Architecture)" = "$(dpkg --print-architecture)" ] ||
   fail "architecture $(dpkg-deb -f "$deb" Architecture)"
-unpacked=$(mktemp -d)
-dpkg-deb -x "$deb" "$unpacked"
-kind=$(file -b "$unpacked/usr/bin/fleetgw")
-rm -rf "$unpacked"
-[[ $kind == *", stripped"* ]] && ok "binary is stripped" || fail "binary: $kind"
+check_stripped "$deb" /usr/bin/fleetgw
 
 echo "== lintian"
-# Debian's own package checker: no error, and no warning but initial-upload-closes-no-bugs (the
-# first changelog entry closes no ITP bug). The report is printed for the record.
-if command -v lintian >/dev/null; then
-  if report=$(lintian --fail-on error,warning --suppress-tags initial-upload-closes-no-bugs \
-      "$deb" 2>&1); then
-    ok "lintian: no errors, no new warnings"
-  else
-    fail "lintian reports errors or warnings"
-  fi
-  [ -n "$report" ] && sed 's/^/  lintian: /' <<<"$report"
-else
-  fail "lintian is not installed (scripts/install-deps.sh installs it)"
-fi
+check_lintian "$deb"
 
 echo "== install"
 dpkg -i "$deb" || { fail "dpkg -i failed"; exit 1; }

@@ -7,14 +7,13 @@
 
 #include <chrono>
 #include <filesystem>
-#include <fstream>
 #include <optional>
-#include <sstream>
 #include <string>
 #include <vector>
 
 #include "fleetgw/v1/telemetry.pb.h"
 #include "tests/support/fake_gps.h"
+#include "tests/support/gateway_config.h"
 #include "tests/support/nmea.h"
 #include "tests/support/process.h"
 #include "tests/support/temp_dir.h"
@@ -23,6 +22,7 @@
 namespace {
 
 using fleetgw::testing::FakeGps;
+using fleetgw::testing::GatewayConfig;
 using fleetgw::testing::GatewayProcess;
 using fleetgw::testing::have_gpsfake;
 using fleetgw::testing::RoutePoint;
@@ -84,19 +84,12 @@ std::vector<std::string> gps_fault_events(const std::filesystem::path& db_path) 
   return out;
 }
 
-std::string write_config(const TempDir& dir, std::uint16_t gpsd_port) {
-  std::ostringstream c;
-  c << "[vehicle]\nid = \"gnss-bike\"\n[log]\nlevel = \"info\"\n"
-    << "[can]\ntransport = \"sim\"\n[sim]\nscenario = \"" << FLEETGW_SOURCE_DIR
-    << "/config/scenarios/demo.toml\"\nspeed = 1\n"
-    << "[storage]\npath = \"" << (dir.path() / "fleetgw.db").string() << "\"\nflush_ms = 100\n"
-    << "[telemetry]\nriding_interval_ms = 500\nparked_interval_ms = 1000\n"
-    << "[status]\nsocket = \"\"\n"
-    << "[gnss]\nenabled = true\ngpsd = \"127.0.0.1:" << gpsd_port
-    << "\"\nmax_age_ms = 3000\nreconnect_max_ms = 1000\n";
-  const std::string path = (dir.path() / "fleetgw.toml").string();
-  std::ofstream(path) << c.str();
-  return path;
+std::filesystem::path write_config(const TempDir& dir, std::uint16_t gpsd_port) {
+  GatewayConfig c("gnss-bike", dir / "fleetgw.db");
+  c.sim(std::string(FLEETGW_SOURCE_DIR) + "/config/scenarios/demo.toml", 1);
+  c.set("storage", "flush_ms", "100").gnss(gpsd_port).set("gnss", "max_age_ms", "3000");
+  c.set("telemetry", "riding_interval_ms", "500").set("telemetry", "parked_interval_ms", "1000");
+  return c.write(dir / "fleetgw.toml");
 }
 
 bool on_route(const v1::Position& p) {

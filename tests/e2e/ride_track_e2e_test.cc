@@ -16,11 +16,11 @@
 #include <fstream>
 #include <iostream>
 #include <nlohmann/json.hpp>
-#include <sstream>
 #include <string>
 #include <vector>
 
 #include "tests/support/fake_gps.h"
+#include "tests/support/gateway_config.h"
 #include "tests/support/nmea.h"
 #include "tests/support/process.h"
 #include "tests/support/sqlite_query.h"
@@ -30,7 +30,10 @@
 namespace ride_track_e2e {
 namespace {
 
+using fleetgw::testing::distance_m;
 using fleetgw::testing::FakeGps;
+using fleetgw::testing::first_row_number;
+using fleetgw::testing::GatewayConfig;
 using fleetgw::testing::GatewayProcess;
 using fleetgw::testing::query_text;
 using fleetgw::testing::RoutePoint;
@@ -43,15 +46,6 @@ constexpr double kLat0 = 52.5200;
 constexpr double kLon0 = 13.4050;
 constexpr double kEarthRadiusM = 6'371'008.8;  // as gateway/gnss/position.cc
 constexpr double kRad = M_PI / 180.0;
-
-double metres(const RoutePoint& a, const RoutePoint& b) {
-  const double dlat = (b.lat_deg - a.lat_deg) * kRad;
-  const double dlon = (b.lon_deg - a.lon_deg) * kRad;
-  const double h = std::sin(dlat / 2) * std::sin(dlat / 2) +
-                   std::cos(a.lat_deg * kRad) * std::cos(b.lat_deg * kRad) * std::sin(dlon / 2) *
-                       std::sin(dlon / 2);
-  return 2 * kEarthRadiusM * std::asin(std::sqrt(h));
-}
 
 // 2.5 km north, 2 km east, 1.5 km north: 6 km in 25 m steps. The bike waits a moment at each
 // corner and at the end (the same fix repeated, no distance), so a fix the gateway skips (it
@@ -77,7 +71,7 @@ Route make_route() {
     for (int i = 1; i <= steps; ++i) {
       const RoutePoint next{from.lat_deg + north * i / steps * m_lat,
                             from.lon_deg + east * i / steps * m_lon};
-      r.length_m += metres(at, next);
+      r.length_m += distance_m(at, next);
       at = next;
       r.points.push_back(at);
     }
@@ -125,23 +119,10 @@ node = "lock2"
   return path;
 }
 
-std::string write_config(const TempDir& dir, std::uint16_t gpsd_port) {
-  std::ostringstream c;
-  c << "[vehicle]\nid = \"track-bike\"\n[log]\nlevel = \"info\"\n"
-    << "[can]\ntransport = \"sim\"\n[sim]\nscenario = \"" << write_scenario(dir)
-    << "\"\nspeed = 20\n"
-    << "[storage]\npath = \"" << (dir.path() / "fleetgw.db").string() << "\"\nflush_ms = 100\n"
-    << "[status]\nsocket = \"\"\n"
-    << "[gnss]\nenabled = true\ngpsd = \"127.0.0.1:" << gpsd_port
-    << "\"\nmax_age_ms = 3000\nreconnect_max_ms = 1000\n";
-  const std::string path = (dir.path() / "fleetgw.toml").string();
-  std::ofstream(path) << c.str();
-  return path;
-}
-
-double number(const std::filesystem::path& db, const std::string& column) {
-  const std::string v = query_text(db, "SELECT " + column + " FROM rides ORDER BY id LIMIT 1");
-  return v.empty() ? std::nan("") : std::stod(v);
+std::filesystem::path write_config(const TempDir& dir, std::uint16_t gpsd_port) {
+  GatewayConfig c("track-bike", dir / "fleetgw.db");
+  c.sim(write_scenario(dir), 20).set("storage", "flush_ms", "100").gnss(gpsd_port);
+  return c.set("gnss", "max_age_ms", "3000").write(dir / "fleetgw.toml");
 }
 
 TEST(RideTrackEndToEnd, ARideAlongAnNmeaRouteHasItsTrackInTheRowAndInGeojson) {
@@ -151,6 +132,9 @@ TEST(RideTrackEndToEnd, ARideAlongAnNmeaRouteHasItsTrackInTheRowAndInGeojson) {
   TempDir dir;
   const std::uint16_t port = fleetgw::testing::free_loopback_port();
   const auto db = dir.path() / "fleetgw.db";
+  const auto ride = [&db](const std::string& column) {
+    return first_row_number(db, "rides", column);
+  };
   const Route route = make_route();
   ASSERT_NEAR(route.length_m, 6000.0, 5.0);  // great-circle steps along a parallel: 1 m short
   GatewayProcess gw(FLEETGW_BINARY, write_config(dir, port), {"--bus-duration", "1140"});
@@ -165,8 +149,8 @@ TEST(RideTrackEndToEnd, ARideAlongAnNmeaRouteHasItsTrackInTheRowAndInGeojson) {
               FakeGps::Options{.cycle_s = 0.04, .once = true, .slow = false});
   ASSERT_TRUE(wait_until(
       [&] {
-        const RoutePoint end{number(db, "end_lat_deg"), number(db, "end_lon_deg")};
-        return !std::isnan(end.lat_deg) && metres(end, route.points.back()) < 2.0;
+        const RoutePoint end{ride("end_lat_deg"), ride("end_lon_deg")};
+        return !std::isnan(end.lat_deg) && distance_m(end, route.points.back()) < 2.0;
       },
       50s))
       << "the ride's end never reached the route's end (ended before it?)\n"
@@ -175,14 +159,14 @@ TEST(RideTrackEndToEnd, ARideAlongAnNmeaRouteHasItsTrackInTheRowAndInGeojson) {
 
   ASSERT_EQ(query_text(db, "SELECT count(*) FROM rides"), "1") << gw.log();
   ASSERT_EQ(query_text(db, "SELECT state FROM rides"), "closed");
-  const RoutePoint start{number(db, "start_lat_deg"), number(db, "start_lon_deg")};
-  const RoutePoint end{number(db, "end_lat_deg"), number(db, "end_lon_deg")};
+  const RoutePoint start{ride("start_lat_deg"), ride("start_lon_deg")};
+  const RoutePoint end{ride("end_lat_deg"), ride("end_lon_deg")};
   ASSERT_FALSE(std::isnan(start.lat_deg) || std::isnan(end.lat_deg)) << gw.log();
-  EXPECT_LT(metres(start, route.points.front()), 2.0) << start.lat_deg << "," << start.lon_deg;
-  EXPECT_LT(metres(end, route.points.back()), 2.0) << end.lat_deg << "," << end.lon_deg;
-  const double gnss_m = number(db, "gnss_distance_m");
+  EXPECT_LT(distance_m(start, route.points.front()), 2.0) << start.lat_deg << "," << start.lon_deg;
+  EXPECT_LT(distance_m(end, route.points.back()), 2.0) << end.lat_deg << "," << end.lon_deg;
+  const double gnss_m = ride("gnss_distance_m");
   EXPECT_NEAR(gnss_m, route.length_m, 0.03 * route.length_m) << "GNSS distance vs the route";
-  const double odo_m = number(db, "distance_km") * 1000.0;
+  const double odo_m = ride("distance_km") * 1000.0;
   EXPECT_NEAR(gnss_m, odo_m, 0.03 * odo_m) << "GNSS distance vs the odometer";
   std::cout << "[track] route " << route.length_m << " m, gnss_distance_m " << gnss_m
             << ", odometer " << odo_m << " m, track " << query_text(db, "SELECT track FROM rides")

@@ -16,6 +16,8 @@
 #include <string>
 
 #include "tests/support/fake_gps.h"
+#include "tests/support/gateway_config.h"
+#include "tests/support/nmea.h"
 #include "tests/support/process.h"
 #include "tests/support/sqlite_query.h"
 #include "tests/support/temp_dir.h"
@@ -25,37 +27,24 @@ namespace sim_route_e2e {
 namespace {
 
 using fleetgw::testing::ChildProcess;
+using fleetgw::testing::distance_m;
+using fleetgw::testing::first_row_number;
+using fleetgw::testing::GatewayConfig;
 using fleetgw::testing::GatewayProcess;
 using fleetgw::testing::query_text;
+using fleetgw::testing::RoutePoint;
 using fleetgw::testing::TempDir;
 using fleetgw::testing::wait_until;
 using namespace std::chrono_literals;
 
-constexpr double kEarthRadiusM = 6'371'008.8;  // as gateway/gnss/position.cc
-constexpr double kRad = M_PI / 180.0;
-
-struct Point {
-  double lat;
-  double lon;
-};
-
-double metres(const Point& a, const Point& b) {
-  const double dlat = (b.lat - a.lat) * kRad;
-  const double dlon = (b.lon - a.lon) * kRad;
-  const double h =
-      std::sin(dlat / 2) * std::sin(dlat / 2) +
-      std::cos(a.lat * kRad) * std::cos(b.lat * kRad) * std::sin(dlon / 2) * std::sin(dlon / 2);
-  return 2 * kEarthRadiusM * std::asin(std::sqrt(h));
-}
-
 // About 2.5 km north, 2 km east, 1.4 km north: 5.9 km, a little less than the 6 km the bike
 // rides, so the bike reaches the route's end and stays there (the odometer goes on).
-constexpr Point kRoute[] = {
+constexpr RoutePoint kRoute[] = {
     {52.5200, 13.4050}, {52.5425, 13.4050}, {52.5425, 13.4345}, {52.5551, 13.4345}};
 
 double route_length() {
   double m = 0;
-  for (std::size_t i = 1; i < std::size(kRoute); ++i) m += metres(kRoute[i - 1], kRoute[i]);
+  for (std::size_t i = 1; i < std::size(kRoute); ++i) m += distance_m(kRoute[i - 1], kRoute[i]);
   return m;
 }
 
@@ -95,32 +84,20 @@ at_s = 1200
 action = "lock"
 node = "lock2"
 )toml";
-  for (const Point& p : kRoute) {
-    s << "\n[[route]]\nlat_deg = " << p.lat << "\nlon_deg = " << p.lon << "\n";
+  for (const RoutePoint& p : kRoute) {
+    s << "\n[[route]]\nlat_deg = " << p.lat_deg << "\nlon_deg = " << p.lon_deg << "\n";
   }
   const std::string path = (dir.path() / "route.toml").string();
   std::ofstream(path) << s.str();
   return path;
 }
 
-std::string write_config(const TempDir& dir, std::uint16_t gpsd_port) {
-  std::ostringstream c;
-  c << "[vehicle]\nid = \"route-bike\"\n[log]\nlevel = \"info\"\n"
-    << "[can]\ntransport = \"sim\"\n[sim]\nscenario = \"" << write_scenario(dir)
-    << "\"\nspeed = 20\nstart_now = false\nnmea_pty = \"" << (dir.path() / "sim-gps").string()
-    << "\"\n"
-    << "[storage]\npath = \"" << (dir.path() / "fleetgw.db").string() << "\"\nflush_ms = 100\n"
-    << "[status]\nsocket = \"\"\n"
-    << "[gnss]\nenabled = true\ngpsd = \"127.0.0.1:" << gpsd_port
-    << "\"\nmax_age_ms = 3000\nreconnect_max_ms = 1000\n";
-  const std::string path = (dir.path() / "fleetgw.toml").string();
-  std::ofstream(path) << c.str();
-  return path;
-}
-
-double number(const std::filesystem::path& db, const std::string& column) {
-  const std::string v = query_text(db, "SELECT " + column + " FROM rides ORDER BY id LIMIT 1");
-  return v.empty() ? std::nan("") : std::stod(v);
+std::filesystem::path write_config(const TempDir& dir, std::uint16_t gpsd_port) {
+  GatewayConfig c("route-bike", dir / "fleetgw.db");
+  c.sim(write_scenario(dir), 20).set("sim", "start_now", "false");
+  c.set_string("sim", "nmea_pty", (dir / "sim-gps").string());
+  c.set("storage", "flush_ms", "100").gnss(gpsd_port).set("gnss", "max_age_ms", "3000");
+  return c.write(dir / "fleetgw.toml");
 }
 
 TEST(SimRouteEndToEnd, TheSimulatedBikesRouteReachesTheRideThroughARealGpsd) {
@@ -131,6 +108,9 @@ TEST(SimRouteEndToEnd, TheSimulatedBikesRouteReachesTheRideThroughARealGpsd) {
   const std::uint16_t port = fleetgw::testing::free_loopback_port();
   const auto db = dir.path() / "fleetgw.db";
   const auto pty = dir.path() / "sim-gps";
+  const auto ride = [&db](const std::string& column) {
+    return first_row_number(db, "rides", column);
+  };
   GatewayProcess gw(FLEETGW_BINARY, write_config(dir, port), {"--bus-duration", "1240"});
   ASSERT_TRUE(wait_until([&] { return std::filesystem::is_symlink(pty); }, 20s))
       << "the simulator never made its NMEA pty\n"
@@ -148,13 +128,14 @@ TEST(SimRouteEndToEnd, TheSimulatedBikesRouteReachesTheRideThroughARealGpsd) {
   ASSERT_EQ(gw.wait_exit(60s), 0) << gw.log();
 
   ASSERT_EQ(query_text(db, "SELECT count(*) FROM rides"), "1") << gw.log();
-  const Point start{number(db, "start_lat_deg"), number(db, "start_lon_deg")};
-  const Point end{number(db, "end_lat_deg"), number(db, "end_lon_deg")};
-  ASSERT_FALSE(std::isnan(start.lat) || std::isnan(end.lat)) << gw.log() << gpsd.log();
-  EXPECT_LT(metres(start, kRoute[0]), 2.0) << start.lat << "," << start.lon;
-  EXPECT_LT(metres(end, kRoute[std::size(kRoute) - 1]), 2.0) << end.lat << "," << end.lon;
-  const double gnss_m = number(db, "gnss_distance_m");
-  const double odo_m = number(db, "distance_km") * 1000.0;
+  const RoutePoint start{ride("start_lat_deg"), ride("start_lon_deg")};
+  const RoutePoint end{ride("end_lat_deg"), ride("end_lon_deg")};
+  ASSERT_FALSE(std::isnan(start.lat_deg) || std::isnan(end.lat_deg)) << gw.log() << gpsd.log();
+  EXPECT_LT(distance_m(start, kRoute[0]), 2.0) << start.lat_deg << "," << start.lon_deg;
+  EXPECT_LT(distance_m(end, kRoute[std::size(kRoute) - 1]), 2.0)
+      << end.lat_deg << "," << end.lon_deg;
+  const double gnss_m = ride("gnss_distance_m");
+  const double odo_m = ride("distance_km") * 1000.0;
   EXPECT_NEAR(gnss_m, odo_m, 0.03 * odo_m) << "GNSS distance vs the odometer";
   EXPECT_NEAR(gnss_m, route_length(), 0.03 * route_length()) << "GNSS distance vs the route";
   const std::string track = query_text(db, "SELECT track FROM rides");

@@ -8,80 +8,45 @@
 // ride-ending lock refused in a no-parking zone reach the broker (decoded Envelopes) and the
 // SQLite store (zone_events, alarms, command_results).
 #include <gtest/gtest.h>
-#include <mqtt/async_client.h>
-#include <signal.h>
 #include <sqlite3.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <chrono>
 #include <filesystem>
-#include <fstream>
-#include <iterator>
-#include <mutex>
-#include <optional>
 #include <regex>
-#include <sstream>
 #include <string>
 #include <vector>
 
 #include "fleetgw/v1/envelope.pb.h"
+#include "tests/support/fake_gps.h"
+#include "tests/support/gateway_config.h"
 #include "tests/support/mosquitto_fixture.h"
 #include "tests/support/nmea.h"
 #include "tests/support/process.h"
 #include "tests/support/temp_dir.h"
+#include "tests/support/vehicle_watcher.h"
 #include "tests/support/wait.h"
+#include "tests/support/zone_operator.h"
 
 namespace {
 
-using fleetgw::testing::ChildProcess;
+using fleetgw::testing::FakeGps;
+using fleetgw::testing::GatewayConfig;
 using fleetgw::testing::GatewayProcess;
+using fleetgw::testing::geojson_feature;
+using fleetgw::testing::geojson_rect;
+using fleetgw::testing::have_gpsfake;
 using fleetgw::testing::MosquittoBroker;
 using fleetgw::testing::RoutePoint;
 using fleetgw::testing::TempDir;
+using fleetgw::testing::VehicleWatcher;
 using fleetgw::testing::wait_until;
+using fleetgw::testing::ZoneOperator;
 using namespace std::chrono_literals;
 
 constexpr double kLat0 = 52.5200;
 constexpr double kLon0 = 13.4050;
 constexpr double kStepDeg = 0.000045;  // about 5 m a second, north
-
-bool have_gpsd_tools() {
-  return std::system("command -v gpsfake >/dev/null 2>&1 && command -v gpsd >/dev/null 2>&1") == 0;
-}
-
-// gpsfake and its gpsd in a process group of their own, ended together.
-class ZoneGps {
- public:
-  ZoneGps(const TempDir& dir, std::uint16_t port, const std::string& nmea) {
-    const auto file = dir.path() / "route.nmea";
-    std::ofstream(file) << nmea;
-    process_.emplace(std::vector<std::string>{"setsid", "gpsfake", "-q", "-c", "0.5", "-P",
-                                              std::to_string(port), "-S", file.string()},
-                     dir.path() / "gpsfake.log");
-  }
-  ~ZoneGps() {
-    ::kill(-process_->pid(), SIGKILL);
-    process_->kill();
-  }
-  ZoneGps(const ZoneGps&) = delete;
-  ZoneGps& operator=(const ZoneGps&) = delete;
-
- private:
-  std::optional<ChildProcess> process_;
-};
-
-std::string run_tool(const TempDir& dir, const std::vector<std::string>& args) {
-  std::vector<std::string> argv{FLEETGW_BINARY};
-  argv.insert(argv.end(), args.begin(), args.end());
-  const auto out = dir.path() / "tool.out";
-  std::filesystem::remove(out);
-  fleetgw::testing::run_program(argv, out);
-  std::ifstream in(out);
-  std::ostringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
 
 // The limits the gateway's log says the MC confirmed, in order.
 std::vector<int> confirmed_limits(const std::string& log) {
@@ -95,41 +60,26 @@ std::vector<int> confirmed_limits(const std::string& log) {
 }
 
 TEST(GeofenceEndToEnd, ASlowZoneIsAppliedAlongTheRampAndLiftedOfflineFromTheStoredBundle) {
-  if (!have_gpsd_tools()) GTEST_SKIP() << "gpsd/gpsfake not installed (scripts/install-deps.sh)";
+  if (!have_gpsfake()) GTEST_SKIP() << "gpsd/gpsfake not installed (scripts/install-deps.sh)";
   TempDir dir;
   // The operator's side: a key, the zone drawn as GeoJSON, the signed bundle.
-  const std::string keygen = run_tool(dir, {"keygen", (dir.path() / "ops").string()});
-  const auto key_line = keygen.substr(keygen.find("ops = \""));
+  ZoneOperator ops(dir, FLEETGW_BINARY);
   const double lat_in = kLat0 + 20 * kStepDeg, lat_out = kLat0 + 0.02;
-  std::ofstream(dir.path() / "zones.geojson")
-      << R"({"type": "FeatureCollection", "features": [{"type": "Feature",
-        "properties": {"id": "old-town", "kind": "slow", "speed_limit_kmh": 15},
-        "geometry": {"type": "Polygon", "coordinates": [[)"
-      << "[" << kLon0 - 0.002 << "," << lat_in << "],[" << kLon0 + 0.002 << "," << lat_in << "],["
-      << kLon0 + 0.002 << "," << lat_out << "],[" << kLon0 - 0.002 << "," << lat_out << "]"
-      << "]]}}]}";
-  const auto bundle = dir.path() / "zones.pb";
-  run_tool(dir, {"zones", "sign", (dir.path() / "zones.geojson").string(), "--version", "1",
-                 "--key", (dir.path() / "ops.pem").string(), "--out", bundle.string()});
+  const auto bundle = ops.bundle_file(
+      1, {geojson_feature("old-town", "slow",
+                          geojson_rect(kLon0 - 0.002, kLon0 + 0.002, lat_in, lat_out),
+                          R"(, "speed_limit_kmh": 15)")});
 
   // The bike's side: the bundle already stored, the uplink on but its broker down (nothing
   // listens on its port): the zones must not wait for it.
   const std::uint16_t port = fleetgw::testing::free_loopback_port();
   const std::uint16_t broker_port = fleetgw::testing::free_loopback_port();
-  std::ostringstream c;
-  c << "[vehicle]\nid = \"zone-bike\"\n[log]\nlevel = \"info\"\n"
-    << "[can]\ntransport = \"sim\"\n[sim]\nscenario = \"" << FLEETGW_SOURCE_DIR
-    << "/config/scenarios/demo.toml\"\nspeed = 1\n"
-    << "[storage]\npath = \"" << (dir.path() / "fleetgw.db").string() << "\"\n"
-    << "[status]\nsocket = \"\"\n"
-    << "[mqtt]\nenabled = true\nuri = \"tcp://127.0.0.1:" << broker_port << "\"\n"
-    << "[gnss]\nenabled = true\ngpsd = \"127.0.0.1:" << port << "\"\nreconnect_max_ms = 1000\n"
-    << "[geofence]\nenabled = true\nbundle_file = \"" << bundle.string() << "\"\n"
-    << "margin_m = 5\nmin_dwell_ms = 2000\nspeed_ramp_ms = 3000\nrestore_ramp_ms = 2000\n"
-    << "[command.trusted_keys]\n"
-    << key_line.substr(0, key_line.find('\n')) << "\n";
-  const auto config = dir.path() / "fleetgw.toml";
-  std::ofstream(config) << c.str();
+  GatewayConfig c("zone-bike", dir / "fleetgw.db");
+  c.sim(std::string(FLEETGW_SOURCE_DIR) + "/config/scenarios/demo.toml", 1);
+  c.mqtt("tcp://127.0.0.1:" + std::to_string(broker_port)).gnss(port);
+  c.geofence(bundle, ops.key_line()).set("geofence", "min_dwell_ms", "2000");
+  c.set("geofence", "speed_ramp_ms", "3000").set("geofence", "restore_ramp_ms", "2000");
+  const auto config = c.write(dir / "fleetgw.toml");
   GatewayProcess gw(FLEETGW_BINARY, config, {"--duration", "240"});
   ASSERT_TRUE(wait_until([&] { return gw.log_contains("geofence: version 1 in force"); }, 20s))
       << gw.log();
@@ -139,7 +89,7 @@ TEST(GeofenceEndToEnd, ASlowZoneIsAppliedAlongTheRampAndLiftedOfflineFromTheStor
   for (int i = 0; i < 40; ++i) route.push_back({kLat0 + i * kStepDeg, kLon0});
   for (int i = 40; i > 0; --i) route.push_back({kLat0 + i * kStepDeg, kLon0});
   for (int i = 0; i < 30; ++i) route.push_back({kLat0, kLon0});
-  ZoneGps gps(dir, port, fleetgw::testing::nmea_route(route));
+  FakeGps gps(dir, port, fleetgw::testing::nmea_route(route), FakeGps::Options{});
 
   ASSERT_TRUE(
       wait_until([&] { return gw.log_contains("geofence: enter slow zone 'old-town'"); }, 60s))
@@ -179,60 +129,6 @@ TEST(GeofenceEndToEnd, ASlowZoneIsAppliedAlongTheRampAndLiftedOfflineFromTheStor
   EXPECT_EQ(gw.stop(), 0) << gw.log();
 }
 
-// Zone events and alarms as a backend decodes them from the broker.
-class ZoneSubscriber {
- public:
-  ZoneSubscriber(const std::string& uri, const std::string& vehicle)
-      : client_(uri, "zone-e2e-" + std::to_string(getpid())) {
-    client_.set_message_callback([this](mqtt::const_message_ptr m) {
-      fleetgw::v1::Envelope e;
-      std::lock_guard lock(mutex_);
-      if (!e.ParseFromString(m->get_payload())) return;
-      if (e.has_zone()) zones_.push_back({m->get_topic(), e.zone()});
-      if (e.has_alarm()) alarms_.push_back({m->get_topic(), e.alarm()});
-    });
-    client_.connect(mqtt::connect_options_builder().clean_session(true).finalize())->wait();
-    client_.subscribe("fleet/v1/" + vehicle + "/#", 1)->wait();
-  }
-  ~ZoneSubscriber() {
-    try {
-      client_.disconnect()->wait_for(2s);
-    } catch (...) {
-    }
-  }
-  template <typename M>
-  struct Received {
-    std::string topic;
-    M message;
-  };
-  std::vector<Received<fleetgw::v1::ZoneEvent>> zones() {
-    std::lock_guard lock(mutex_);
-    return zones_;
-  }
-  std::vector<Received<fleetgw::v1::Alarm>> alarms() {
-    std::lock_guard lock(mutex_);
-    return alarms_;
-  }
-  // "<zone id> <transition number>" in arrival order, for one readable comparison.
-  std::vector<std::string> zone_log() {
-    std::vector<std::string> out;
-    for (const auto& z : zones()) {
-      out.push_back(z.message.zone_id() + " " + std::to_string(z.message.transition()));
-    }
-    return out;
-  }
-  bool has_zone(const std::string& id, fleetgw::v1::ZoneTransition t) {
-    const auto log = zone_log();
-    return std::find(log.begin(), log.end(), id + " " + std::to_string(t)) != log.end();
-  }
-
- private:
-  mqtt::async_client client_;
-  std::mutex mutex_;
-  std::vector<Received<fleetgw::v1::ZoneEvent>> zones_;
-  std::vector<Received<fleetgw::v1::Alarm>> alarms_;
-};
-
 // Rows of one query as "a|b|c" lines (NULL as "-").
 std::vector<std::string> query(const std::filesystem::path& db, const std::string& sql) {
   std::vector<std::string> rows;
@@ -262,63 +158,38 @@ std::vector<std::string> query(const std::filesystem::path& db, const std::strin
   return rows;
 }
 
-std::string rect(double lon0, double lon1, double lat0, double lat1) {
-  std::ostringstream o;
-  o.precision(9);
-  o << "[[[" << lon0 << "," << lat0 << "],[" << lon1 << "," << lat0 << "],[" << lon1 << "," << lat1
-    << "],[" << lon0 << "," << lat1 << "]]]";
-  return o.str();
-}
-
 TEST(GeofenceEndToEnd, ZoneEventsTheAreaAlarmAndARefusedLockReachTheBrokerAndTheStore) {
-  if (!have_gpsd_tools()) GTEST_SKIP() << "gpsd/gpsfake not installed (scripts/install-deps.sh)";
+  if (!have_gpsfake()) GTEST_SKIP() << "gpsd/gpsfake not installed (scripts/install-deps.sh)";
   TempDir dir;
   MosquittoBroker broker;
   broker.start();
   const std::string vehicle = "zone-bike-2";
-  ZoneSubscriber sub(broker.uri(), vehicle);
+  VehicleWatcher sub(broker.uri(), vehicle);
 
   // 10 m a second, north. The operating area ends 150 m north; the slow zone starts 50 m north;
   // the bike starts (and stops) in a no-parking zone that ends 20 m north.
   constexpr double kStep = 2 * kStepDeg;
   const double w = kLon0 - 0.002, e = kLon0 + 0.002;
-  const std::string keygen = run_tool(dir, {"keygen", (dir.path() / "ops").string()});
-  const auto key_line = keygen.substr(keygen.find("ops = \""));
-  std::ofstream(dir.path() / "zones.geojson")
-      << R"({"type": "FeatureCollection", "features": [)"
-      << R"({"type": "Feature", "properties": {"id": "city", "kind": "operating_area"},)"
-      << R"("geometry": {"type": "Polygon", "coordinates": )"
-      << rect(w, e, kLat0 - 0.001, kLat0 + 15 * kStep) << "}},"
-      << R"({"type": "Feature", "properties": {"id": "old-town", "kind": "slow", )"
-      << R"("speed_limit_kmh": 15}, "geometry": {"type": "Polygon", "coordinates": )"
-      << rect(w, e, kLat0 + 5 * kStep, kLat0 + 0.02) << "}},"
-      << R"({"type": "Feature", "properties": {"id": "station", "kind": "no_parking"},)"
-      << R"("geometry": {"type": "Polygon", "coordinates": )"
-      << rect(w, e, kLat0 - 0.0005, kLat0 + 2 * kStep) << "}}]}";
-  const auto bundle = dir.path() / "zones.pb";
-  const std::string signed_out =
-      run_tool(dir, {"zones", "sign", (dir.path() / "zones.geojson").string(), "--version", "3",
-                     "--key", (dir.path() / "ops.pem").string(), "--out", bundle.string()});
-  ASSERT_TRUE(std::filesystem::exists(bundle)) << signed_out;
+  ZoneOperator ops(dir, FLEETGW_BINARY);
+  const auto bundle = ops.bundle_file(
+      3, {geojson_feature("city", "operating_area",
+                          geojson_rect(w, e, kLat0 - 0.001, kLat0 + 15 * kStep)),
+          geojson_feature("old-town", "slow", geojson_rect(w, e, kLat0 + 5 * kStep, kLat0 + 0.02),
+                          R"(, "speed_limit_kmh": 15)"),
+          geojson_feature("station", "no_parking",
+                          geojson_rect(w, e, kLat0 - 0.0005, kLat0 + 2 * kStep))});
 
   const std::uint16_t port = fleetgw::testing::free_loopback_port();
   const auto db = dir.path() / "fleetgw.db";
-  std::ostringstream c;
-  c << "[vehicle]\nid = \"" << vehicle << "\"\n[log]\nlevel = \"info\"\n"
-    << "[can]\ntransport = \"sim\"\n[sim]\nscenario = \"" << FLEETGW_SOURCE_DIR
-    << "/config/scenarios/parked.toml\"\nspeed = 1\n"
-    << "[storage]\npath = \"" << db.string() << "\"\n"
-    << "[status]\nsocket = \"\"\n"
-    << "[mqtt]\nenabled = true\nuri = \"" << broker.uri() << "\"\n"
-    << "reconnect_min_ms = 100\nreconnect_max_ms = 500\n"
-    << "[gnss]\nenabled = true\ngpsd = \"127.0.0.1:" << port << "\"\nreconnect_max_ms = 1000\n"
-    << "[geofence]\nenabled = true\nbundle_file = \"" << bundle.string() << "\"\n"
-    << "margin_m = 5\nmin_dwell_ms = 2000\nspeed_ramp_ms = 3000\nrestore_ramp_ms = 2000\n"
-    << "refuse_ride_ending_locks = true\n"
-    << "[command.trusted_keys]\n"
-    << key_line.substr(0, key_line.find('\n')) << "\n";
-  const auto config = dir.path() / "fleetgw.toml";
-  std::ofstream(config) << c.str();
+  GatewayConfig c(vehicle, db);
+  c.sim(std::string(FLEETGW_SOURCE_DIR) + "/config/scenarios/parked.toml", 1);
+  c.mqtt(broker.uri())
+      .set("mqtt", "reconnect_min_ms", "100")
+      .set("mqtt", "reconnect_max_ms", "500");
+  c.gnss(port).geofence(bundle, ops.key_line()).set("geofence", "min_dwell_ms", "2000");
+  c.set("geofence", "speed_ramp_ms", "3000").set("geofence", "restore_ramp_ms", "2000");
+  c.set("geofence", "refuse_ride_ending_locks", "true");
+  const auto config = c.write(dir / "fleetgw.toml");
   GatewayProcess gw(FLEETGW_BINARY, config, {"--duration", "300"});
   ASSERT_TRUE(wait_until([&] { return gw.log_contains("geofence: version 3 in force"); }, 20s))
       << gw.log();
@@ -331,7 +202,7 @@ TEST(GeofenceEndToEnd, ZoneEventsTheAreaAlarmAndARefusedLockReachTheBrokerAndThe
   for (int i = 0; i < 25; ++i) route.push_back({kLat0 + i * kStep, kLon0});
   for (int i = 25; i > 0; --i) route.push_back({kLat0 + i * kStep, kLon0});
   for (int i = 0; i < 40; ++i) route.push_back({kLat0, kLon0});
-  ZoneGps gps(dir, port, fleetgw::testing::nmea_route(route));
+  FakeGps gps(dir, port, fleetgw::testing::nmea_route(route), FakeGps::Options{});
 
   using fleetgw::v1::ZONE_TRANSITION_ENTER;
   // Back in the station: its second ENTER (the first came with the first fixes).
@@ -366,10 +237,9 @@ TEST(GeofenceEndToEnd, ZoneEventsTheAreaAlarmAndARefusedLockReachTheBrokerAndThe
   const auto out = dir.path() / "command.out";
   const int code = fleetgw::testing::run_for_exit_code(
       {FLEETGW_BINARY, "command", "--vehicle", vehicle, "--lock", "vehicle", "--action", "lock",
-       "--key", (dir.path() / "ops.pem").string(), "--broker", broker.uri(), "--timeout-s", "30"},
+       "--key", ops.key_file().string(), "--broker", broker.uri(), "--timeout-s", "30"},
       out);
-  std::ifstream in(out);
-  const std::string result((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::string result = fleetgw::testing::read_text_file(out);
   EXPECT_NE(code, 0) << "a refused command is a failure for the operator tool";
   EXPECT_NE(result.find("\"result\":\"rejected\""), std::string::npos) << result;
   EXPECT_NE(result.find("no_parking_zone: will not end the ride inside the no-parking zone "

@@ -7,35 +7,41 @@
 // in a no-parking zone is reported on .../zone. Every wait is for a condition.
 #include <gtest/gtest.h>
 #include <mqtt/async_client.h>
-#include <signal.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <chrono>
 #include <filesystem>
 #include <fstream>
-#include <mutex>
 #include <nlohmann/json.hpp>
-#include <optional>
-#include <sstream>
 #include <string>
 #include <vector>
 
 #include "fleetgw/v1/envelope.pb.h"
+#include "tests/support/fake_gps.h"
+#include "tests/support/gateway_config.h"
 #include "tests/support/mosquitto_fixture.h"
 #include "tests/support/nmea.h"
 #include "tests/support/process.h"
 #include "tests/support/temp_dir.h"
+#include "tests/support/vehicle_watcher.h"
 #include "tests/support/wait.h"
+#include "tests/support/zone_operator.h"
 
 namespace {
 
-using fleetgw::testing::ChildProcess;
+using fleetgw::testing::FakeGps;
+using fleetgw::testing::GatewayConfig;
 using fleetgw::testing::GatewayProcess;
+using fleetgw::testing::geojson_feature;
+using fleetgw::testing::geojson_rect;
+using fleetgw::testing::have_gpsfake;
 using fleetgw::testing::MosquittoBroker;
 using fleetgw::testing::MosquittoOptions;
 using fleetgw::testing::TempDir;
+using fleetgw::testing::VehicleWatcher;
 using fleetgw::testing::wait_until;
+using fleetgw::testing::ZoneOperator;
 using namespace std::chrono_literals;
 
 constexpr double kLat0 = 52.5200;
@@ -44,55 +50,6 @@ constexpr double kLon0 = 13.4050;
 std::string read_file(const std::filesystem::path& p) {
   return fleetgw::testing::read_text_file(p);
 }
-
-std::string run_tool(const TempDir& dir, const std::vector<std::string>& args) {
-  std::vector<std::string> argv{FLEETGW_BINARY};
-  argv.insert(argv.end(), args.begin(), args.end());
-  const auto out = dir.path() / "tool.out";
-  std::filesystem::remove(out);
-  fleetgw::testing::run_program(argv, out);
-  return read_file(out);
-}
-
-std::string rect(double lon0, double lon1, double lat0, double lat1) {
-  std::ostringstream o;
-  o.precision(9);
-  o << "[[[" << lon0 << "," << lat0 << "],[" << lon1 << "," << lat0 << "],[" << lon1 << "," << lat1
-    << "],[" << lon0 << "," << lat1 << "]]]";
-  return o.str();
-}
-
-std::string feature(const std::string& id, const std::string& kind, const std::string& coords,
-                    const std::string& extra = "") {
-  return R"({"type": "Feature", "properties": {"id": ")" + id + R"(", "kind": ")" + kind + "\"" +
-         extra + R"(}, "geometry": {"type": "Polygon", "coordinates": )" + coords + "}}";
-}
-
-// The operator's side: a key and bundles signed with it by the shipped tool.
-class Operator {
- public:
-  explicit Operator(const TempDir& dir) : dir_(dir) {
-    const std::string keygen = run_tool(dir_, {"keygen", (dir_.path() / "ops").string()});
-    const auto from = keygen.find("ops = \"");
-    key_line_ = keygen.substr(from, keygen.find('\n', from) - from);
-  }
-  const std::string& key_line() const { return key_line_; }
-  // `features` (GeoJSON Feature objects) signed as `version`; the signed file's bytes.
-  std::string sign(int version, const std::vector<std::string>& features) {
-    std::string all;
-    for (const auto& f : features) all += (all.empty() ? "" : ",") + f;
-    const auto geojson = dir_.path() / ("zones-" + std::to_string(version) + ".geojson");
-    const auto out = dir_.path() / ("zones-" + std::to_string(version) + ".pb");
-    std::ofstream(geojson) << R"({"type": "FeatureCollection", "features": [)" << all << "]}";
-    run_tool(dir_, {"zones", "sign", geojson.string(), "--version", std::to_string(version),
-                    "--key", (dir_.path() / "ops.pem").string(), "--out", out.string()});
-    return read_file(out);
-  }
-
- private:
-  const TempDir& dir_;
-  std::string key_line_;
-};
 
 // Publishes retained messages, as an operator's `mosquitto_pub -r` would.
 void publish_retained(const std::string& uri, const std::string& topic,
@@ -120,26 +77,16 @@ nlohmann::json geofence_field(const nlohmann::json& status, const std::string& k
   return status["geofence"].value(key, nlohmann::json());
 }
 
-std::string gateway_config(const TempDir& dir, const std::string& vehicle,
+// The zones' gateway: status socket on (`fleetgw status` reads it), the uplink quick to
+// reconnect and to publish its state, gpsd, the bundle file in `dir`, the operator's key.
+GatewayConfig zone_gateway(const TempDir& dir, const std::string& vehicle,
                            const std::string& broker_uri, std::uint16_t gpsd_port,
-                           const std::string& key_line, const std::string& scenario,
-                           const std::string& extra_geofence = "") {
-  std::ostringstream c;
-  c << "[vehicle]\nid = \"" << vehicle << "\"\n[log]\nlevel = \"info\"\n"
-    << "[can]\ntransport = \"sim\"\n[sim]\nscenario = \"" << scenario << "\"\nspeed = 1\n"
-    << "[storage]\npath = \"" << (dir.path() / "fleetgw.db").string() << "\"\n"
-    << "[status]\nsocket = \"" << (dir.path() / "status.sock").string() << "\"\n"
-    << "[mqtt]\nenabled = true\nuri = \"" << broker_uri << "\"\n"
-    << "reconnect_min_ms = 100\nreconnect_max_ms = 500\nstate_interval_ms = 200\n"
-    << "[gnss]\nenabled = true\ngpsd = \"127.0.0.1:" << gpsd_port << "\"\n"
-    << "reconnect_max_ms = 1000\n"
-    << "[geofence]\nenabled = true\nbundle_file = \"" << (dir.path() / "zones.pb").string()
-    << "\"\nmargin_m = 5\n"
-    << extra_geofence << "[command.trusted_keys]\n"
-    << key_line << "\n";
-  const auto path = dir.path() / "fleetgw.toml";
-  std::ofstream(path) << c.str();
-  return path.string();
+                           const std::string& key_line, const std::string& scenario) {
+  GatewayConfig c(vehicle, dir / "fleetgw.db");
+  c.sim(scenario, 1).set_string("status", "socket", (dir / "status.sock").string());
+  c.mqtt(broker_uri).set("mqtt", "reconnect_min_ms", "100").set("mqtt", "reconnect_max_ms", "500");
+  c.set("mqtt", "state_interval_ms", "200").gnss(gpsd_port);
+  return c.geofence(dir / "zones.pb", key_line);
 }
 
 std::size_t count_of(const std::string& text, const std::string& what) {
@@ -155,22 +102,26 @@ TEST(ZonesOverMqtt, BundlesAreJudgedStoredAndKeptAndEveryRefusalIsNamed) {
   MosquittoBroker broker(options);
   broker.start();
   const std::string vehicle = "zone-mqtt-1";
-  Operator ops(dir);
+  ZoneOperator ops(dir, FLEETGW_BINARY);
   const auto area = [](int version) {
-    return feature("city-" + std::to_string(version), "operating_area",
-                   rect(kLon0 - 0.01, kLon0 + 0.01, kLat0 - 0.01, kLat0 + 0.01));
+    return geojson_feature("city-" + std::to_string(version), "operating_area",
+                           geojson_rect(kLon0 - 0.01, kLon0 + 0.01, kLat0 - 0.01, kLat0 + 0.01));
   };
-  const std::string v1 = ops.sign(1, {area(1)});
-  const std::string v2 = ops.sign(2, {area(2)});
-  const std::string v3 = ops.sign(3, {area(3)});
-  std::string forged = ops.sign(4, {area(4)});
+  const std::string v1 = ops.bundle(1, {area(1)});
+  const std::string v2 = ops.bundle(2, {area(2)});
+  const std::string v3 = ops.bundle(3, {area(3)});
+  std::string forged = ops.bundle(4, {area(4)});
   forged[forged.size() - 10] ^= 0x01;  // inside the signature (only key id "ops" follows it)
 
   // gpsd is not needed here: nothing listens on its port (position unknown).
-  const auto config = gateway_config(
-      dir, vehicle, broker.uri(), fleetgw::testing::free_loopback_port(), ops.key_line(),
-      std::string(FLEETGW_SOURCE_DIR) + "/config/scenarios/parked.toml",
-      "vehicle_bundles = true\nmax_bundle_bytes = 65536\n");
+  const auto config =
+      zone_gateway(dir, vehicle, broker.uri(), fleetgw::testing::free_loopback_port(),
+                   ops.key_line(),
+                   std::string(FLEETGW_SOURCE_DIR) + "/config/scenarios/parked.toml")
+          .set("geofence", "vehicle_bundles", "true")
+          .set("geofence", "max_bundle_bytes", "65536")
+          .write(dir / "fleetgw.toml")
+          .string();
   const auto bundle_file = dir.path() / "zones.pb";
   publish_retained(broker.uri(), "fleet/v1/zones", v2);
 
@@ -261,86 +212,13 @@ TEST(ZonesOverMqtt, BundlesAreJudgedStoredAndKeptAndEveryRefusalIsNamed) {
   EXPECT_EQ(gw.stop(), 0) << gw.log();
 }
 
-// gpsfake and its gpsd in a process group of their own, ended together.
-class StillGps {
- public:
-  StillGps(const TempDir& dir, std::uint16_t port) {
-    std::vector<fleetgw::testing::RoutePoint> route(60, {kLat0, kLon0});
-    const auto file = dir.path() / "still.nmea";
-    std::ofstream(file) << fleetgw::testing::nmea_route(route);
-    process_.emplace(std::vector<std::string>{"setsid", "gpsfake", "-q", "-c", "0.5", "-P",
-                                              std::to_string(port), "-S", file.string()},
-                     dir.path() / "gpsfake.log");
-  }
-  ~StillGps() {
-    ::kill(-process_->pid(), SIGKILL);
-    process_->kill();
-  }
-  StillGps(const StillGps&) = delete;
-  StillGps& operator=(const StillGps&) = delete;
-
- private:
-  std::optional<ChildProcess> process_;
-};
-
-// What a backend sees of one vehicle: zone events, alarms, the latest retained state.
-class VehicleWatcher {
- public:
-  VehicleWatcher(const std::string& uri, const std::string& vehicle)
-      : client_(uri, "zones-watch-" + std::to_string(getpid())) {
-    client_.set_message_callback([this](mqtt::const_message_ptr m) {
-      fleetgw::v1::Envelope e;
-      std::lock_guard lock(mutex_);
-      if (!e.ParseFromString(m->get_payload())) return;
-      if (e.has_zone()) zones_.push_back(e.zone());
-      if (e.has_alarm()) alarms_.push_back(e.alarm());
-      if (e.has_state()) state_ = e.state();
-    });
-    client_.connect(mqtt::connect_options_builder().clean_session(true).finalize())->wait();
-    client_.subscribe("fleet/v1/" + vehicle + "/#", 1)->wait();
-  }
-  ~VehicleWatcher() {
-    try {
-      client_.disconnect()->wait_for(2s);
-    } catch (...) {
-    }
-  }
-  bool has_zone(const std::string& id, fleetgw::v1::ZoneTransition t) {
-    std::lock_guard lock(mutex_);
-    return std::any_of(zones_.begin(), zones_.end(),
-                       [&](const auto& z) { return z.zone_id() == id && z.transition() == t; });
-  }
-  bool has_alarm(fleetgw::v1::AlarmKind kind, fleetgw::v1::AlarmTransition t) {
-    std::lock_guard lock(mutex_);
-    return std::any_of(alarms_.begin(), alarms_.end(),
-                       [&](const auto& a) { return a.kind() == kind && a.transition() == t; });
-  }
-  bool state_lists(fleetgw::v1::AlarmKind kind) {
-    std::lock_guard lock(mutex_);
-    if (!state_) return false;
-    const auto& a = state_->active_alarms();
-    return std::find(a.begin(), a.end(), kind) != a.end();
-  }
-
- private:
-  mqtt::async_client client_;
-  std::mutex mutex_;
-  std::vector<fleetgw::v1::ZoneEvent> zones_;
-  std::vector<fleetgw::v1::Alarm> alarms_;
-  std::optional<fleetgw::v1::VehicleState> state_;
-};
-
-bool have_gpsd_tools() {
-  return std::system("command -v gpsfake >/dev/null 2>&1 && command -v gpsd >/dev/null 2>&1") == 0;
-}
-
 TEST(ZonesOverMqtt, AReplacedBundleAppliesAtOnceAndALockOnTheBikeInANoParkingZoneIsReported) {
-  if (!have_gpsd_tools()) GTEST_SKIP() << "gpsd/gpsfake not installed (scripts/install-deps.sh)";
+  if (!have_gpsfake()) GTEST_SKIP() << "gpsd/gpsfake not installed (scripts/install-deps.sh)";
   TempDir dir;
   MosquittoBroker broker;
   broker.start();
   const std::string vehicle = "zone-mqtt-2";
-  Operator ops(dir);
+  ZoneOperator ops(dir, FLEETGW_BINARY);
   // The bike stands still at (kLat0, kLon0) with its frame lock (lock2) open; the rider locks it
   // with the key 60 s in.
   const auto scenario = dir.path() / "stand.toml";
@@ -350,10 +228,17 @@ TEST(ZonesOverMqtt, AReplacedBundleAppliesAtOnceAndALockOnTheBikeInANoParkingZon
                           << "[[event]]\nat_s = 1\naction = \"unlock\"\nnode = \"lock2\"\n"
                           << "[[event]]\nat_s = 60\naction = \"lock\"\nnode = \"lock2\"\n";
   const std::uint16_t gpsd_port = fleetgw::testing::free_loopback_port();
-  const auto config = gateway_config(dir, vehicle, broker.uri(), gpsd_port, ops.key_line(),
-                                     scenario.string(), "min_dwell_ms = 60000\n");
+  const auto config =
+      zone_gateway(dir, vehicle, broker.uri(), gpsd_port, ops.key_line(), scenario.string())
+          .set("geofence", "min_dwell_ms", "60000")
+          .write(dir / "fleetgw.toml")
+          .string();
   VehicleWatcher watch(broker.uri(), vehicle);
-  StillGps gps(dir, gpsd_port);
+  // gpsd with the bike standing at (kLat0, kLon0), the route played in a loop.
+  FakeGps gps(
+      dir, gpsd_port,
+      fleetgw::testing::nmea_route(std::vector<fleetgw::testing::RoutePoint>(60, {kLat0, kLon0})),
+      FakeGps::Options{});
   GatewayProcess gw(FLEETGW_BINARY, config, {"--duration", "240"});
   ASSERT_TRUE(wait_until(
       [&] {
@@ -364,10 +249,10 @@ TEST(ZonesOverMqtt, AReplacedBundleAppliesAtOnceAndALockOnTheBikeInANoParkingZon
       << gw.log();
   // The dwell is a minute: only the evaluation at a bundle's arrival can decide in time.
   // Version 1: the bike inside its operating area, entered at once.
-  publish_retained(
-      broker.uri(), "fleet/v1/zones",
-      ops.sign(1, {feature("city", "operating_area",
-                           rect(kLon0 - 0.01, kLon0 + 0.01, kLat0 - 0.01, kLat0 + 0.01))}));
+  publish_retained(broker.uri(), "fleet/v1/zones",
+                   ops.bundle(1, {geojson_feature("city", "operating_area",
+                                                  geojson_rect(kLon0 - 0.01, kLon0 + 0.01,
+                                                               kLat0 - 0.01, kLat0 + 0.01))}));
   ASSERT_TRUE(
       wait_until([&] { return watch.has_zone("city", fleetgw::v1::ZONE_TRANSITION_ENTER); }, 15s))
       << gw.log();
@@ -375,10 +260,12 @@ TEST(ZonesOverMqtt, AReplacedBundleAppliesAtOnceAndALockOnTheBikeInANoParkingZon
   // Version 2 moves the area 5 km east and puts a no-parking zone where the bike stands.
   publish_retained(
       broker.uri(), "fleet/v1/zones",
-      ops.sign(2, {feature("city", "operating_area",
-                           rect(kLon0 + 0.07, kLon0 + 0.09, kLat0 - 0.01, kLat0 + 0.01)),
-                   feature("station", "no_parking",
-                           rect(kLon0 - 0.001, kLon0 + 0.001, kLat0 - 0.001, kLat0 + 0.001))}));
+      ops.bundle(
+          2, {geojson_feature("city", "operating_area",
+                              geojson_rect(kLon0 + 0.07, kLon0 + 0.09, kLat0 - 0.01, kLat0 + 0.01)),
+              geojson_feature(
+                  "station", "no_parking",
+                  geojson_rect(kLon0 - 0.001, kLon0 + 0.001, kLat0 - 0.001, kLat0 + 0.001))}));
   using fleetgw::v1::ALARM_KIND_OUTSIDE_OPERATING_AREA;
   ASSERT_TRUE(wait_until(
       [&] {

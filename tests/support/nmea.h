@@ -6,6 +6,9 @@
 //    at `start` (UTC seconds of day), with valid checksums (gpsd drops sentences whose checksum
 //    is wrong). Latitudes and longitudes are WGS-84 degrees.
 //  * nmea_checksum() is the XOR of the characters between '$' and '*'.
+//  * distance_m() is the great-circle (haversine) distance in metres on the same mean Earth
+//    radius as gateway/gnss/position.cc, written independently of it, so a test compares the
+//    gateway's distances with its own.
 #pragma once
 
 #include <cmath>
@@ -19,6 +22,17 @@ struct RoutePoint {
   double lat_deg;
   double lon_deg;
 };
+
+inline double distance_m(const RoutePoint& a, const RoutePoint& b) {
+  constexpr double kEarthRadiusM = 6'371'008.8;
+  constexpr double kRad = M_PI / 180.0;
+  const double dlat = (b.lat_deg - a.lat_deg) * kRad;
+  const double dlon = (b.lon_deg - a.lon_deg) * kRad;
+  const double h = std::sin(dlat / 2) * std::sin(dlat / 2) +
+                   std::cos(a.lat_deg * kRad) * std::cos(b.lat_deg * kRad) * std::sin(dlon / 2) *
+                       std::sin(dlon / 2);
+  return 2 * kEarthRadiusM * std::asin(std::sqrt(h));
+}
 
 inline std::string nmea_checksum(const std::string& body) {
   unsigned x = 0;
