@@ -7,16 +7,17 @@
 #             and libFuzzer coverage instrumentation, warnings as errors, unity batches: every
 #             test executable, the fuzz targets and the binaries the tests run. The whole suite
 #             runs once, sanitized (one tree, not a plain tree and a sanitizer tree: that halves
-#             the compile, which is most of the run). Alongside it, at the lowest CPU priority,
-#             the product tree build/ (gcc, Release, warnings as errors, unity batches: the
+#             the compile, which is most of the run). Alongside it, at a low CPU priority (nice
+#             10; the arm64 cross build below runs at nice 19), the product tree build/ (gcc, Release, warnings as errors, unity batches: the
 #             binaries as shipped, the test executables only when named; no benchmarks);
 #   test      the CTest suite in build-san/ (unit, integration with a real mosquitto, real SQLite
 #             files, real gpsd); alongside it, at low priority, what mostly waits or can use the
 #             suite's idle time: the arm64 cross build with its emulated tests, and in the
 #             product tree the SocketCAN tests inside a QEMU VM (a stock Debian kernel with vcan),
 #             the deployment tests (the Debian package installed and purged, the systemd unit),
-#             the `memory` tests (resident memory means nothing under ASan's quarantine) and the
-#             demo's story (scripts/demo.sh on the binary it ships);
+#             the `memory` tests (resident memory means nothing under ASan's quarantine) and,
+#             once the sanitized suite is over, the demo's story (scripts/demo.sh on the binary
+#             it ships, timed on the wall clock);
 #   arm64     the result of the cross build of the protocol and storage unit tests, run under
 #             qemu-aarch64-static (tests/deploy/arm64-cross.sh: -O1, no debug info);
 #   fuzz      every libFuzzer target of FUZZ_TARGETS for FUZZ_SECONDS each, side by side.
@@ -106,7 +107,9 @@ phase_end
 
 # The product tree: the binaries exactly as shipped (gcc, Release, -Os, static protobuf and
 # SQLite); test executables are built only when named (the VM test binary and
-# the `memory` tests). Compiled at nice 19, so it only takes CPU the test tree leaves idle.
+# the `memory` tests). Compiled at nice 10, so it only takes CPU the test tree leaves idle, but
+# ahead of the arm64 cross build (nice 19): its tests (VM, deployment, memory) then run during
+# the sanitized suite, whose integration tests mostly wait, instead of after it.
 product_build() {
   # No benchmarks: nothing in this run runs them (bench/ scripts and README figures build them),
   # and their compile was the product tree's longest tail.
@@ -115,10 +118,10 @@ product_build() {
     "${LAUNCHER[@]}" >/dev/null
   local targets=(all cli_memory_tests uplink_contract_tests)
   [ "${SKIP_VM:-0}" = 1 ] || targets+=(socketcan_vm_tests)
-  nice -n 19 cmake --build build -j "$JOBS" --target "${targets[@]}"
+  nice -n 10 cmake --build build -j "$JOBS" --target "${targets[@]}"
 }
 product_pid=
-rm -f build/product.rc
+rm -f build/product.rc build-san/suite.done
 if [ "${SKIP_PRODUCT:-0}" != 1 ]; then
   ( rc=0; product_build >build/product-build.log 2>&1 || rc=$?; echo "$rc" >build/product.rc ) &
   product_pid=$!
@@ -167,8 +170,11 @@ if [ -n "$product_pid" ]; then
     [ "$(cat build/product.rc 2>/dev/null)" = 0 ] || exit 0
     cd build
     ctest -N >/dev/null
-    # The demo's story (about a minute, mostly waiting on its simulated bike) alongside the rest.
-    ( rc=0; ctest --output-on-failure --timeout 900 -L demo >demo-tests.log 2>&1 || rc=$?
+    # The demo's story (about a minute, mostly waiting on its simulated bike at 40x the wall
+    # clock) once the sanitized suite is over: it reacts to what the bike does in wall time, and
+    # a machine busy with three ASan tests at once would only test the machine.
+    ( while [ ! -e "$ROOT/build-san/suite.done" ]; do sleep 1; done
+      rc=0; ctest --output-on-failure --timeout 900 -L demo >demo-tests.log 2>&1 || rc=$?
       echo "$rc" >demo-tests.rc ) &
     demo_pid=$!
     # The VM test (one QEMU core, mostly booting) beside the deployment tests (dpkg and lintian,
@@ -197,6 +203,7 @@ if [ "${SKIP_ASAN:-0}" != 1 ]; then
   export LSAN_OPTIONS=suppressions=$ROOT/tests/sanitizer/lsan.supp
 fi
 run_ctest build-san -j "$((JOBS + 1))" -LE "vm|deploy|arm64|demo" || status=1
+touch build-san/suite.done
 unset ASAN_OPTIONS UBSAN_OPTIONS LSAN_OPTIONS
 phase_end
 

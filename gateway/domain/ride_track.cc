@@ -78,8 +78,11 @@ void RideTrack::add(const gnss::Position& p) {
   if (step < options_.min_step_m) return;
   distance_m_ += step;
   vertices_.push_back(p);
-  // Bounded memory: simplify in place, coarser each time if the route is too winding for the
-  // tolerance to halve it (documented: such a track is then simplified beyond tolerance_m).
+  // Bounded memory: past max_vertices, simplify in place down to half of it, coarser each time
+  // if the route is too winding for the tolerance to halve it (documented: such a track is then
+  // simplified beyond tolerance_m). Halving makes the cost amortised: one compaction per
+  // max_vertices / 2 new vertices, not one per fix once a winding ride has reached the bound.
+  if (vertices_.size() <= options_.max_vertices) return;
   double tolerance = options_.tolerance_m;
   while (vertices_.size() > options_.max_vertices / 2 + 1 && vertices_.size() > 2) {
     vertices_ = simplify_track(vertices_, tolerance);
