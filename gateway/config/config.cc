@@ -375,6 +375,7 @@ Config parse_root(const toml::table& root, const std::string& name) {
       s.integer("live_telemetry_max_age_ms", c.mqtt.live_telemetry_max_age_ms, 0, 86'400'000);
       s.integer("status_interval_ms", c.mqtt.status_interval_ms, 0, 86'400'000);
       s.integer("state_interval_ms", c.mqtt.state_interval_ms, 0, 3'600'000);
+      s.number("state_min_move_m", c.mqtt.state_min_move_m, 0.0, 100'000.0);
       s.integer("batch_max_samples", c.mqtt.batch_max_samples, 1, 10'000);
       s.integer("batch_max_ms", c.mqtt.batch_max_ms, 0, 3'600'000);
       s.integer("reconnect_min_ms", c.mqtt.reconnect_min_ms, 10, 3'600'000);

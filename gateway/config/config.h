@@ -104,6 +104,7 @@ struct MqttConfig {
   int live_telemetry_max_age_ms = 10'000;
   int status_interval_ms = 60'000;  // retained online status refresh; 0 = only on connect
   int state_interval_ms = 5000;  // retained vehicle state: on a change, at most this often; 0 = off
+  double state_min_move_m = 20;  // ...and a new position only once this far from the last one
   int batch_max_samples = 200;
   int batch_max_ms = 5000;
   int reconnect_min_ms = 1000;

@@ -65,6 +65,7 @@ Pipeline::Pipeline(asio::io_context& io, const config::Config& config, BusTransp
       device_info_(core_.node().config().identity),
       state_throttle_(
           std::chrono::milliseconds(config.mqtt.enabled ? config.mqtt.state_interval_ms : 0)),
+      state_position_(config.mqtt.state_min_move_m),
       parked_config_(make_parked_config(config)),
       timer_(io) {
   bus_.transport->start([this](const motinova::CanFrame& frame, Micros ts) { on_frame(frame, ts); },

@@ -204,6 +204,7 @@ class Pipeline {
   };
   std::vector<BikeLock> pending_bike_locks_;  // noted in the recorder's turn, judged in settle()
   StateThrottle state_throttle_;  // when the retained vehicle state is rebuilt (pipeline_state.cc)
+  StatePositionFilter state_position_;  // a fix counts as a state change once it moved
   ParkedConfig parked_config_;
   std::unique_ptr<ParkedController> parked_;         // parked/riding (pipeline_state.cc)
   std::chrono::milliseconds parked_batch_delay_{0};  // [parked] telemetry_batch_ms

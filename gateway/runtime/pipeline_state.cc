@@ -41,13 +41,18 @@ void Pipeline::update_vehicle_state() {
   const domain::DomainTrackers& trackers = recorder_->trackers();
   in.active_alarms = trackers.alarms().active_kinds();
   in.outside_operating_area = outside_operating_area_;
-  if (gnss_) in.position = gnss_->state().current(gnss_->wall_now());
+  std::optional<gnss::Position> position;
+  if (gnss_) position = gnss_->state().current(gnss_->wall_now());
   in.parked = parked();
   in.bus_state = bus_state();
   in.now = bus_now();
+  in.position = state_position_.comparable(position);
+  const std::optional<gnss::Position> compared = in.position;
   if (!state_throttle_.offer(build_vehicle_state(in, false), std::chrono::steady_clock::now())) {
     return;
   }
+  state_position_.handed_over(compared);
+  in.position = position;
   uplink_->set_vehicle_state(build_vehicle_state(in));
   publish_due_ = true;
 }

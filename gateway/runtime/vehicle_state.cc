@@ -72,6 +72,12 @@ std::string build_vehicle_state(const VehicleStateInputs& in, bool with_time) {
   return s.SerializeAsString();
 }
 
+std::optional<gnss::Position> StatePositionFilter::comparable(
+    const std::optional<gnss::Position>& current) const {
+  if (current && anchor_ && gnss::distance_m(*current, *anchor_) < min_move_m_) return anchor_;
+  return current;
+}
+
 std::optional<StateThrottle::Clock::time_point> StateThrottle::deadline() const {
   if (!touched_) return std::nullopt;
   if (!last_sent_) return Clock::time_point::min();

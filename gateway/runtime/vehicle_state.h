@@ -41,6 +41,23 @@ struct VehicleStateInputs {
 // (the form compared to detect a change).
 std::string build_vehicle_state(const VehicleStateInputs& in, bool with_time = true);
 
+// The position as the throttle compares it: a fix within `min_move_m` of the one last handed
+// over counts as that one, so GNSS jitter, a new fix time or satellite count of a parked bike do
+// not republish the state every interval (with GNSS on, a parked bike's fix changes every
+// second); moving further, or the position becoming unknown, does. The published state always
+// carries the current fix. min_move_m 0 compares every fix.
+class StatePositionFilter {
+ public:
+  explicit StatePositionFilter(double min_move_m) : min_move_m_(min_move_m) {}
+  std::optional<gnss::Position> comparable(const std::optional<gnss::Position>& current) const;
+  // After a hand-over: the position that was compared (comparable()'s result) is the new anchor.
+  void handed_over(const std::optional<gnss::Position>& compared) { anchor_ = compared; }
+
+ private:
+  double min_move_m_;
+  std::optional<gnss::Position> anchor_;
+};
+
 class StateThrottle {
  public:
   using Clock = std::chrono::steady_clock;
