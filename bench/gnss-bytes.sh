@@ -27,10 +27,6 @@ GPSD=$(command -v gpsd || echo /usr/sbin/gpsd)
 source bench/lib-brokers.sh
 bench_workdir fleetgw-gnss-bytes
 
-bytes_received() {  # name: the broker's received-bytes counter
-  mosquitto_sub -h 127.0.0.1 -p "${PORT[$1]}" -t '$SYS/broker/bytes/received' -C 1 -W 5
-}
-
 GPSD_PORT=$(free_port)
 write_config() {  # name with-gnss
   cat >"$WORK/$1.toml" <<TOML
@@ -58,29 +54,21 @@ for n in "${NAMES[@]}"; do start_broker "$n"; done
 write_config gnss true
 write_config no-gnss false
 declare -A BASE
-for n in "${NAMES[@]}"; do BASE[$n]=$(bytes_received "$n"); done
+for n in "${NAMES[@]}"; do BASE[$n]=$(broker_stat "$n" bytes/received); done
 
 echo "gnss-bytes: two services for $MINUTES min at speed 1 ($FLEETGW)"
-RUNS=()
-for n in "${NAMES[@]}"; do
-  /usr/bin/time -f '%U %S' -o "$WORK/$n.time" \
-    "$FLEETGW" run --config "$WORK/$n.toml" --duration $((MINUTES * 60)) >"$WORK/$n.log" 2>&1 &
-  RUNS+=($!)
-done
+start_services "$MINUTES" "${NAMES[@]}"
 for _ in $(seq 100); do [[ -L $WORK/sim-gps ]] && break; sleep 0.1; done
 [[ -L $WORK/sim-gps ]] || { echo "gnss-bytes: the simulator made no NMEA pty" >&2; exit 1; }
 "$GPSD" -N -n -b -S "$GPSD_PORT" "$WORK/sim-gps" >"$WORK/gpsd.log" 2>&1 &
 PIDS+=($!)
-for i in "${!RUNS[@]}"; do
-  wait "${RUNS[$i]}" || { echo "gnss-bytes: ${NAMES[$i]} failed" >&2; tail -20 "$WORK/${NAMES[$i]}.log" >&2; exit 1; }
-done
-sleep 2  # $SYS counters are published every second (sys_interval 1)
+wait_services gnss-bytes
 
 printf '%-8s %10s %14s %12s %14s\n' run "CPU s" "CPU s / hour" "bytes" "bytes / hour"
 declare -A PER_HOUR
 for n in "${NAMES[@]}"; do
   cpu=$(awk '{ print $1 + $2 }' "$WORK/$n.time")
-  bytes=$(( $(bytes_received "$n") - BASE[$n] ))
+  bytes=$(( $(broker_stat "$n" bytes/received) - BASE[$n] ))
   PER_HOUR[$n]=$(( bytes * 60 / MINUTES ))
   awk -v n="$n" -v c="$cpu" -v b="$bytes" -v m="$MINUTES" 'BEGIN {
     printf "%-8s %10.2f %14.1f %12d %14d\n", n, c, c * 60 / m, b, b * 60 / m }'

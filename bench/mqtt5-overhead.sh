@@ -21,10 +21,6 @@ command -v mosquitto_sub >/dev/null || { echo "mqtt5-overhead: needs mosquitto-c
 source bench/lib-brokers.sh
 bench_workdir fleetgw-mqtt5
 
-sys_counter() {  # name topic-suffix
-  mosquitto_sub -h 127.0.0.1 -p "${PORT[$1]}" -t "\$SYS/broker/$2" -C 1 -W 5
-}
-
 write_config() {  # name protocol
   cat >"$WORK/$1.toml" <<TOML
 [vehicle]
@@ -51,27 +47,19 @@ write_config mqtt5 5
 write_config mqtt311 3.1.1
 declare -A BASE_BYTES BASE_MSGS
 for n in "${NAMES[@]}"; do
-  BASE_BYTES[$n]=$(sys_counter "$n" bytes/received)
-  BASE_MSGS[$n]=$(sys_counter "$n" publish/messages/received)
+  BASE_BYTES[$n]=$(broker_stat "$n" bytes/received)
+  BASE_MSGS[$n]=$(broker_stat "$n" publish/messages/received)
 done
 
 echo "mqtt5-overhead: two riding services for $MINUTES min at speed 1 ($FLEETGW)"
-RUNS=()
-for n in "${NAMES[@]}"; do
-  /usr/bin/time -f '%U %S' -o "$WORK/$n.time" \
-    "$FLEETGW" run --config "$WORK/$n.toml" --duration $((MINUTES * 60)) >"$WORK/$n.log" 2>&1 &
-  RUNS+=($!)
-done
-for i in "${!RUNS[@]}"; do
-  wait "${RUNS[$i]}" || { echo "mqtt5-overhead: ${NAMES[$i]} failed" >&2; tail -20 "$WORK/${NAMES[$i]}.log" >&2; exit 1; }
-done
-sleep 2  # $SYS counters are published every second (sys_interval 1)
+start_services "$MINUTES" "${NAMES[@]}"
+wait_services mqtt5-overhead
 
 printf '%-8s %10s %14s %10s %14s %12s %12s\n' run "CPU s" "CPU s / hour" bytes "bytes / hour" publishes "B / publish"
 for n in "${NAMES[@]}"; do
   cpu=$(awk '{ print $1 + $2 }' "$WORK/$n.time")
-  bytes=$(( $(sys_counter "$n" bytes/received) - BASE_BYTES[$n] ))
-  msgs=$(( $(sys_counter "$n" publish/messages/received) - BASE_MSGS[$n] ))
+  bytes=$(( $(broker_stat "$n" bytes/received) - BASE_BYTES[$n] ))
+  msgs=$(( $(broker_stat "$n" publish/messages/received) - BASE_MSGS[$n] ))
   awk -v n="$n" -v c="$cpu" -v b="$bytes" -v p="$msgs" -v m="$MINUTES" 'BEGIN {
     printf "%-8s %10.2f %14.1f %10d %14d %12d %12.1f\n", n, c, c * 60 / m, b, b * 60 / m, p,
       (p > 0 ? b / p : 0) }'

@@ -24,10 +24,6 @@ command -v mosquitto_sub >/dev/null || { echo "parked-vs-riding: needs mosquitto
 source bench/lib-brokers.sh
 bench_workdir fleetgw-parked
 
-bytes_received() {  # name: the broker's received-bytes counter
-  mosquitto_sub -h 127.0.0.1 -p "${PORT[$1]}" -t '$SYS/broker/bytes/received' -C 1 -W 5
-}
-
 write_config() {  # name scenario parked-enabled
   cat >"$WORK/$1.toml" <<TOML
 [vehicle]
@@ -55,24 +51,16 @@ write_config parked parked true
 write_config parked-off parked false
 write_config riding ride true
 declare -A BASE
-for n in "${NAMES[@]}"; do BASE[$n]=$(bytes_received "$n"); done
+for n in "${NAMES[@]}"; do BASE[$n]=$(broker_stat "$n" bytes/received); done
 
 echo "parked-vs-riding: three services for $MINUTES min at speed 1 ($FLEETGW)"
-RUNS=()
-for n in "${NAMES[@]}"; do
-  /usr/bin/time -f '%U %S' -o "$WORK/$n.time" \
-    "$FLEETGW" run --config "$WORK/$n.toml" --duration $((MINUTES * 60)) >"$WORK/$n.log" 2>&1 &
-  RUNS+=($!)
-done
-for i in "${!RUNS[@]}"; do
-  wait "${RUNS[$i]}" || { echo "parked-vs-riding: ${NAMES[$i]} failed" >&2; tail -20 "$WORK/${NAMES[$i]}.log" >&2; exit 1; }
-done
-sleep 2  # $SYS counters are published every second (sys_interval 1)
+start_services "$MINUTES" "${NAMES[@]}"
+wait_services parked-vs-riding
 
 printf '%-11s %12s %16s %14s %16s\n' run "CPU s" "CPU s / hour" "bytes" "bytes / hour"
 for n in "${NAMES[@]}"; do
   cpu=$(awk '{ print $1 + $2 }' "$WORK/$n.time")
-  bytes=$(( $(bytes_received "$n") - BASE[$n] ))
+  bytes=$(( $(broker_stat "$n" bytes/received) - BASE[$n] ))
   awk -v n="$n" -v c="$cpu" -v b="$bytes" -v m="$MINUTES" 'BEGIN {
     printf "%-11s %12.2f %16.1f %14d %16d\n", n, c, c * 60 / m, b, b * 60 / m }'
 done
