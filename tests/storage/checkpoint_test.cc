@@ -107,11 +107,15 @@ TEST(Checkpointer, AReaderHoldingOldFramesBlocksNeitherWritesNorRequests) {
     request_times.push_back(std::chrono::steady_clock::now() - start);
   }
   EXPECT_GT(wal_size(path), allowance) << "the reader kept the WAL from restarting";
-  // A request only signals the worker: microseconds, where a checkpoint's fsyncs take 5-28 ms
-  // (the median, so that a preempted call on a loaded CI box does not count).
+  // A request only signals the worker: microseconds, where a checkpoint run on the store's
+  // thread would cost every request its fsyncs (5-28 ms on these disks). Judged by the fastest
+  // of the 60 requests (an inline checkpoint makes every one slow, a preempted call on a loaded
+  // CI box only some: a median of 2.1 ms was seen under ASan with three tests beside it) and,
+  // loosely, by the median.
   std::sort(request_times.begin(), request_times.end());
   if (std::getenv("FLEETGW_EMULATED") == nullptr) {  // qemu: no meaningful wall-clock bound
-    EXPECT_LT(request_times[request_times.size() / 2], 1ms);
+    EXPECT_LT(request_times.front(), 1ms);
+    EXPECT_LT(request_times[request_times.size() / 2], 10ms);
   }
   ASSERT_TRUE(wait_until([&] { return store.checkpoint_counters().partial > 0; }))
       << "the worker tried and was cut short by the reader";
