@@ -7,8 +7,8 @@
 #             and libFuzzer coverage instrumentation, warnings as errors, unity batches: every
 #             test executable, the fuzz targets and the binaries the tests run. The whole suite
 #             runs once, sanitized (one tree, not a plain tree and a sanitizer tree: that halves
-#             the compile, which is most of the run). Alongside it, at a low CPU priority (nice
-#             10; the arm64 cross build below runs at nice 19), the product tree build/ (gcc, Release, warnings as errors, unity batches: the
+#             the compile, which is most of the run). Alongside it, at the lowest CPU priority,
+#             the product tree build/ (gcc, Release, warnings as errors, unity batches: the
 #             binaries as shipped, the test executables only when named; no benchmarks);
 #   test      the CTest suite in build-san/ (unit, integration with a real mosquitto, real SQLite
 #             files, real gpsd); alongside it, at low priority, what mostly waits or can use the
@@ -107,9 +107,10 @@ phase_end
 
 # The product tree: the binaries exactly as shipped (gcc, Release, -Os, static protobuf and
 # SQLite); test executables are built only when named (the VM test binary and
-# the `memory` tests). Compiled at nice 10, so it only takes CPU the test tree leaves idle, but
-# ahead of the arm64 cross build (nice 19): its tests (VM, deployment, memory) then run during
-# the sanitized suite, whose integration tests mostly wait, instead of after it.
+# the `memory` tests). Compiled at nice 19, so it only takes CPU the test tree leaves idle.
+# (Tried: nice 10, ahead of the arm64 cross build, so that its tests run during the sanitized
+# suite: the product tail shrank by a minute and the suite grew by as much, with more timing
+# contention for its wall-clock tests.)
 product_build() {
   # No benchmarks: nothing in this run runs them (bench/ scripts and README figures build them),
   # and their compile was the product tree's longest tail.
@@ -118,7 +119,7 @@ product_build() {
     "${LAUNCHER[@]}" >/dev/null
   local targets=(all cli_memory_tests uplink_contract_tests)
   [ "${SKIP_VM:-0}" = 1 ] || targets+=(socketcan_vm_tests)
-  nice -n 10 cmake --build build -j "$JOBS" --target "${targets[@]}"
+  nice -n 19 cmake --build build -j "$JOBS" --target "${targets[@]}"
 }
 product_pid=
 rm -f build/product.rc build-san/suite.done
