@@ -2,40 +2,20 @@
 
 #include <algorithm>
 #include <cmath>
-#include <sstream>
-#include <stdexcept>
+
+#include "gateway/sim/toml_number.h"
 
 namespace fleetgw::sim {
 namespace {
 
 constexpr double kRad = M_PI / 180.0;
 
-std::string number_text(double v) {
-  std::ostringstream os;
-  os << v;
-  return os.str();
-}
-
 double read_coordinate(const toml::table& t, std::string_view key, double limit,
                        const std::string& path, const std::string& file) {
-  const toml::node* n = t.get(key);
   const std::string full = path + "." + std::string(key);
+  const toml::node* n = t.get(key);
   if (!n) throw ScenarioError(file, t.source().begin.line, full, "missing key");
-  const std::size_t line = n->source().begin.line;
-  double v = 0;
-  if (const auto i = n->value_exact<int64_t>()) {
-    v = static_cast<double>(*i);
-  } else if (const auto d = n->value_exact<double>()) {
-    v = *d;
-  } else {
-    throw ScenarioError(file, line, full, "expected a number (degrees)");
-  }
-  if (!std::isfinite(v) || v < -limit || v > limit) {
-    throw ScenarioError(file, line, full,
-                        "expected a number in " + number_text(-limit) + ".." + number_text(limit) +
-                            ", got " + number_text(v));
-  }
-  return v;
+  return read_number(*n, -limit, limit, file, full);
 }
 
 }  // namespace

@@ -10,16 +10,11 @@
 #include <toml++/toml.h>
 
 #include "gateway/sim/route.h"
+#include "gateway/sim/toml_number.h"
 #include "motinova/faults.h"
 
 namespace fleetgw::sim {
 namespace {
-
-std::string format_number(double v) {
-  std::ostringstream os;
-  os << v;
-  return os.str();
-}
 
 // Reads one TOML table, remembering which keys were used so that finish() can reject the rest:
 // a misspelt key ("sped_kmh") must fail loudly, not silently fall back to a default.
@@ -43,20 +38,7 @@ class TableReader {
   std::optional<double> number(std::string_view key, double lo, double hi) {
     const toml::node* n = get(key);
     if (!n) return std::nullopt;
-    double v = 0;
-    if (const auto i = n->value_exact<int64_t>()) {
-      v = static_cast<double>(*i);
-    } else if (const auto d = n->value_exact<double>()) {
-      v = *d;
-    } else {
-      fail(n, key, "expected a number, got " + type_of(*n));
-    }
-    if (!std::isfinite(v) || v < lo || v > hi) {
-      fail(n, key,
-           "expected a number in " + format_number(lo) + ".." + format_number(hi) + ", got " +
-               format_number(v));
-    }
-    return v;
+    return read_number(*n, lo, hi, file_, qualified(key));
   }
 
   std::optional<int64_t> integer(std::string_view key, int64_t lo, int64_t hi) {
@@ -148,28 +130,7 @@ class TableReader {
   const std::string& file() const { return file_; }
   const toml::table& table() const { return table_; }
 
-  static std::string type_of(const toml::node& n) {
-    switch (n.type()) {
-      case toml::node_type::string:
-        return "a string";
-      case toml::node_type::integer:
-        return "an integer";
-      case toml::node_type::floating_point:
-        return "a float";
-      case toml::node_type::boolean:
-        return "a boolean";
-      case toml::node_type::table:
-        return "a table";
-      case toml::node_type::array:
-        return "an array";
-      case toml::node_type::date:
-      case toml::node_type::time:
-      case toml::node_type::date_time:
-        return "a date/time";
-      default:
-        return "something else";
-    }
-  }
+  static std::string type_of(const toml::node& n) { return toml_type_name(n); }
 
  private:
   const toml::table& table_;
