@@ -27,7 +27,7 @@ double seconds(Micros d) {
 Micros from_seconds(double s) {
   return Micros(static_cast<int64_t>(std::llround(s * 1e6)));
 }
-std::optional<int> whole(std::optional<double> v) {
+std::optional<int> whole_percent(std::optional<double> v) {
   if (!v) return std::nullopt;
   return static_cast<int>(std::lround(*v));
 }
@@ -337,7 +337,7 @@ void RideTracker::start(Micros now) {
   o.rec.start_us = now.count();
   o.rec.start_odo_km = odometer();
   o.rec.end_odo_km = o.rec.start_odo_km;
-  o.rec.soc_start_pct = whole(soc(now));
+  o.rec.soc_start_pct = whole_percent(soc(now));
   o.latest_soc = soc(now);
   o.attributed_until = now;
   for (std::size_t i = 0; i < counters_.size(); ++i) {
@@ -422,7 +422,7 @@ void RideTracker::emit(const storage::Ride& rec, const Open& o, bool with_payloa
 void RideTracker::checkpoint(Micros now) {
   attribute(*open_, now);
   storage::Ride rec = snapshot(*open_, now);
-  rec.soc_end_pct = whole(soc(now));
+  rec.soc_end_pct = whole_percent(soc(now));
   emit(rec, *open_, false);
   next_checkpoint_ = now + config_.checkpoint_interval;
 }
@@ -436,7 +436,7 @@ void RideTracker::close(Micros end, bool at_stop) {
   storage::Ride rec = snapshot(o, end);
   rec.state = storage::RideState::kClosed;
   rec.end_us = end.count();
-  rec.soc_end_pct = whole(o.latest_soc);
+  rec.soc_end_pct = whole_percent(o.latest_soc);
   emit(rec, o, true);
   ++rides_closed_;
   open_.reset();
@@ -479,7 +479,7 @@ std::optional<storage::Ride> RideTracker::current(Micros now) const {
   Open o = *open_;
   attribute(o, now);
   storage::Ride rec = snapshot(o, now);
-  rec.soc_end_pct = whole(soc(now));
+  rec.soc_end_pct = whole_percent(soc(now));
   return rec;
 }
 

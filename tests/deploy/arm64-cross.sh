@@ -86,6 +86,7 @@ else
   # still run at a useful speed. -Os (FLEETGW_OPTIMIZE_SIZE) would override -O1: off here.
   build_flags=(-DCMAKE_BUILD_TYPE=Release "-DCMAKE_CXX_FLAGS_RELEASE=-O1 -DNDEBUG"
     -DFLEETGW_OPTIMIZE_SIZE=OFF -DFLEETGW_BUILD_BENCH=OFF -DFLEETGW_UNITY=ON -DFLEETGW_UNITY_TESTS=ON
+    -DFLEETGW_UNITY_BATCH_SIZE=32  # a library or test executable: one batch, headers parsed once
     -DFLEETGW_TEST_COMPILE_OPTIONS=-O0)  # the test files unoptimised: the code under test is -O1
   # Only what runs under emulation: the test binaries (the service binary is the figures build's).
   targets=()

@@ -14,12 +14,6 @@ namespace {
 
 using namespace testing;
 
-std::map<std::string, std::uint64_t> counts(Store& store) {
-  std::map<std::string, std::uint64_t> out;
-  for (const auto& [table, rows] : store.stats().table_rows) out[table] = rows;
-  return out;
-}
-
 void write_precious(Store& store) {
   Batch b;
   b.now_us = 1;

@@ -22,12 +22,6 @@ namespace {
 using namespace testing;
 namespace fs = std::filesystem;
 
-std::map<std::string, std::uint64_t> counts(Store& store) {
-  std::map<std::string, std::uint64_t> out;
-  for (const auto& [table, rows] : store.stats().table_rows) out[table] = rows;
-  return out;
-}
-
 std::uint64_t files_on_disk(const std::string& path) {
   std::uint64_t total = 0;
   for (std::string_view suffix : {"", "-wal", "-shm"}) {

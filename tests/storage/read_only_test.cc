@@ -27,13 +27,6 @@ std::set<std::string> listing(const fs::path& dir) {
   return names;
 }
 
-std::string read_all(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::ostringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
-
 std::string not_a_store_message(const std::string& path) {
   try {
     Store store(StoreOptions{.path = path, .read_only = true});

@@ -1,5 +1,6 @@
-// Helpers shared by the storage tests: a self-deleting temporary directory and builders for
-// plausible records. Contract: every test works on real SQLite files under its own TempDir.
+// Helpers shared by the storage tests: a self-deleting temporary directory, builders for
+// plausible records, the store's row counts and a file's bytes. Contract: every test works on real
+// SQLite files under its own TempDir.
 #pragma once
 
 #include "tests/support/temp_dir.h"
@@ -9,6 +10,9 @@
 #include <cstdint>
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <map>
 #include <string>
 
 #include "storage/store.h"
@@ -17,6 +21,19 @@ namespace fleetgw::storage::testing {
 
 // The suites' one temporary directory (tests/support).
 using TempDir = ::fleetgw::testing::TempDir;
+
+// The row count of every table, by name, as the store reports it.
+inline std::map<std::string, std::uint64_t> counts(Store& store) {
+  std::map<std::string, std::uint64_t> out;
+  for (const auto& [table, rows] : store.stats().table_rows) out[table] = rows;
+  return out;
+}
+
+// The whole file at `path`, bytes as they are ("" if it cannot be read).
+inline std::string read_all(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), {});
+}
 
 inline Bytes payload_of(const std::string& text) {
   return Bytes(text.begin(), text.end());
