@@ -45,7 +45,7 @@ class TableReader {
     const toml::node* n = get(key);
     if (!n) return std::nullopt;
     const auto i = n->value_exact<int64_t>();
-    if (!i) fail(n, key, "expected an integer, got " + type_of(*n));
+    if (!i) fail(n, key, "expected an integer, got " + toml_type_name(*n));
     if (*i < lo || *i > hi) {
       fail(n, key,
            "expected an integer in " + std::to_string(lo) + ".." + std::to_string(hi) + ", got " +
@@ -58,7 +58,7 @@ class TableReader {
     const toml::node* n = get(key);
     if (!n) return std::nullopt;
     const auto b = n->value_exact<bool>();
-    if (!b) fail(n, key, "expected true or false, got " + type_of(*n));
+    if (!b) fail(n, key, "expected true or false, got " + toml_type_name(*n));
     return *b;
   }
 
@@ -66,7 +66,7 @@ class TableReader {
     const toml::node* n = get(key);
     if (!n) return std::nullopt;
     const auto s = n->value_exact<std::string>();
-    if (!s) fail(n, key, "expected a string, got " + type_of(*n));
+    if (!s) fail(n, key, "expected a string, got " + toml_type_name(*n));
     if (s->size() > max_len) {
       fail(n, key, "string longer than " + std::to_string(max_len) + " characters");
     }
@@ -99,14 +99,14 @@ class TableReader {
   const toml::table* subtable(std::string_view key) {
     const toml::node* n = get(key);
     if (!n) return nullptr;
-    if (!n->is_table()) fail(n, key, "expected a table, got " + type_of(*n));
+    if (!n->is_table()) fail(n, key, "expected a table, got " + toml_type_name(*n));
     return n->as_table();
   }
 
   const toml::array* array(std::string_view key) {
     const toml::node* n = get(key);
     if (!n) return nullptr;
-    if (!n->is_array()) fail(n, key, "expected an array, got " + type_of(*n));
+    if (!n->is_array()) fail(n, key, "expected an array, got " + toml_type_name(*n));
     return n->as_array();
   }
 
@@ -129,8 +129,6 @@ class TableReader {
   const std::string& path() const { return path_; }
   const std::string& file() const { return file_; }
   const toml::table& table() const { return table_; }
-
-  static std::string type_of(const toml::node& n) { return toml_type_name(n); }
 
  private:
   const toml::table& table_;
@@ -183,7 +181,7 @@ std::optional<uint8_t> read_assist(TableReader& r, std::string_view key) {
     if (valid_assist(*i)) return static_cast<uint8_t>(*i);
     r.fail(n, key, "assist level " + std::to_string(*i) + " is not one of 0..5, 0x22, 0x33");
   }
-  r.fail(n, key, "expected an assist name or number, got " + TableReader::type_of(*n));
+  r.fail(n, key, "expected an assist name or number, got " + toml_type_name(*n));
 }
 
 void read_device(TableReader& parent, std::string_view key, DeviceStrings& out) {
@@ -379,7 +377,7 @@ void read_bike(TableReader& r, Scenario& s) {
       const toml::node& n = *kinds->get(i);
       const auto kind = n.value_exact<std::string>();
       const std::string key = "lock_kinds[" + std::to_string(i) + "]";
-      if (!kind) r.fail(&n, key, "expected a string, got " + TableReader::type_of(n));
+      if (!kind) r.fail(&n, key, "expected a string, got " + toml_type_name(n));
       if (kind->size() > 32) r.fail(&n, key, "lock kind longer than 32 characters");
       s.lock_kinds[i] = *kind;
     }
@@ -485,7 +483,7 @@ Scenario parse_scenario(std::string_view toml_text, std::string_view source_name
       const std::string path = "ride[" + std::to_string(i) + "]";
       if (!n.is_table()) {
         throw ScenarioError(file, n.source().begin.line, path,
-                            "expected a table ([[ride]]), got " + TableReader::type_of(n));
+                            "expected a table ([[ride]]), got " + toml_type_name(n));
       }
       TableReader r(*n.as_table(), path, file);
       RideSegment seg;
@@ -508,7 +506,7 @@ Scenario parse_scenario(std::string_view toml_text, std::string_view source_name
       const std::string path = "event[" + std::to_string(i) + "]";
       if (!n.is_table()) {
         throw ScenarioError(file, n.source().begin.line, path,
-                            "expected a table ([[event]]), got " + TableReader::type_of(n));
+                            "expected a table ([[event]]), got " + toml_type_name(n));
       }
       TableReader r(*n.as_table(), path, file);
       // repeat_every_s / repeat_count: the same event again and again (worst-case.toml changes
