@@ -107,6 +107,9 @@ uplink::UplinkConfig make_uplink_config(const config::Config& c) {
 int run_service(const config::Config& config, const ServiceOptions& options,
                 ServiceReport* report) {
   asio::io_context io;
+  // First: from here a SIGTERM is a clean stop (delivered once the loop runs), never the default
+  // action halfway through opening the bus, the store or a simulator's pty link.
+  asio::signal_set signals(io, SIGINT, SIGTERM);
   BusTransport bus;
   try {
     bus = make_bus(io, config);
@@ -133,7 +136,6 @@ int run_service(const config::Config& config, const ServiceOptions& options,
   }
 
   const auto wall_start = std::chrono::steady_clock::now();
-  asio::signal_set signals(io, SIGINT, SIGTERM);
   // systemd integration: READY once bus and store are open, watchdog pings from this loop.
   status::Notifier notifier = status::Notifier::from_environment();
   std::optional<status::LoopWatchdog> watchdog;

@@ -138,6 +138,9 @@ int run_sim(const SimCliOptions& options) {
   }
 
   Bike bike(scenario);
+  // Installed before the pty link exists: a SIGTERM that arrives once the link is visible must
+  // reach the handler (which removes the link), not the default action (which would leave it).
+  asio::signal_set signals(io, SIGINT, SIGTERM);
   // Declared before the driver, whose hook calls it: destroyed after it, and the link with it.
   std::unique_ptr<SimGnss> gnss;
   if (!options.nmea_pty.empty()) {
@@ -156,7 +159,6 @@ int run_sim(const SimCliOptions& options) {
   if (gnss) driver.set_on_advanced([&](Micros t) { gnss->on_bus_time(t); });
   const Micros end = scenario.start + duration;
   uint64_t tx_failures = 0;
-  asio::signal_set signals(io, SIGINT, SIGTERM);
   asio::steady_timer end_check(io);
 
   auto shutdown = [&] {

@@ -274,8 +274,14 @@ TEST(ZonesOverMqtt, AReplacedBundleAppliesAtOnceAndALockOnTheBikeInANoParkingZon
       },
       15s))
       << gw.log();
-  EXPECT_TRUE(watch.has_zone("city", fleetgw::v1::ZONE_TRANSITION_EXIT)) << gw.log();
-  EXPECT_TRUE(watch.has_zone("station", fleetgw::v1::ZONE_TRANSITION_ENTER)) << gw.log();
+  // The zone events are separate messages from the alarm (which goes out first, at once):
+  // each is awaited, not assumed to have arrived with it.
+  EXPECT_TRUE(
+      wait_until([&] { return watch.has_zone("city", fleetgw::v1::ZONE_TRANSITION_EXIT); }, 15s))
+      << gw.log();
+  EXPECT_TRUE(wait_until(
+      [&] { return watch.has_zone("station", fleetgw::v1::ZONE_TRANSITION_ENTER); }, 15s))
+      << gw.log();
   // Listed in the retained last-known state while it is raised.
   EXPECT_TRUE(wait_until([&] { return watch.state_lists(ALARM_KIND_OUTSIDE_OPERATING_AREA); }, 15s))
       << gw.log();
