@@ -52,18 +52,23 @@ if [ -z "$BUILD_DIR" ]; then
   fi
   section "Debian packages (scripts/install-deps.sh)"
   ./scripts/install-deps.sh
+  # Ninja for a new tree (scripts/test.sh explains why); an existing tree keeps its generator.
+  if [ -z "${CMAKE_GENERATOR:-}" ] && command -v ninja >/dev/null; then export CMAKE_GENERATOR=Ninja; fi
   # The product tree of scripts/test.sh, configured the same way (Release, compiled in unity
   # batches, tests only when named), so running both does not rebuild anything.
   section "build fleetgw in build/ (Release; full log in build/demo-build.log)"
   cmake -S . -B "$BUILD_DIR" -DCMAKE_BUILD_TYPE=Release -DFLEETGW_WERROR=ON -DFLEETGW_UNITY=ON \
     -DFLEETGW_UNITY_TESTS=ON -DFLEETGW_TESTS_IN_ALL=OFF >/dev/null
   BUILD_LOG=$BUILD_DIR/demo-build.log
-  # make's own lines scroll by for minutes; show one line per 10 % instead.
+  # The build tool's own lines scroll by for minutes; show one line per 10 % instead.
   set +e
   cmake --build "$BUILD_DIR" --target fleetgw fleetgw-watch -j "$(nproc)" 2>&1 | tee "$BUILD_LOG" |
     awk '
-      match($0, /^\[ *[0-9]+%\]/) {
-        p = substr($0, RSTART + 1, RLENGTH - 3) + 0
+      # make: "[ 42%] ..."; ninja: "[17/98] ...".
+      match($0, /^\[ *[0-9]+%\]/) || match($0, /^\[[0-9]+\/[0-9]+\]/) {
+        s = substr($0, RSTART + 1, RLENGTH - 2)
+        split(s, part, "/")
+        p = (s ~ /%/) ? s + 0 : int(100 * part[1] / part[2])
         if (p >= next_shown) {
           cmd = "date +%s"; cmd | getline now; close(cmd)
           if (!t0) t0 = now

@@ -8,7 +8,7 @@
 set -euo pipefail
 
 BUILD_PACKAGES=(
-  build-essential cmake pkg-config git
+  build-essential cmake ninja-build pkg-config git
   libpaho-mqttpp-dev libpaho-mqtt-dev libssl-dev openssl
   libprotobuf-dev protobuf-compiler
   libsqlite3-dev sqlite3

@@ -93,8 +93,24 @@ if command -v ccache >/dev/null; then
   LAUNCHER=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache -DCMAKE_C_COMPILER_LAUNCHER=ccache)
 fi
 
+# man-db rebuilds its index after every dpkg run that installs a manual page: the package
+# installs below and the deployment tests' `dpkg -i` (≈ 23 s of CPU each time, measured, on a
+# 2-core machine where the run is CPU-bound). Paused for this run and restored when it ends,
+# however it ends; the daily man-db timer (or `mandb`) brings the index up to date.
+MANDB_FLAG=/var/lib/man-db/auto-update
+if [ "$(id -u)" = 0 ] && { [ -e "$MANDB_FLAG" ] || [ -e "$MANDB_FLAG.fleetgw-paused" ]; }; then
+  # (A run killed before its EXIT trap left the flag paused: this run restores it.)
+  [ -e "$MANDB_FLAG" ] && mv "$MANDB_FLAG" "$MANDB_FLAG.fleetgw-paused"
+  trap 'mv "$MANDB_FLAG.fleetgw-paused" "$MANDB_FLAG" 2>/dev/null || true' EXIT
+fi
+
 phase_start deps
 ./scripts/install-deps.sh --build
+# Every new tree is generated for Ninja (an existing one keeps its generator: cmake cannot
+# switch). Measured on 2 cores, the product tree: 169 s and 321 CPU-s with Ninja against 276 s
+# and 420 CPU-s with Make, whose recursive per-target makefiles build each one-batch library
+# only once the libraries before it are archived, and re-scan dependencies per target.
+if [ -z "${CMAKE_GENERATOR:-}" ] && command -v ninja >/dev/null; then export CMAKE_GENERATOR=Ninja; fi
 # Everything else is installed while the trees compile (one apt run; waited for below).
 extra_packages=()
 if [ "${SKIP_ARM64:-0}" != 1 ]; then

@@ -100,11 +100,17 @@ cmake -S "$SRC" -B "$BUILD" -DCMAKE_TOOLCHAIN_FILE="$SRC/deploy/toolchains/$TRIP
   -DCMAKE_GTEST_DISCOVER_TESTS_DISCOVERY_MODE=PRE_TEST >"$BUILD.configure.log" 2>&1 ||
   { cat "$BUILD.configure.log"; exit 1; }
 
-help=$(cmake --build "$BUILD" --target help)
+# The tree's targets, one name per line, from either generator (Make: "... name"; Ninja:
+# "name: phony" among its rules).
+if [ -f "$BUILD/build.ninja" ]; then
+  known_targets=$(ninja -C "$BUILD" -t targets all | sed -n 's/^\([^:]*\): .*/\1/p')
+else
+  known_targets=$(cmake --build "$BUILD" --target help | sed -n 's/^\.\.\. //p')
+fi
 present=()
 for t in "${TESTS[@]}"; do
   # An area whose tests do not exist yet is not a failure of the cross build.
-  if grep -qx "\.\.\. $t" <<<"$help"; then targets+=("$t"); present+=("$t"); fi
+  if grep -qx "$t" <<<"$known_targets"; then targets+=("$t"); present+=("$t"); fi
 done
 step "build ${targets[*]}"
 build_t0=$SECONDS
