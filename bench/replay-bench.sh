@@ -58,10 +58,11 @@ syscalls() {
     "$WORK/$name.strace")
 }
 
-records() {  # db file: every stored record
+records() {  # db file: every stored record (each also has its outbox entry)
   sqlite3 "$1" "select (select count(*) from telemetry) + (select count(*) from fault_events) +
     (select count(*) from lock_events) + (select count(*) from pack_snapshots) +
-    (select count(*) from rides) + (select count(*) from command_results)"
+    (select count(*) from rides) + (select count(*) from command_results) +
+    (select count(*) from alarms) + (select count(*) from zone_events)"
 }
 
 echo "fleetgw: $FLEETGW, $(nproc) cores, best of $RUNS runs"
