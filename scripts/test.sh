@@ -149,14 +149,16 @@ phase_start build
 san_flags=(-DFLEETGW_SANITIZE=ON -DFLEETGW_FUZZ=ON)
 [ "${SKIP_ASAN:-0}" = 1 ] && san_flags=(-DFLEETGW_SANITIZE=OFF -DFLEETGW_FUZZ=OFF)
 # -O1 with line tables: sanitizer reports keep file:line, the suite runs at a useful speed. The
-# test files themselves at -O0 (half their compile; the code under test keeps -O1). (Tried: the
-# service's code at -O0 too, 22 % less compile CPU, but the sanitized simulator then falls behind
-# the wall clock and five end-to-end tests fail.) Each library and test executable is one unity
-# batch (FLEETGW_UNITY_BATCH_SIZE=32): the heavy headers (protobuf, asio, fmt, gtest) parsed once
-# per target. Linked with lld: a third of GNU ld's time for the ≈ 40 executables.
+# test files themselves at -O0 (half their compile; the code under test keeps -O1), and so are the
+# CLI front end, the configuration and the status code, which run once per command
+# (FLEETGW_CLI_COMPILE_OPTIONS). (Tried: all the service's code at -O0, 22 % less compile CPU,
+# but the sanitized simulator then falls behind the wall clock and five end-to-end tests fail.)
+# Each library and test executable is one unity batch (FLEETGW_UNITY_BATCH_SIZE=32): the heavy
+# headers (protobuf, asio, fmt, gtest) parsed once per target. Linked with lld: a third of GNU ld's time for the ≈ 40 executables.
 CXX=clang++ CC=clang cmake -S . -B build-san -DCMAKE_BUILD_TYPE=Debug \
   "-DCMAKE_CXX_FLAGS_DEBUG=-O1 -gline-tables-only" "${san_flags[@]}" \
-  -DFLEETGW_TEST_COMPILE_OPTIONS=-O0 -DCMAKE_EXE_LINKER_FLAGS=-fuse-ld=lld \
+  -DFLEETGW_TEST_COMPILE_OPTIONS=-O0 -DFLEETGW_CLI_COMPILE_OPTIONS=-O0 \
+  -DCMAKE_EXE_LINKER_FLAGS=-fuse-ld=lld \
   -DFLEETGW_WERROR=ON -DFLEETGW_BUILD_BENCH=OFF -DFLEETGW_UNITY=ON -DFLEETGW_UNITY_TESTS=ON \
   -DFLEETGW_UNITY_BATCH_SIZE=32 "${LAUNCHER[@]}" >/dev/null
 cmake --build build-san -j "$JOBS"
