@@ -154,7 +154,8 @@ san_flags=(-DFLEETGW_SANITIZE=ON -DFLEETGW_FUZZ=ON)
 # (FLEETGW_CLI_COMPILE_OPTIONS). (Tried: all the service's code at -O0, 22 % less compile CPU,
 # but the sanitized simulator then falls behind the wall clock and five end-to-end tests fail.)
 # Each library and test executable is one unity batch (FLEETGW_UNITY_BATCH_SIZE=32): the heavy
-# headers (protobuf, asio, fmt, gtest) parsed once per target. Linked with lld: a third of GNU ld's time for the ≈ 40 executables.
+# headers (protobuf, asio, fmt, gtest) parsed once per target. Linked with lld: a third of GNU
+# ld's time for the ≈ 40 executables.
 CXX=clang++ CC=clang cmake -S . -B build-san -DCMAKE_BUILD_TYPE=Debug \
   "-DCMAKE_CXX_FLAGS_DEBUG=-O1 -gline-tables-only" "${san_flags[@]}" \
   -DFLEETGW_TEST_COMPILE_OPTIONS=-O0 -DFLEETGW_CLI_COMPILE_OPTIONS=-O0 \
