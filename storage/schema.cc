@@ -188,7 +188,16 @@ ALTER TABLE rides ADD COLUMN gnss_distance_m REAL;
 ALTER TABLE rides ADD COLUMN track TEXT;
 )sql";
 
-constexpr std::array<std::string_view, kSchemaVersion> kSteps = {kV1, kV2, kV3, kV4, kV5, kV6};
+// v7: the outbox keeps one index. `outbox_by_source` was read only when the disk budget evicts
+// telemetry or pack snapshots, yet every queued record paid a third B-tree insert for it (a
+// fifth of the CPU of a replayed worst-case hour). Eviction now finds the evicted rows' entries
+// through `outbox_by_priority`: telemetry and pack snapshots each have a priority of their own,
+// and within one kind the entries are queued in the order of their rows (storage/store_budget.cc).
+constexpr std::string_view kV7 = R"sql(
+DROP INDEX outbox_by_source;
+)sql";
+
+constexpr std::array<std::string_view, kSchemaVersion> kSteps = {kV1, kV2, kV3, kV4, kV5, kV6, kV7};
 
 }  // namespace
 

@@ -35,7 +35,7 @@
 
 namespace fleetgw::storage {
 
-inline constexpr int kSchemaVersion = 6;
+inline constexpr int kSchemaVersion = 7;
 
 class SchemaTooNewError : public std::runtime_error {
  public:

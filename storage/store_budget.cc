@@ -18,12 +18,31 @@ constexpr std::uint64_t kWalFrameHeader = 24;
 struct EvictableTable {
   std::string_view table;
   OutboxKind kind;
+  OutboxPriority priority;  // each evictable kind has a priority of its own
 };
 // Eviction order: cheapest loss first.
 constexpr std::array<EvictableTable, 2> kEvictionOrder = {{
-    {"telemetry", OutboxKind::kTelemetry},
-    {"pack_snapshots", OutboxKind::kPack},
+    {"telemetry", OutboxKind::kTelemetry, OutboxPriority::kTelemetry},
+    {"pack_snapshots", OutboxKind::kPack, OutboxPriority::kPack},
 }};
+
+// Deletes the unsent outbox entries of `evicted`'s rows with id <= cutoff; returns how many.
+// Without an index on source_id: the entries of one kind sit under their priority in
+// `outbox_by_priority`, queued in the order of their rows, so the evicted rows' entries are the
+// oldest there. The scan walks them up to the first entry of a row that stays, and touches
+// nothing else (a unit days offline holds most of its outbox under the same priority).
+std::uint64_t delete_queued_entries(Database& db, const EvictableTable& evicted,
+                                    std::int64_t cutoff) {
+  auto st = db.cached(
+      "DELETE FROM outbox INDEXED BY outbox_by_priority "
+      "WHERE priority = ?1 AND kind = ?2 AND source_id <= ?3 AND seq < coalesce("
+      "(SELECT seq FROM outbox INDEXED BY outbox_by_priority "
+      "WHERE priority = ?1 AND kind = ?2 AND source_id > ?3 ORDER BY seq LIMIT 1), "
+      "9223372036854775807)");
+  st->bind_all(static_cast<int>(evicted.priority), to_string(evicted.kind), cutoff);
+  st->run();
+  return static_cast<std::uint64_t>(db.changes());
+}
 
 }  // namespace
 
@@ -95,13 +114,11 @@ std::optional<EvictionReport> Store::Impl::enforce_budget(std::int64_t now_us, S
   report.bytes_before = live;
   const auto target = static_cast<std::uint64_t>(static_cast<double>(limit) * options.low_water);
 
-  for (const auto& [table, kind] : kEvictionOrder) {
-    const std::string t(table);
+  for (const EvictableTable& evictable : kEvictionOrder) {
+    const std::string t(evictable.table);
     auto cutoff_st = db.cached("SELECT id FROM " + t + " ORDER BY id LIMIT 1 OFFSET ?");
     auto max_st = db.cached("SELECT max(id) FROM " + t);
     auto delete_st = db.cached("DELETE FROM " + t + " WHERE id <= ?");
-    auto delete_outbox =
-        db.cached("DELETE FROM outbox WHERE kind = ? AND source_id IS NOT NULL AND source_id <= ?");
     std::uint64_t evicted = 0;
     while (live > target) {
       // Delete in chunks sized from the excess (rows are ~100-200 bytes with their outbox
@@ -122,18 +139,16 @@ std::optional<EvictionReport> Store::Impl::enforce_budget(std::int64_t now_us, S
       delete_st->run();
       delete_st->reset();
       evicted += static_cast<std::uint64_t>(db.changes());
-      delete_outbox->bind_all(to_string(kind), *cutoff);
-      delete_outbox->run();
-      delete_outbox->reset();
-      report.outbox_rows += static_cast<std::uint64_t>(db.changes());
+      report.outbox_rows += delete_queued_entries(db, evictable, *cutoff);
       live = live_bytes();
     }
-    (kind == OutboxKind::kTelemetry ? report.telemetry_rows : report.pack_snapshot_rows) = evicted;
+    (evictable.kind == OutboxKind::kTelemetry ? report.telemetry_rows : report.pack_snapshot_rows) =
+        evicted;
     if (evicted > 0) {
       auto st = db.cached(
           "UPDATE eviction_counters SET rows = rows + ?, passes = passes + 1, last_us = ? "
           "WHERE table_name = ?");
-      st->bind_all(static_cast<std::int64_t>(evicted), now_us, table);
+      st->bind_all(static_cast<std::int64_t>(evicted), now_us, evictable.table);
       st->run();
     }
   }
@@ -182,8 +197,8 @@ std::uint64_t Store::Impl::evict_for_space(std::int64_t now_us, int attempt) {
   try {
     Transaction tx(db);
     std::uint64_t evicted = 0;
-    for (const auto& [table, kind] : kEvictionOrder) {
-      const std::string t(table);
+    for (const EvictableTable& evictable : kEvictionOrder) {
+      const std::string t(evictable.table);
       const std::int64_t rows = db.query_int64("SELECT count(*) FROM " + t).value_or(0);
       if (rows == 0) continue;
       // A quarter of the table, growing with each attempt, at least 256 rows.
@@ -202,18 +217,11 @@ std::uint64_t Store::Impl::evict_for_space(std::int64_t now_us, int attempt) {
         st->run();
         evicted += static_cast<std::uint64_t>(db.changes());
       }
-      std::uint64_t outbox_rows = 0;
-      {
-        auto st = db.cached(
-            "DELETE FROM outbox WHERE kind = ? AND source_id IS NOT NULL AND source_id <= ?");
-        st->bind_all(to_string(kind), *cutoff);
-        st->run();
-        outbox_rows = static_cast<std::uint64_t>(db.changes());
-      }
+      const std::uint64_t outbox_rows = delete_queued_entries(db, evictable, *cutoff);
       auto st = db.cached(
           "UPDATE eviction_counters SET rows = rows + ?, passes = passes + 1, last_us = ? "
           "WHERE table_name = ?");
-      st->bind_all(static_cast<std::int64_t>(evicted), now_us, table);
+      st->bind_all(static_cast<std::int64_t>(evicted), now_us, evictable.table);
       st->run();
       auto& summary = disk_full_evictions;
       summary.rows += evicted;
@@ -221,7 +229,7 @@ std::uint64_t Store::Impl::evict_for_space(std::int64_t now_us, int attempt) {
       const auto wall = std::chrono::steady_clock::now();
       if (!summary.last_logged) {
         log->warn("storage: disk full on '{}': evicted {} {} rows ({} unsent) to make room",
-                  options.path, evicted, table, outbox_rows);
+                  options.path, evicted, evictable.table, outbox_rows);
         summary = {wall, 0, 0};
       } else if (wall - *summary.last_logged >= std::chrono::seconds(10)) {
         log->warn(

@@ -38,11 +38,12 @@ namespace fleetgw::can {
 struct ReplayOptions {
   enum class Pace : uint8_t { kRecorded, kAsFastAsPossible };
   Pace pace = Pace::kAsFastAsPossible;
-  double speed = 1.0;             // kRecorded only; must be > 0
+  double speed = 1.0;  // kRecorded only; must be > 0
   // Frames per handler before yielding to the io_context. The pipeline flushes the recorder
-  // between handlers: 2,048 frames (~1 ms of CPU) keep timers timely and make a fast replay
-  // commit a few hundred times per bus-hour instead of a few thousand.
-  std::size_t batch_size = 2048;
+  // between handlers: 8,192 frames (~4 ms of CPU here) keep timers timely and make a fast
+  // replay of the worst-case hour commit ~60 times instead of ~250 (2,048 frames): 0.44 against
+  // 0.54 s of CPU, since every commit rewrites the B-trees' rightmost pages into the WAL.
+  std::size_t batch_size = 8192;
   std::string interface;          // only replay lines of this interface; empty = all
   bool acceptance_filter = true;  // deliver only standard data frames 0x700-0x7FF
   bool capture_sent = false;      // keep frames passed to send() in captured()

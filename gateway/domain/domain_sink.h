@@ -3,7 +3,8 @@
 //
 // Contract: owned by the caller and passed by reference to the trackers, which only append to
 // batch(); it must outlive them. take() hands the accumulated records over (with now_us set) and
-// leaves the sink empty, so the caller's flush is `store.write(sink.take(now))`. Records appear in
+// leaves the sink empty, so a flush can be `store.write(sink.take(now))` (the service's recorder
+// instead moves batch()'s records out itself, keeping the vectors' capacity). Records appear in
 // the order the trackers produced them; a ride's checkpoint and its close may share one batch
 // (the store upserts by ride_id, so the last one wins).
 #pragma once

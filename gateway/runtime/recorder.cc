@@ -15,9 +15,16 @@ std::int64_t system_now_us() {
       .count();
 }
 
+// Moves every element of `src` to the end of `dst`. Into an empty `dst` the two buffers swap:
+// the records are not moved one by one, and `src` (the sink, refilled at once) gets back the
+// capacity `dst` kept from the last batch instead of growing from nothing again.
 template <typename V>
 void move_all(V& dst, V& src) {
-  for (auto& x : src) dst.push_back(std::move(x));
+  if (dst.empty()) {
+    dst.swap(src);
+  } else {
+    for (auto& x : src) dst.push_back(std::move(x));
+  }
   src.clear();
 }
 
@@ -220,8 +227,7 @@ std::optional<std::chrono::steady_clock::time_point> Recorder::flush_deadline() 
 FlushOutcome Recorder::flush(Micros now) {
   FlushOutcome out;
   if (!sink_.empty()) {
-    storage::Batch fresh = sink_.take(now);
-    append(retry_, fresh);
+    append(retry_, sink_.batch());
   }
   first_pending_.reset();
   if (retry_.empty()) return out;

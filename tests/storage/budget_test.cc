@@ -3,6 +3,7 @@
 // persisted, reported through write() and queued as an eviction_report outbox entry.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <map>
 
 #include "storage/sqlite.h"
@@ -182,6 +183,76 @@ TEST(Budget, NothingEvictableKeepsEverythingAndReportsOnce) {
   EXPECT_GT(store.live_bytes(), kBudget);
   EXPECT_EQ(exhausted_reports, 1) << "reported on the transition, not on every batch";
   EXPECT_EQ(counts(store)["fault_events"], 4000u) << "faults are never dropped";
+}
+
+// Eviction finds the evicted samples' queued entries without an index on source_id (schema v7):
+// through the telemetry priority, in queue order. Around them: samples already acknowledged,
+// samples stored without an uplink payload, and other messages queued at the same priority,
+// which must all stay as they are.
+TEST(Budget, EvictionDeletesExactlyTheEvictedSamplesEntriesFromAMixedQueue) {
+  TempDir dir;
+  const std::string path = dir.file("mixed.db");
+  constexpr std::uint64_t kBudget = 2 << 20;
+  Store store(StoreOptions{.path = path, .max_bytes = kBudget});
+  std::int64_t t = 1'000;
+  std::uint64_t evicted_samples = 0, evicted_entries = 0, passes = 0;
+  std::int64_t info_messages = 0;
+  std::vector<std::int64_t> acked_samples;
+  for (int batch = 0; batch < 120 && passes < 3; ++batch) {
+    Batch b;
+    b.now_us = t;
+    for (int i = 0; i < 500; ++i, t += 1000) {
+      // Every seventh sample is stored without an uplink payload (nothing queued for it).
+      std::optional<Bytes> uplink;
+      if (i % 7 != 0) uplink = Bytes(64, static_cast<std::uint8_t>(i));
+      b.telemetry.push_back({telemetry_at(t), std::move(uplink)});
+    }
+    // A message of another kind at the telemetry's priority, between the samples' entries.
+    b.messages.push_back({OutboxKind::kInfo, kLowestPriority, Bytes(16, 7)});
+    const auto r = store.write(b);
+    ASSERT_TRUE(r.ok()) << r.error->message;
+    ++info_messages;
+    if (r.eviction && r.eviction->telemetry_rows > 0) {
+      ++passes;
+      evicted_samples += r.eviction->telemetry_rows;
+      evicted_entries += r.eviction->outbox_rows;
+    }
+    if (batch == 3) {
+      // Acknowledge every third queued sample of the oldest batches: no longer queued.
+      std::vector<std::uint64_t> acked;
+      for (const auto& e : store.peek_outbox(1500, 1 << 30)) {
+        if (e.kind != OutboxKind::kTelemetry || e.seq % 3 != 0) continue;
+        acked.push_back(e.seq);
+        acked_samples.push_back(*e.source_id);
+      }
+      store.release_all();
+      ASSERT_EQ(store.ack(acked), acked.size());
+    }
+  }
+  ASSERT_EQ(passes, 3u) << "the budget was not reached three times";
+  Database raw(path);
+  // Nothing queued for a sample that is gone, ...
+  EXPECT_EQ(raw.query_int64("SELECT count(*) FROM outbox WHERE kind = 'telemetry' AND "
+                            "source_id NOT IN (SELECT id FROM telemetry)"),
+            0);
+  // ... every kept sample that had a payload and was not acknowledged is still queued ...
+  const std::int64_t oldest_kept = raw.query_int64("SELECT min(id) FROM telemetry").value_or(0);
+  const auto acked_kept = std::count_if(acked_samples.begin(), acked_samples.end(),
+                                        [&](std::int64_t id) { return id >= oldest_kept; });
+  EXPECT_EQ(raw.query_int64("SELECT count(*) FROM outbox WHERE kind = 'telemetry'"),
+            *raw.query_int64("SELECT count(*) FROM telemetry WHERE (id - 1) % 500 % 7 != 0") -
+                acked_kept);
+  // ... the eviction reports counted exactly the entries that went: those of the evicted
+  // samples that had a payload and were not acknowledged ...
+  EXPECT_EQ(evicted_samples, static_cast<std::uint64_t>(oldest_kept - 1));
+  std::uint64_t expected_entries = 0;
+  for (std::int64_t id = 1; id < oldest_kept; ++id) {
+    if ((id - 1) % 500 % 7 != 0) ++expected_entries;
+  }
+  expected_entries -= static_cast<std::uint64_t>(acked_samples.size() - acked_kept);
+  EXPECT_EQ(evicted_entries, expected_entries);
+  // ... and no other message at that priority went with them.
+  EXPECT_EQ(raw.query_int64("SELECT count(*) FROM outbox WHERE kind = 'info'"), info_messages);
 }
 
 }  // namespace

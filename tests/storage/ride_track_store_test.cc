@@ -45,7 +45,7 @@ TEST(RideTrackStore, V5RidesMigrateInPlaceWithNullPositions) {
   EXPECT_FALSE(old->gnss_distance_m);
   EXPECT_FALSE(old->track);
   Database db(path);
-  EXPECT_EQ(schema_version(db), 6);
+  EXPECT_EQ(schema_version(db), kSchemaVersion);
   EXPECT_TRUE(db.query_int64("SELECT count(*) FROM rides WHERE track IS NULL AND "
                              "start_lat_deg IS NULL AND gnss_distance_m IS NULL") == 1);
 }
