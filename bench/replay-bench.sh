@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # The three replay/decode figures of issue 12 in one run, measured on the shipped binary.
 # Benchmarks, not tests: the machine is shared, so each figure is the best of RUNS runs and is
-# CPU time (user + sys of the whole process, start-up included), not wall time.
+# CPU time (user + sys of the whole process, start-up included, in microseconds:
+# bench/cputime.py), not wall time.
 #
 #   1. Simulated ride: `fleetgw sim --record` writes one hour of config/scenarios/ride.toml
 #      (a 30-minute ride, then parked) as a candump -L log; `fleetgw run --replay` plays it as
@@ -36,7 +37,7 @@ best_cpu() {
   CPU=""
   for ((i = 0; i < RUNS; i++)); do
     rm -rf "$WORK/db-$name" && mkdir -p "$WORK/db-$name"
-    /usr/bin/time -f '%U %S' -o "$WORK/$name.time" "$@" >/dev/null 2>"$WORK/$name.err" || {
+    python3 bench/cputime.py "$WORK/$name.time" "$@" >/dev/null 2>"$WORK/$name.err" || {
       echo "replay-bench: $name failed" >&2
       tail -20 "$WORK/$name.err" >&2
       exit 1
@@ -85,10 +86,10 @@ RIDE_SYS=$SYSCALLS RIDE_WR=$WRITES
 syscalls worst -- "$FLEETGW" run --config "$WORK/worst.toml" --replay "$WORK/worst.log"
 WORST_SYS=$SYSCALLS WORST_WR=$WRITES
 
-# decode: 5 runs in a row per timing (one run is ~0.1 s; /usr/bin/time counts in 10 ms steps).
+# decode: 5 runs in a row per timing (one run is ~0.06 s).
 DECODE_CPU=""
 for ((i = 0; i < RUNS; i++)); do
-  /usr/bin/time -f '%U %S' -o "$WORK/decode.time" bash -c \
+  python3 bench/cputime.py "$WORK/decode.time" bash -c \
     'for k in 1 2 3 4 5; do "$1" decode "$2" >/dev/null 2>/dev/null || exit 1; done' \
     _ "$FLEETGW" "$WORK/ride.log"
   c=$(awk '{ print ($1 + $2) / 5 }' "$WORK/decode.time")
@@ -100,9 +101,9 @@ done
 rate() { awk -v f="$1" -v c="$2" 'BEGIN { printf "%.2f M", f / c / 1e6 }'; }
 printf '\nride log: %d CAN frames in 1 bus-hour; worst-case log: %d CAN frames in 1 bus-hour\n' \
   "$RIDE_FRAMES" "$WORST_FRAMES"
-printf 'replay, simulated ride:  %s frames/s of CPU (%.2f s CPU), %d records, %d syscalls per bus-hour (%d writes+syncs)   target >= 2 M/s\n' \
+printf 'replay, simulated ride:  %s frames/s of CPU (%.3f s CPU), %d records, %d syscalls per bus-hour (%d writes+syncs)   target >= 2 M/s\n' \
   "$(rate "$RIDE_FRAMES" "$RIDE_CPU")" "$RIDE_CPU" "$RIDE_RECORDS" "$RIDE_SYS" "$RIDE_WR"
-printf 'replay, worst case:      %s frames/s of CPU (%.2f s CPU), %d records per bus-hour, %d syscalls per bus-hour (%d writes+syncs)   target >= 1 M/s, >= 60 k records\n' \
+printf 'replay, worst case:      %s frames/s of CPU (%.3f s CPU), %d records per bus-hour, %d syscalls per bus-hour (%d writes+syncs)   target >= 1 M/s, >= 60 k records\n' \
   "$(rate "$WORST_FRAMES" "$WORST_CPU")" "$WORST_CPU" "$WORST_RECORDS" "$WORST_SYS" "$WORST_WR"
 printf 'fleetgw decode, ride:    %s frames/s of CPU (%.3f s CPU per run)   target >= 2 M/s\n' \
   "$(rate "$RIDE_FRAMES" "$DECODE_CPU")" "$DECODE_CPU"
