@@ -41,8 +41,8 @@ struct ReplayOptions {
   double speed = 1.0;  // kRecorded only; must be > 0
   // Frames per handler before yielding to the io_context. The pipeline flushes the recorder
   // between handlers: 8,192 frames (~4 ms of CPU here) keep timers timely and make a fast
-  // replay of the worst-case hour commit ~60 times instead of ~250 (2,048 frames): 0.44 against
-  // 0.54 s of CPU, since every commit rewrites the B-trees' rightmost pages into the WAL.
+  // replay of the worst-case hour commit ~60 times instead of ~250 (2,048 frames): 0.46 against
+  // 0.55 s of CPU, since every commit rewrites the B-trees' rightmost pages into the WAL.
   std::size_t batch_size = 8192;
   std::string interface;          // only replay lines of this interface; empty = all
   bool acceptance_filter = true;  // deliver only standard data frames 0x700-0x7FF

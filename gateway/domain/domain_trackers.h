@@ -6,7 +6,7 @@
 //    rides and lock causes; the bus does not echo them), tick(now) at least every 200 ms (the
 //    gateway's batch flush is a good place). `now` must not go backwards.
 //  * Everything produced is appended to the caller's DomainSink (which must outlive this
-//    object); the caller writes sink.take(now) to the Store.
+//    object); the caller writes its records to the Store (runtime/recorder.cc).
 //  * restore() must be called once, before the first message, with Store::open_rides(): an open
 //    ride of a previous run is resumed (see RideTracker).
 //  * The ride tracker's fault count is fed from the fault tracker's raises; telemetry follows
