@@ -57,8 +57,10 @@ TEST(UplinkContract, CommandsWaitForTakeCommandsAndTheWakeupFiresFromPahoThreads
   broker.start();
   Subscriber sub(broker.uri(), "fleet/v1/bike-e/status", "backend-e");
   MemoryOutbox box;
-  Uplink up(plain_config(broker.uri(), "bike-e"), box);
+  // Declared before the uplink, so it outlives it: Paho's threads may call the hook until the
+  // uplink's destructor has disabled the callbacks (a late delivery once hit a dead counter).
   std::atomic<int> wakeups{0};
+  Uplink up(plain_config(broker.uri(), "bike-e"), box);
   up.set_wakeup([&] { ++wakeups; });
   up.start(wall_now());
   ASSERT_TRUE(drive(
