@@ -1,0 +1,31 @@
+// Options of `fleetgw serve` (fleetgw-serve), shared by the CLI front end and the program.
+#pragma once
+
+#include <cstdint>
+#include <string>
+
+namespace fleetgw::web {
+
+struct ServeOptions {
+  std::string pg;                         // libpq connection string
+  std::string listen = "127.0.0.1:8080";  // HOST:PORT ([::1]:PORT for IPv6)
+  std::string tls_cert;                   // PEM certificate chain; with tls_key: HTTPS
+  std::string tls_key;
+  bool insecure_http = false;  // plain HTTP on a non-loopback address (behind a TLS proxy)
+  std::string static_dir;      // the console's files (default: installed or source tree)
+  std::string leaflet_dir = "/usr/share/javascript/leaflet";
+  std::string tile_url;  // e.g. https://tile.example.org/{z}/{x}/{y}.png ("": no tiles)
+  std::string tile_attribution;
+  int threads = 32;            // request threads (each SSE stream holds one)
+  int db_connections = 8;      // pool size
+  int max_event_streams = 16;  // concurrent /api/events streams per instance
+  int poll_ms = 1000;          // change poll interval (live updates)
+  std::size_t max_body_bytes = 64 * 1024;
+  std::string log_level = "info";
+  // One-off administration instead of serving:
+  std::string add_operator;  // with role; the password is read from stdin
+  std::string role;
+  std::string remove_operator;
+};
+
+}  // namespace fleetgw::web
