@@ -12,7 +12,6 @@
 #include "gateway/app/command_tool.h"
 #include "gateway/app/completion.h"
 #include "gateway/app/db_command.h"
-#include "gateway/app/fleet_sim_command.h"
 #include "gateway/app/ingest_command.h"
 #include "gateway/app/logging.h"
 #include "gateway/app/ride_command.h"
@@ -283,11 +282,10 @@ int run_cli(int argc, char** argv) {
   ingest::IngestOptions ingest_options;
   add_ingest_options(*ingest_cmd, ingest_options);
 
-  // fleet-sim
+  // fleet-sim: every argument (--help too) goes to fleetgw-fleet-sim, a backend program
   auto* fleet_sim_cmd = app.add_subcommand(
       "fleet-sim", "N simulated vehicles, each with its own MQTT 5 session, against a broker");
-  FleetSimOptions fleet_sim_options;
-  add_fleet_sim_options(*fleet_sim_cmd, fleet_sim_options);
+  fleet_sim_cmd->prefix_command()->set_help_flag();
 
   // status
   auto* status_cmd = app.add_subcommand(
@@ -453,8 +451,7 @@ int run_cli(int argc, char** argv) {
       return exec_subcommand_program("fleetgw-watch", "watch", argc, argv);
     }
     if (fleet_sim_cmd->parsed()) {
-      setup_logging("info");
-      return run_fleet_sim(fleet_sim_options);
+      return exec_subcommand_program("fleetgw-fleet-sim", "fleet-sim", argc, argv);
     }
     if (ingest_cmd->parsed()) {
       return exec_subcommand_program("fleetgw-ingest", "ingest", argc, argv);

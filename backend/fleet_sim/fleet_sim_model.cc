@@ -1,5 +1,5 @@
 // One simulated vehicle's traffic (fleet_sim_model.h).
-#include "gateway/app/fleet_sim_model.h"
+#include "backend/fleet_sim/fleet_sim_model.h"
 
 #include <algorithm>
 #include <cmath>
@@ -12,9 +12,8 @@
 #include "fleetgw/v1/ride.pb.h"
 #include "fleetgw/v1/state.pb.h"
 #include "fleetgw/v1/status.pb.h"
-#include "gateway/uplink/outbox_source.h"
 
-namespace fleetgw::app {
+namespace fleetgw::fleet_sim {
 namespace {
 
 namespace v1 = fleetgw::v1;
@@ -33,7 +32,27 @@ constexpr std::int64_t kRideLength = 900 * kSecond;     // a ride, then the next
 constexpr std::string_view kFirmware = FLEETGW_VERSION;
 constexpr std::int64_t kBootSpread = 30 * kSecond;
 
+void fill_header(v1::Envelope& e, std::string_view vehicle_id, std::uint64_t seq,
+                 std::int64_t created_us, std::string_view store_id) {
+  e.set_vehicle_id(std::string(vehicle_id));
+  e.set_sequence(seq);
+  e.set_created_at_us(created_us);
+  e.set_gateway_fw_version(std::string(kFirmware));
+  e.set_store_id(std::string(store_id));
+}
+
 }  // namespace
+
+VehicleTopics::VehicleTopics(std::string_view prefix, std::string_view vehicle_id) {
+  const std::string base = std::string(prefix) + "/" + std::string(vehicle_id);
+  telemetry = base + "/telemetry";
+  ride = base + "/ride";
+  pack = base + "/pack";
+  lock = base + "/lock";
+  info = base + "/info";
+  status = base + "/status";
+  state = base + "/state";
+}
 
 SimVehicle::SimVehicle(std::string vehicle_id, std::string store_id, bool riding,
                        std::uint32_t seed, std::int64_t start_us, std::string_view topic_prefix)
@@ -64,7 +83,7 @@ SimVehicle::SimVehicle(std::string vehicle_id, std::string store_id, bool riding
 std::int64_t SimVehicle::next_due() const {
   std::int64_t t = std::min({next_sample_, next_status_, next_pack_, ride_end_});
   if (riding_) t = std::min(t, next_state_);
-  if (!batch_.empty()) t = std::min(t, batch_deadline_);
+  if (batch_.samples_size() > 0) t = std::min(t, batch_deadline_);
   return t;
 }
 
@@ -111,27 +130,30 @@ v1::TelemetrySample SimVehicle::sample(std::int64_t now_us) {
   return s;
 }
 
-void SimVehicle::record(std::vector<SimMessage>& out, std::string_view kind,
-                        const std::string& body, std::int64_t now_us) {
-  const uplink::KindRoute* route = uplink::find_route(kind);
-  const uplink::EnvelopeHeader h{vehicle_id_, next_seq_++, now_us, kFirmware, store_id_};
-  if (route == nullptr) return;
-  if (auto env = uplink::serialize_record(*route, h, body)) {
-    out.push_back({topics_.*(route->topic), std::move(*env), false, 1});
-  }
+v1::Envelope SimVehicle::record_envelope(std::int64_t now_us) {
+  v1::Envelope e;
+  fill_header(e, vehicle_id_, next_seq_++, now_us, store_id_);
+  return e;
+}
+
+void SimVehicle::record(std::vector<SimMessage>& out, const std::string& topic,
+                        const v1::Envelope& e) {
+  out.push_back({topic, e.SerializeAsString(), false, 1});
 }
 
 void SimVehicle::flush_batch(std::vector<SimMessage>& out) {
-  if (batch_.empty()) return;
-  const std::uint64_t n = batch_.samples();
-  const uplink::EnvelopeHeader h{vehicle_id_, batch_first_seq_, batch_first_us_, kFirmware,
-                                 store_id_};
-  out.push_back({topics_.telemetry, batch_.take_envelope(h), false, n});
+  if (batch_.samples_size() == 0) return;
+  const auto n = static_cast<std::uint64_t>(batch_.samples_size());
+  v1::Envelope e;
+  fill_header(e, vehicle_id_, batch_first_seq_, batch_first_us_, store_id_);
+  e.mutable_telemetry()->Swap(&batch_);
+  batch_.Clear();
+  out.push_back({topics_.telemetry, e.SerializeAsString(), false, n});
 }
 
 std::string SimVehicle::state_envelope(std::int64_t now_us) {
   v1::Envelope e;
-  uplink::fill_header(e, {vehicle_id_, 0, now_us, kFirmware, store_id_});
+  fill_header(e, vehicle_id_, 0, now_us, store_id_);
   v1::VehicleState* s = e.mutable_state();
   s->set_updated_at_us(now_us);
   s->set_online(true);
@@ -151,7 +173,7 @@ std::string SimVehicle::state_envelope(std::int64_t now_us) {
 
 std::string SimVehicle::status_envelope(std::int64_t now_us) {
   v1::Envelope e;
-  uplink::fill_header(e, {vehicle_id_, 0, now_us, kFirmware, store_id_});
+  fill_header(e, vehicle_id_, 0, now_us, store_id_);
   v1::Status* s = e.mutable_status();
   s->set_state(v1::ONLINE_STATE_ONLINE);
   s->set_connection(v1::CONNECTION_STATE_CONNECTED);
@@ -166,7 +188,8 @@ std::vector<SimMessage> SimVehicle::due(std::int64_t now) {
   if (now < boot_us_) return out;
   if (!info_sent_) {
     info_sent_ = true;
-    v1::DeviceInfo info;
+    v1::Envelope e = record_envelope(now);
+    v1::DeviceInfo& info = *e.mutable_info();
     using Node = std::tuple<std::string_view, std::string_view, std::string_view>;
     for (const auto& [node, model, fw] :
          {Node{"iot", "FLEETGW-SIM", kFirmware}, Node{"mc", "MOTINOVA-MC", "V1.2.0"},
@@ -176,7 +199,7 @@ std::vector<SimMessage> SimVehicle::due(std::int64_t now) {
       n->set_model(std::string(model));
       n->set_fw_version(std::string(fw));
     }
-    record(out, uplink::kind::kInfo, info.SerializeAsString(), now);
+    record(out, topics_.info, e);
   }
   if (now >= next_status_) {
     out.push_back({topics_.status, status_envelope(now), true, 0});
@@ -191,21 +214,23 @@ std::vector<SimMessage> SimVehicle::due(std::int64_t now) {
   }
   while (now >= next_sample_) {
     // The batch whose deadline this sample reaches leaves first (5 samples per riding batch).
-    if (!batch_.empty() && next_sample_ >= batch_deadline_) flush_batch(out);
+    if (batch_.samples_size() > 0 && next_sample_ >= batch_deadline_) flush_batch(out);
     const std::uint64_t seq = next_seq_++;
-    const std::string bytes = sample(next_sample_).SerializeAsString();
-    if (batch_.empty()) {
+    if (batch_.samples_size() == 0) {
       batch_first_seq_ = seq;
       batch_first_us_ = next_sample_;
       batch_deadline_ = next_sample_ + (riding_ ? kRidingBatch : kParkedBatch);
     }
-    batch_.add(bytes, seq);
-    if (batch_.samples() >= kBatchMaxSamples) flush_batch(out);
+    v1::TelemetrySample& s = *batch_.add_samples();
+    s = sample(next_sample_);
+    s.set_sequence(seq);
+    if (static_cast<std::size_t>(batch_.samples_size()) >= kBatchMaxSamples) flush_batch(out);
     next_sample_ += riding_ ? kRidingSample : kParkedSample;
   }
-  if (!batch_.empty() && now >= batch_deadline_) flush_batch(out);
+  if (batch_.samples_size() > 0 && now >= batch_deadline_) flush_batch(out);
   if (now >= next_pack_) {
-    v1::PackStatistics p;
+    v1::Envelope e = record_envelope(now);
+    v1::PackStatistics& p = *e.mutable_pack();
     p.set_pack_serial("SIM-" + vehicle_id_);
     p.set_measured_at_us(now);
     p.set_voltage_mv(static_cast<std::uint32_t>(36000 + 60 * soc_));
@@ -216,13 +241,14 @@ std::vector<SimMessage> SimVehicle::due(std::int64_t now) {
     for (int i = 0; i < 10; ++i) p.add_cells_mv(3700 + static_cast<std::uint32_t>(soc_));
     p.add_temp_c(24);
     p.add_temp_c(25);
-    record(out, uplink::kind::kPack, p.SerializeAsString(), now);
+    record(out, topics_.pack, e);
     next_pack_ += kPackInterval;
   }
   if (now >= ride_end_) {
     auto lock_event = [&](v1::LockState from, v1::LockState to, const char* from_name,
                           const char* to_name) {
-      v1::LockEvent l;
+      v1::Envelope e = record_envelope(now);
+      v1::LockEvent& l = *e.mutable_lock();
       l.set_node("lock1");
       l.set_lock_kind("frame");
       l.set_previous_state(from);
@@ -231,10 +257,11 @@ std::vector<SimMessage> SimVehicle::due(std::int64_t now) {
       l.set_state_name(to_name);
       l.set_source(v1::LOCK_EVENT_SOURCE_REMOTE);
       l.set_at_us(now);
-      record(out, uplink::kind::kLock, l.SerializeAsString(), now);
+      record(out, topics_.lock, e);
     };
     lock_event(v1::LOCK_STATE_UNLOCKED, v1::LOCK_STATE_LOCKED, "unlocked", "locked");
-    v1::RideRecord r;
+    v1::Envelope e = record_envelope(now);
+    v1::RideRecord& r = *e.mutable_ride();
     r.set_ride_id(vehicle_id_ + "-" + std::to_string(ride_start_));
     r.set_started_at_us(ride_start_);
     r.set_ended_at_us(now);
@@ -247,7 +274,7 @@ std::vector<SimMessage> SimVehicle::due(std::int64_t now) {
     r.set_energy_mwh(static_cast<std::uint64_t>(trip_m_ * 10));
     r.set_energy_mah(static_cast<std::uint64_t>(trip_m_ / 4));
     r.set_soc_end_pct(static_cast<std::uint32_t>(soc_));
-    record(out, uplink::kind::kRide, r.SerializeAsString(), now);
+    record(out, topics_.ride, e);
     lock_event(v1::LOCK_STATE_LOCKED, v1::LOCK_STATE_UNLOCKED, "locked", "unlocked");
     trip_m_ = 0;
     ride_start_ = now;
@@ -262,4 +289,4 @@ std::vector<SimMessage> SimVehicle::drain(std::int64_t /*now_us*/) {
   return out;
 }
 
-}  // namespace fleetgw::app
+}  // namespace fleetgw::fleet_sim

@@ -1,7 +1,7 @@
 // The traffic of one simulated vehicle, as `fleetgw run` would publish it with the default
-// configuration (config/fleetgw.toml), for `fleetgw fleet-sim`: what a fleet costs a broker and
+// configuration (config/fleetgw.toml), for fleetgw-fleet-sim: what a fleet costs a broker and
 // the ingest. Pure: no clock, no I/O; the caller passes `now` (µs since the epoch) and publishes
-// what comes out.
+// what comes out. Depends on proto/ only (the backend never builds against gateway/).
 //
 // Contract:
 //  * A riding vehicle samples telemetry every telemetry.riding_interval_ms (1 s) and sends a
@@ -13,12 +13,13 @@
 //    record, lock event for the next ride). A vehicle "boots" at a random moment of the first
 //    30 s (DeviceInfo and its first status then); periodic schedules have random phases.
 //  * Records carry the store's next sequence (from 1, contiguous across kinds, as the outbox
-//    numbers them) and created_at_us = `now` at their creation; the Envelopes are built by the
-//    gateway's own writers (uplink::TelemetryBatchWriter, serialize_record), so the bytes are
-//    what a gateway sends.
+//    numbers them) and created_at_us = `now` at their creation.
 //  * due(now) lists the messages to publish at `now` (possibly none); next_due() is the earliest
-//    time something will be due. Values move plausibly (speed profile, SOC draining, odometer,
-//    position drifting) from a seed, so runs are reproducible.
+//    time something will be due. Topics are <prefix>/<vehicle_id>/<leaf> with the gateway's
+//    leaves (uplink/topics.h); Envelopes carry the same header fields and bodies, a telemetry
+//    batch its samples each with its own sequence (what the gateway's splicing writer produces,
+//    byte for byte, from samples the generated code wrote). Values move plausibly (speed profile,
+//    SOC draining, odometer, position drifting) from a seed, so runs are reproducible.
 #pragma once
 
 #include <cstdint>
@@ -26,11 +27,16 @@
 #include <string>
 #include <vector>
 
+#include "fleetgw/v1/envelope.pb.h"
 #include "fleetgw/v1/telemetry.pb.h"
-#include "gateway/uplink/envelope_writer.h"
-#include "gateway/uplink/topics.h"
 
-namespace fleetgw::app {
+namespace fleetgw::fleet_sim {
+
+// The topics one vehicle publishes on (the gateway's uplink/topics.h leaves).
+struct VehicleTopics {
+  VehicleTopics(std::string_view prefix, std::string_view vehicle_id);
+  std::string telemetry, ride, pack, lock, info, status, state;
+};
 
 struct SimMessage {
   std::string topic;
@@ -56,8 +62,9 @@ class SimVehicle {
 
  private:
   v1::TelemetrySample sample(std::int64_t now_us);
-  void record(std::vector<SimMessage>& out, std::string_view kind, const std::string& body,
-              std::int64_t now_us);
+  // A record Envelope with the next sequence; its body is set by the caller.
+  v1::Envelope record_envelope(std::int64_t now_us);
+  void record(std::vector<SimMessage>& out, const std::string& topic, const v1::Envelope& e);
   void flush_batch(std::vector<SimMessage>& out);
   std::string state_envelope(std::int64_t now_us);
   std::string status_envelope(std::int64_t now_us);
@@ -65,7 +72,7 @@ class SimVehicle {
   std::string vehicle_id_;
   std::string store_id_;
   bool riding_;
-  uplink::Topics topics_;
+  VehicleTopics topics_;
   std::mt19937 rng_;
   std::uint64_t next_seq_ = 1;
   // Values that move.
@@ -84,10 +91,10 @@ class SimVehicle {
   std::int64_t ride_end_;
   std::int64_t ride_start_;
   bool info_sent_ = false;
-  uplink::TelemetryBatchWriter batch_;
+  v1::TelemetryBatch batch_;
   std::uint64_t batch_first_seq_ = 0;
   std::int64_t batch_first_us_ = 0;
   std::int64_t batch_deadline_ = 0;
 };
 
-}  // namespace fleetgw::app
+}  // namespace fleetgw::fleet_sim

@@ -1,5 +1,5 @@
-// The fleet-sim's traffic model (gateway/app/fleet_sim_model.h) through the ingest's decoder: an
-// hour of a riding and of a parked vehicle, simulated in a loop, is accepted message by message
+// The fleet-sim's traffic model (backend/fleet_sim/fleet_sim_model.h) through the ingest's decoder:
+// an hour of a riding and of a parked vehicle, simulated in a loop, is accepted message by message
 // (no reject), numbers its records 1..N without a hole, and has the default configuration's
 // shape (a telemetry sample per second riding, per minute parked, a ride every 15 minutes).
 #include <gtest/gtest.h>
@@ -7,12 +7,12 @@
 #include <map>
 #include <variant>
 
-#include "gateway/app/fleet_sim_model.h"
-#include "gateway/ingest/envelope_rows.h"
+#include "backend/fleet_sim/fleet_sim_model.h"
+#include "backend/ingest/envelope_rows.h"
 
 namespace {
 
-using fleetgw::app::SimVehicle;
+using fleetgw::fleet_sim::SimVehicle;
 using fleetgw::ingest::Decoded;
 using fleetgw::ingest::Reject;
 using fleetgw::ingest::SequenceRange;
@@ -29,7 +29,7 @@ HourTotals simulate_hour(bool riding) {
   constexpr std::int64_t kStart = 1'800'000'000'000'000;
   SimVehicle v("sim-7", "store-7", riding, 7, kStart);
   HourTotals t;
-  auto take = [&](std::vector<fleetgw::app::SimMessage> out) {
+  auto take = [&](std::vector<fleetgw::fleet_sim::SimMessage> out) {
     for (const auto& m : out) {
       auto r = fleetgw::ingest::decode_message("fleet/v1", m.topic, m.payload);
       if (const auto* rej = std::get_if<Reject>(&r)) {
