@@ -1,5 +1,7 @@
 #include "gateway/geofence/zone_bundle.h"
 
+#include <algorithm>
+#include <cmath>
 #include <set>
 #include <stdexcept>
 
@@ -23,6 +25,51 @@ std::string quote_zone_text(std::string_view untrusted) {
 // "zone 3 ('old-town')": where in the bundle a problem is.
 std::string zone_where(int index, const v1::Zone& zone) {
   return "zone " + std::to_string(index) + " (" + quote_zone_text(zone.id()) + ")";
+}
+
+// How many distinct vertices the ring has, counted up to 3 (one pass, no allocation): A-B-A-B
+// has two, whatever its length.
+std::size_t distinct_up_to_3(const Ring& ring) {
+  if (ring.empty()) return 0;
+  const Vertex a = ring.front();
+  std::optional<Vertex> b;
+  for (const auto& v : ring) {
+    if (v == a || (b && v == *b)) continue;
+    if (b) return 3;
+    b = v;
+  }
+  return b ? 2 : 1;
+}
+
+// Every vertex within kMinRingWidthM of one line: the ring encloses no area worth the name (an
+// operating area nobody can be inside, a slow zone nobody can enter). The line runs from the
+// first vertex to the one farthest from it; distances on the plane tangent at the first vertex
+// (exact enough for a threshold of centimetres). Rounding to 1e-7 degrees (1.1 cm) makes a line
+// drawn on a map only nearly straight, hence a width rather than exact collinearity.
+constexpr double kMinRingWidthM = 0.1;
+constexpr double kMPerE7 = 6'371'008.8 * M_PI / 180.0 * 1e-7;
+
+bool collinear(const Ring& ring) {
+  const Vertex a = ring.front();
+  const double kx = std::cos(a.lat_e7 * 1e-7 * M_PI / 180.0) * kMPerE7;
+  auto local = [&](const Vertex& v) {
+    return std::pair{static_cast<double>(std::int64_t{v.lon_e7} - a.lon_e7) * kx,
+                     static_cast<double>(std::int64_t{v.lat_e7} - a.lat_e7) * kMPerE7};
+  };
+  double bx = 0, by = 0;
+  for (const auto& v : ring) {
+    const auto [x, y] = local(v);
+    if (x * x + y * y > bx * bx + by * by) {
+      bx = x;
+      by = y;
+    }
+  }
+  const double length = std::hypot(bx, by);
+  if (!(length > 0)) return true;
+  return std::all_of(ring.begin(), ring.end(), [&](const Vertex& v) {
+    const auto [x, y] = local(v);
+    return std::abs(bx * y - by * x) / length < kMinRingWidthM;
+  });
 }
 
 // The ring's vertices without consecutive repeats (nor a last vertex repeating the first), or
@@ -51,12 +98,16 @@ std::variant<Ring, std::string> ring_of(const v1::ZoneRing& r) {
     if (ring.empty() || !(ring.back() == v)) ring.push_back(v);
   }
   if (ring.size() > 1 && ring.back() == ring.front()) ring.pop_back();
-  if (ring.size() < 3) {
-    return std::to_string(ring.size()) + " distinct vertices (at least 3 needed)";
+  if (const std::size_t distinct = distinct_up_to_3(ring); distinct < 3) {
+    return std::to_string(distinct) + " distinct vertices (at least 3 needed)";
   }
   if (lon_hi - lon_lo > kMaxLonSpanE7) {
     return "spans more than 180 degrees of longitude (zones across the antimeridian are not "
            "supported)";
+  }
+  if (collinear(ring)) {
+    return "all " + std::to_string(ring.size()) +
+           " vertices lie on one line (within 0.1 m: the ring encloses no area)";
   }
   return ring;
 }
@@ -76,6 +127,10 @@ std::optional<ZoneKind> kind_of(int kind) {
   }
 }
 
+std::string_view bundle_topic_name(BundleTopic topic) {
+  return topic == BundleTopic::kVehicle ? "the vehicle's own topic" : "the fleet topic";
+}
+
 BundleVerdict refused(BundleRefusal reason, std::string detail, std::uint64_t version,
                       const std::optional<BundleInForce>& in_force) {
   BundleVerdict v;
@@ -93,6 +148,10 @@ std::variant<ZoneSet, std::string> compile_zones(const v1::ZoneBundle& bundle,
                                                  const BundleLimits& limits) {
   if (bundle.version() == 0) return std::string("version 0 (versions start at 1)");
   if (bundle.issued_at_us() <= 0) return std::string("no issued_at_us");
+  if (!bundle.vehicle_id().empty() && !command::is_valid_tool_id(bundle.vehicle_id())) {
+    return "vehicle_id " + quote_zone_text(bundle.vehicle_id()) +
+           " must be 1..64 characters of [A-Za-z0-9._-] (or empty: fleet-wide)";
+  }
   if (static_cast<std::size_t>(bundle.zones_size()) > limits.max_zones) {
     return std::to_string(bundle.zones_size()) + " zones, at most " +
            std::to_string(limits.max_zones);
@@ -146,6 +205,31 @@ std::variant<ZoneSet, std::string> compile_zones(const v1::ZoneBundle& bundle,
   return set;
 }
 
+// Per vertex kept in force: points (8 bytes, plus one closing point per ring of >= 3
+// vertices), the edge list (4), the band index (<= 16 entries of 4 + one band start per 4
+// edges): 84 with rounding. Per zone: the Zone, its id and name, six allocations' overhead.
+constexpr std::size_t kSetBytesPerVertex = 84;
+constexpr std::size_t kSetBytesPerZone = 1024;
+// While judging, per vertex: the parsed ZoneBundle's two repeated sint32 fields (capacity up to
+// twice their size: 16 bytes) and the zone's rings being compiled (8). Per zone, the parsed
+// Zone message. Per payload byte: the payload as received, the SignedZoneBundle's copy of the
+// bundle bytes and the copy kept in force.
+constexpr std::size_t kJudgingBytesPerVertex = 24;
+constexpr std::size_t kJudgingBytesPerZone = 1024;
+constexpr std::size_t kJudgingCopiesOfPayload = 3;
+constexpr std::size_t kJudgingFixedBytes = 64u << 10;
+
+std::size_t zone_set_bytes_bound(std::size_t vertices, std::size_t zones) {
+  return sizeof(ZoneSet) + kSetBytesPerVertex * vertices + kSetBytesPerZone * zones;
+}
+
+std::size_t judging_bytes_bound(std::size_t payload_bytes, std::size_t vertices,
+                                std::size_t zones) {
+  return kJudgingFixedBytes + kJudgingCopiesOfPayload * payload_bytes +
+         kJudgingBytesPerVertex * vertices + kJudgingBytesPerZone * zones +
+         zone_set_bytes_bound(vertices, zones);
+}
+
 std::string_view bundle_outcome_name(BundleOutcome outcome) {
   switch (outcome) {
     case BundleOutcome::kAccepted:
@@ -176,13 +260,15 @@ std::string_view bundle_refusal_name(BundleRefusal reason) {
       return "version_conflict";
     case BundleRefusal::kInvalidZones:
       return "invalid_zones";
+    case BundleRefusal::kWrongVehicle:
+      return "wrong_vehicle";
   }
   return "unknown";
 }
 
 ZoneAuthority::ZoneAuthority(const std::map<std::string, std::string>& trusted_keys,
-                             BundleLimits limits)
-    : limits_(limits) {
+                             BundleLimits limits, std::string vehicle_id)
+    : limits_(limits), vehicle_id_(std::move(vehicle_id)) {
   for (const auto& [id, text] : trusted_keys) {
     auto key = command::Ed25519PublicKey::from_base64(text);
     if (id.empty() || !key) {
@@ -193,11 +279,12 @@ ZoneAuthority::ZoneAuthority(const std::map<std::string, std::string>& trusted_k
   }
 }
 
-BundleVerdict ZoneAuthority::offer(std::string_view payload) {
-  return offer(std::span(reinterpret_cast<const std::uint8_t*>(payload.data()), payload.size()));
+BundleVerdict ZoneAuthority::offer(std::string_view payload, BundleTopic topic) {
+  return offer(std::span(reinterpret_cast<const std::uint8_t*>(payload.data()), payload.size()),
+               topic);
 }
 
-BundleVerdict ZoneAuthority::offer(std::span<const std::uint8_t> payload) {
+BundleVerdict ZoneAuthority::offer(std::span<const std::uint8_t> payload, BundleTopic topic) {
   if (payload.size() > limits_.max_payload_bytes) {
     return refused(BundleRefusal::kTooLarge,
                    "payload of " + std::to_string(payload.size()) + " bytes exceeds " +
@@ -238,6 +325,11 @@ BundleVerdict ZoneAuthority::offer(std::span<const std::uint8_t> payload) {
                    in_force_);
   }
   const std::uint64_t version = bundle.version();
+  // Who the bundle is for, before its version counts: a bundle for another bike (or an unnamed
+  // one replayed on this bike's own topic) must not even refuse the next one as not_newer.
+  if (auto wrong = wrong_vehicle(bundle.vehicle_id(), topic)) {
+    return refused(BundleRefusal::kWrongVehicle, std::move(*wrong), version, in_force_);
+  }
   std::string digest = command::sha256(signed_bundle.bundle());
   if (in_force_) {
     const std::uint64_t current = in_force_->zones->version;
@@ -265,17 +357,31 @@ BundleVerdict ZoneAuthority::offer(std::span<const std::uint8_t> payload) {
   if (auto* error = std::get_if<std::string>(&compiled)) {
     return refused(BundleRefusal::kInvalidZones, std::move(*error), version, in_force_);
   }
-  in_force_ =
-      BundleInForce{std::string(reinterpret_cast<const char*>(payload.data()), payload.size()),
-                    std::move(digest), signed_bundle.key_id(),
-                    std::make_shared<const ZoneSet>(std::move(std::get<ZoneSet>(compiled)))};
+  in_force_ = BundleInForce{
+      std::string(reinterpret_cast<const char*>(payload.data()), payload.size()), std::move(digest),
+      signed_bundle.key_id(),
+      std::make_shared<const ZoneSet>(std::move(std::get<ZoneSet>(compiled))), bundle.vehicle_id()};
   BundleVerdict v;
   v.outcome = BundleOutcome::kAccepted;
   v.detail = "version " + std::to_string(version) +
              " in force: " + std::to_string(in_force_->zones->zones.size()) + " zones, " +
              std::to_string(in_force_->zones->vertices) + " vertices";
+  if (!bundle.vehicle_id().empty()) v.detail += ", for vehicle '" + bundle.vehicle_id() + "'";
   v.version = v.in_force = version;
   return v;
+}
+
+std::optional<std::string> ZoneAuthority::wrong_vehicle(std::string_view named,
+                                                        BundleTopic topic) const {
+  if (named.empty()) {
+    if (topic != BundleTopic::kVehicle) return std::nullopt;  // fleet-wide, on the fleet topic
+    return "the bundle names no vehicle; on " + std::string(bundle_topic_name(topic)) +
+           " only a bundle signed for '" + vehicle_id_ + "' is accepted (zones sign --vehicle " +
+           vehicle_id_ + ")";
+  }
+  if (vehicle_id_.empty() || named == vehicle_id_) return std::nullopt;
+  return "signed for vehicle " + quote_zone_text(named) + ", received on " +
+         std::string(bundle_topic_name(topic)) + " of '" + vehicle_id_ + "'";
 }
 
 std::string sign_zone_bundle(const v1::ZoneBundle& bundle, const command::Ed25519PrivateKey& key,

@@ -8,9 +8,20 @@
 //    `max_zones` zones or `max_vertices` vertices, a zone id that is not 1..64 of
 //    [A-Za-z0-9._-] (the tools' id rule, command::is_valid_tool_id) or is repeated, a name over
 //    128 bytes or not UTF-8, an unknown kind, no ring, lat/lon arrays of different lengths,
-//    fewer than 3 distinct vertices, a coordinate out of range, a ring spanning more than 180
-//    degrees of longitude, a slow zone without a limit in 1..255 km/h, a limit on another kind.
-//    Self-intersecting rings are accepted (the even-odd rule gives them a meaning).
+//    fewer than 3 distinct vertices (A-B-A-B has two), every vertex within 0.1 m of the line
+//    from the ring's first vertex to the one farthest from it (no area worth the name), a
+//    coordinate out of range, a ring spanning more than 180 degrees of longitude, a slow zone
+//    without a limit in 1..255 km/h, a limit on another kind, a vehicle_id that is neither
+//    empty nor a valid id. Self-intersecting rings are accepted (the even-odd rule gives them a
+//    meaning).
+//  * Bounded cost: the zone and vertex counts are checked before any shape is built, and each
+//    shape's index is sized before it is allocated (zone_geometry.h). Judging a payload of P
+//    bytes with V vertices in Z zones holds at most judging_bytes_bound(P, V, Z) on top of the
+//    bundle already in force (the payload, its parse, the rings, the new ZoneSet), and the
+//    ZoneSet kept in force at most zone_set_bytes_bound(V, Z); CPU is O(P + V) (one SHA-512 and
+//    one Ed25519 verification of P bytes, one parse, 13 counting passes over the edges, one
+//    index fill of <= 16 entries per vertex). Measured on the 100,000-vertex zig-zag (the
+//    largest accepted bundle, every edge spanning the whole zone): docs/location.md.
 //  * ZoneAuthority holds the bundle in force and judges each offer (a serialized
 //    SignedZoneBundle, e.g. from the retained topic or the file at start-up). Checks, in order:
 //      too_large          payload over `max_payload_bytes`
@@ -19,6 +30,10 @@
 //      unknown_key        key id not in the trusted keys (the same [command.trusted_keys] as
 //                         commands)
 //      signature_invalid  not an Ed25519 signature of exactly the bundle bytes
+//      wrong_vehicle      the bundle's vehicle_id names another vehicle than the authority's
+//                         (when it has one), or names none while it came on the vehicle's
+//                         own topic (BundleTopic::kVehicle): a bundle signed for one bike is
+//                         never accepted by another
 //      not_newer          version lower than the one in force
 //      version_conflict   same version as the one in force, different bundle bytes
 //      invalid_zones      compile_zones() refused it
@@ -58,6 +73,11 @@ struct BundleLimits {
   std::size_t max_name_bytes = 128;
 };
 
+// The bounds stated in the contract above, in bytes (allocator overhead included as a
+// constant per allocation).
+std::size_t zone_set_bytes_bound(std::size_t vertices, std::size_t zones);
+std::size_t judging_bytes_bound(std::size_t payload_bytes, std::size_t vertices, std::size_t zones);
+
 // The ZoneSet, or the reason it was refused.
 std::variant<ZoneSet, std::string> compile_zones(const v1::ZoneBundle& bundle,
                                                  const BundleLimits& limits = {});
@@ -72,11 +92,15 @@ enum class BundleRefusal : std::uint8_t {
   kNotNewer,
   kVersionConflict,
   kInvalidZones,
+  kWrongVehicle,
 };
+// Where a bundle came from: the fleet-wide topic (or the stored file, or an operator's check),
+// or the vehicle's own topic, which accepts only bundles signed for this vehicle.
+enum class BundleTopic : std::uint8_t { kFleet, kVehicle };
 // "accepted", "already_in_force", "refused".
 std::string_view bundle_outcome_name(BundleOutcome outcome);
 // "", "too_large", "malformed", "unknown_key", "signature_invalid", "not_newer",
-// "version_conflict", "invalid_zones".
+// "version_conflict", "invalid_zones", "wrong_vehicle".
 std::string_view bundle_refusal_name(BundleRefusal reason);
 
 struct BundleVerdict {
@@ -93,20 +117,28 @@ struct BundleInForce {
   std::string bundle_sha256;  // of the signed bundle bytes
   std::string key_id;
   std::shared_ptr<const ZoneSet> zones;
+  std::string vehicle_id;  // the vehicle it was signed for; empty: fleet-wide
 };
 
 class ZoneAuthority {
  public:
   // trusted_keys: key id -> base64 raw Ed25519 public key, as [command.trusted_keys].
+  // vehicle_id: this gateway's [vehicle] id; empty (an operator's check with no vehicle given)
+  // accepts a bundle named for any vehicle.
   explicit ZoneAuthority(const std::map<std::string, std::string>& trusted_keys,
-                         BundleLimits limits = {});
+                         BundleLimits limits = {}, std::string vehicle_id = {});
 
-  BundleVerdict offer(std::span<const std::uint8_t> payload);
-  BundleVerdict offer(std::string_view payload);
+  BundleVerdict offer(std::span<const std::uint8_t> payload,
+                      BundleTopic topic = BundleTopic::kFleet);
+  BundleVerdict offer(std::string_view payload, BundleTopic topic = BundleTopic::kFleet);
   const std::optional<BundleInForce>& in_force() const { return in_force_; }
 
  private:
+  // Why a bundle naming `named` and received on `topic` is not for this vehicle, if it is not.
+  std::optional<std::string> wrong_vehicle(std::string_view named, BundleTopic topic) const;
+
   BundleLimits limits_;
+  std::string vehicle_id_;
   std::map<std::string, command::Ed25519PublicKey, std::less<>> keys_;
   std::optional<BundleInForce> in_force_;
 };

@@ -6,7 +6,7 @@ namespace fleetgw::geofence {
 
 ZoneController::ZoneController(ZoneControllerConfig config)
     : config_(std::move(config)),
-      authority_(config_.trusted_keys, config_.limits),
+      authority_(config_.trusted_keys, config_.limits, config_.vehicle_id),
       engine_(config_.engine),
       enforcer_(config_.enforcer) {}
 
@@ -21,9 +21,9 @@ std::optional<BundleVerdict> ZoneController::restore(Micros now, std::string& er
 
 BundleVerdict ZoneController::on_bundle(std::span<const std::uint8_t> payload, Micros now,
                                         std::vector<ZoneEvent>& events, std::string& persist_error,
-                                        const gnss::Position* fix) {
+                                        const gnss::Position* fix, BundleTopic topic) {
   persist_error.clear();
-  BundleVerdict verdict = authority_.offer(payload);
+  BundleVerdict verdict = authority_.offer(payload, topic);
   count(verdict, now);
   if (!verdict.accepted()) return verdict;
   // Stored before it is enforced, so what the bike obeys is what it finds after a restart.

@@ -12,6 +12,9 @@
 //    force; a failed write is reported in `persist_error` but the bundle is enforced all the
 //    same (the bike obeys the newest zones; it would fall back to the stored ones after a
 //    restart). A refusal changes nothing. Zones removed by a new bundle end with exit events.
+//  * on_bundle(payload, ..., topic): `topic` says whether the payload came on the fleet topic or
+//    on the vehicle's own one; the authority binds a bundle to `vehicle_id` (zone_bundle.h,
+//    wrong_vehicle).
 //  * on_bundle(..., fix): with the current fix (a bundle replaced at run time) the new zones are
 //    evaluated there at once (ZoneEngine::relocate), so a moved operating area, a new slow or
 //    no-ride zone applies without waiting for the next fix and a dwell.
@@ -43,7 +46,8 @@ struct ZoneControllerConfig {
   EnforcerConfig enforcer;
   BundleLimits limits;
   std::map<std::string, std::string> trusted_keys;  // [command.trusted_keys]
-  std::filesystem::path bundle_file;                // empty: not persisted
+  std::string vehicle_id;             // [vehicle] id: bundles naming another are refused
+  std::filesystem::path bundle_file;  // empty: not persisted
 };
 
 struct BundleCounters {
@@ -62,7 +66,8 @@ class ZoneController {
                                        std::vector<ZoneEvent>& events);
   BundleVerdict on_bundle(std::span<const std::uint8_t> payload, Micros now,
                           std::vector<ZoneEvent>& events, std::string& persist_error,
-                          const gnss::Position* fix = nullptr);
+                          const gnss::Position* fix = nullptr,
+                          BundleTopic topic = BundleTopic::kFleet);
   BundleVerdict on_oversized(std::size_t bytes, std::size_t limit, Micros now);
   const BundleCounters& counters() const { return counters_; }
   void on_position(Micros now, const gnss::Position* fix, std::vector<ZoneEvent>& events);

@@ -41,6 +41,12 @@ ZonePolygon ZonePolygon::build(std::span<const Ring> rings) {
 
   z.min_x_ = z.min_y_ = std::numeric_limits<double>::max();
   z.max_x_ = z.max_y_ = std::numeric_limits<double>::lowest();
+  // Exact sizes first: every vector is allocated once, at its final size (no doubling slack
+  // kept for as long as the zone is in force).
+  std::size_t points = 0;
+  for (const auto& ring : rings) points += ring.size() + 1;
+  z.points_.reserve(points);
+  z.edges_.reserve(points - rings.size());
   for (const auto& ring : rings) {
     const std::size_t first = z.points_.size();
     for (const auto& v : ring) {
@@ -60,35 +66,70 @@ ZonePolygon ZonePolygon::build(std::span<const Ring> rings) {
     z.min_y_ = std::min<double>(z.min_y_, p.y);
     z.max_y_ = std::max<double>(z.max_y_, p.y);
   }
+  // The band count is chosen BEFORE anything is allocated for the index: the entries a count
+  // would need are summed without storing them (O(edges) per candidate, at most 13 candidates),
+  // and a winding shape (edges spanning many bands) gets fewer, taller bands until the index
+  // fits kEntriesPerVertex per edge. The index is then allocated once, at its exact size.
   std::size_t bands = std::clamp<std::size_t>(z.edges_.size() / 4, 1, kMaxBands);
-  for (;;) {
-    z.index_edges(bands);
-    // A winding shape (edges spanning many bands) gets fewer, taller bands: memory stays
-    // bounded per vertex whatever the bundle contains.
-    if (z.band_edges_.size() <= kEntriesPerVertex * z.edges_.size() + bands || bands == 1) break;
+  while (bands > 1 && z.entries_for(bands) > max_index_entries(z.edges_.size(), bands)) {
     bands /= 2;
   }
+  z.index_edges(bands);
   return z;
 }
 
-void ZonePolygon::index_edges(std::size_t bands) {
+std::size_t ZonePolygon::max_index_entries(std::size_t edges, std::size_t bands) {
+  return kEntriesPerVertex * edges + bands;
+}
+
+std::size_t ZonePolygon::max_bytes(std::size_t vertices, std::size_t rings) {
+  const std::size_t points = vertices + rings;
+  const std::size_t bands = std::clamp<std::size_t>(vertices / 4, 1, kMaxBands);
+  return sizeof(ZonePolygon) + points * sizeof(Point) + vertices * sizeof(std::uint32_t) +
+         (bands + 1) * sizeof(std::uint32_t) +
+         max_index_entries(vertices, bands) * sizeof(std::uint32_t);
+}
+
+std::size_t ZonePolygon::memory_bytes() const {
+  return sizeof(ZonePolygon) + points_.capacity() * sizeof(Point) +
+         edges_.capacity() * sizeof(std::uint32_t) +
+         band_start_.capacity() * sizeof(std::uint32_t) +
+         band_edges_.capacity() * sizeof(std::uint32_t);
+}
+
+void ZonePolygon::set_bands(std::size_t bands) {
   bands_ = bands;
   const double height = max_y_ - min_y_;
   band_height_ = height > 0 ? height / static_cast<double>(bands) : 1.0;
-  std::vector<std::uint32_t> counts(bands + 1, 0);
-  auto span_of = [&](std::uint32_t e) {
-    const double y0 = points_[e].y, y1 = points_[e + 1].y;
-    return std::pair{band_of(std::min(y0, y1)), band_of(std::max(y0, y1))};
-  };
+}
+
+std::pair<std::size_t, std::size_t> ZonePolygon::bands_of_edge(std::uint32_t e) const {
+  const double y0 = points_[e].y, y1 = points_[e + 1].y;
+  return {band_of(std::min(y0, y1)), band_of(std::max(y0, y1))};
+}
+
+std::size_t ZonePolygon::entries_for(std::size_t bands) {
+  set_bands(bands);
+  std::size_t entries = 0;
   for (const auto e : edges_) {
-    const auto [lo, hi] = span_of(e);
+    const auto [lo, hi] = bands_of_edge(e);
+    entries += hi - lo + 1;
+  }
+  return entries;
+}
+
+void ZonePolygon::index_edges(std::size_t bands) {
+  set_bands(bands);
+  std::vector<std::uint32_t> counts(bands + 1, 0);
+  for (const auto e : edges_) {
+    const auto [lo, hi] = bands_of_edge(e);
     for (std::size_t b = lo; b <= hi; ++b) ++counts[b + 1];
   }
   for (std::size_t b = 0; b < bands; ++b) counts[b + 1] += counts[b];
-  band_start_ = counts;
-  band_edges_.assign(counts[bands], 0);
+  band_start_ = counts;  // a copy: allocated at its exact size
+  band_edges_ = std::vector<std::uint32_t>(counts[bands], 0);
   for (const auto e : edges_) {
-    const auto [lo, hi] = span_of(e);
+    const auto [lo, hi] = bands_of_edge(e);
     for (std::size_t b = lo; b <= hi; ++b) band_edges_[counts[b]++] = e;
   }
 }

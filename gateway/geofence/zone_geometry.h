@@ -14,8 +14,16 @@
 //    hysteresis. A point on an edge is near the boundary for any margin > 0.
 //  * Speed: a bounding-box test, then a horizontal band index: each band lists the edges whose
 //    latitude range overlaps it, so a query reads only the edges of one band (the crossing
-//    count) and of the bands within the margin (the distance check). The index's size is
-//    bounded (at most 16 entries per vertex plus one per band), whatever the shape.
+//    count) and of the bands within the margin (the distance check).
+//  * Bounded cost, whatever the shape (a zig-zag whose every edge spans the whole height is the
+//    worst): the band count (at most 4,096, about one per 4 edges) is chosen BEFORE the index is
+//    allocated, by summing the entries each candidate count would need, halving it until the
+//    index holds at most max_index_entries(edges, bands) = 16 per edge + 1 per band. Every
+//    vector is allocated once at its exact size, so memory_bytes() <= max_bytes(vertices,
+//    rings) ~ 77 bytes per vertex (+ 16 kB of band starts at most) for as long as the zone
+//    lives. build() costs O(13 x edges + index entries) time; a query reads at most the entries
+//    of the bands it touches (<= 2 x (16 x edges + bands) edge tests for the worst shape, the
+//    cost of a linear scan; a few dozen for a compact shape).
 //  * distance_to_boundary_m() is the plain linear scan over every edge, kept for tests and the
 //    benchmark baseline.
 #pragma once
@@ -23,6 +31,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <span>
+#include <utility>
 #include <vector>
 
 namespace fleetgw::geofence {
@@ -49,6 +58,11 @@ class ZonePolygon {
   std::size_t vertex_count() const { return vertices_; }
   std::size_t band_count() const { return bands_; }
   std::size_t index_entries() const { return band_edges_.size(); }
+  // Bytes held by the shape (vector capacities included) and the bound it never exceeds.
+  std::size_t memory_bytes() const;
+  static std::size_t max_bytes(std::size_t vertices, std::size_t rings);
+  // The most index entries build() allows for `edges` edges in `bands` bands.
+  static std::size_t max_index_entries(std::size_t edges, std::size_t bands);
 
  private:
   struct Point {
@@ -65,6 +79,10 @@ class ZonePolygon {
   bool crossings_odd(const Local& p) const;
   bool near_edge(const Local& p, double margin_m) const;
   double edge_distance_sq(std::uint32_t edge, const Local& p) const;
+  void set_bands(std::size_t bands);
+  std::pair<std::size_t, std::size_t> bands_of_edge(std::uint32_t edge) const;
+  // The index entries `bands` bands would need, counted without allocating them.
+  std::size_t entries_for(std::size_t bands);
   void index_edges(std::size_t bands);
 
   // Projection: metres east/north of (lat0, lon0).

@@ -48,8 +48,14 @@ int run_zones_sign(const ZonesSignOptions& options, std::ostream& out, std::ostr
           << "' must be 1..64 characters of [A-Za-z0-9._-]\n";
       return 1;
     }
+    if (!options.vehicle_id.empty() && !command::is_valid_tool_id(options.vehicle_id)) {
+      err << "zones sign: --vehicle '" << common::untrusted_excerpt(options.vehicle_id)
+          << "' must be 1..64 characters of [A-Za-z0-9._-]\n";
+      return 1;
+    }
     const auto key = command::Ed25519PrivateKey::load_pem(options.key_pem);
-    const auto& b = std::get<v1::ZoneBundle>(bundle);
+    auto& b = std::get<v1::ZoneBundle>(bundle);
+    b.set_vehicle_id(options.vehicle_id);
     const std::string payload = sign_zone_bundle(b, key, key_id);
     if (!write_zone_file(options.out, payload, error)) {
       err << "zones sign: " << error << '\n';
@@ -60,7 +66,9 @@ int run_zones_sign(const ZonesSignOptions& options, std::ostream& out, std::ostr
     const std::size_t vertices =
         std::holds_alternative<ZoneSet>(compiled) ? std::get<ZoneSet>(compiled).vertices : 0;
     out << "zones sign: version " << b.version() << ", " << b.zones_size() << " zones, " << vertices
-        << " vertices, signed by '" << key_id << "': " << payload.size() << " bytes -> "
+        << " vertices, ";
+    if (!b.vehicle_id().empty()) out << "for vehicle '" << b.vehicle_id() << "', ";
+    out << "signed by '" << key_id << "': " << payload.size() << " bytes -> "
         << options.out.string() << '\n';
     return 0;
   } catch (const std::exception& e) {
@@ -71,7 +79,7 @@ int run_zones_sign(const ZonesSignOptions& options, std::ostream& out, std::ostr
 
 int run_zones_check(const ZonesCheckOptions& options, std::ostream& out, std::ostream& err) {
   try {
-    ZoneAuthority authority(options.trusted_keys);
+    ZoneAuthority authority(options.trusted_keys, {}, options.vehicle_id);
     std::string error;
     if (options.in_force) {
       const auto v = restore_zones(authority, *options.in_force, error);

@@ -7,14 +7,17 @@
 //    `version` issued at `issued_at`, validates it with the gateway's own rules, signs it with
 //    the Ed25519 PEM key (the `fleetgw keygen` key; key id: `key_id`, by default the key file's
 //    name without .pem, as keygen names it) and writes the SignedZoneBundle atomically to `out`
-//    (zone_file.h). It prints one line saying what it wrote. Exit 0; 1 with a message on `err`
+//    (zone_file.h). With `vehicle_id` the bundle names that vehicle (ZoneBundle.vehicle_id):
+//    only that vehicle's gateway accepts it, on its own topic or the fleet's. It prints one
+//    line saying what it wrote. Exit 0; 1 with a message on `err`
 //    naming the file and the problem (unreadable, invalid zone, bad key); nothing is written
 //    then.
 //  * run_zones_check() judges a signed bundle file exactly as a gateway would: with the trusted
 //    keys given and, when `in_force` names a file (the gateway's stored bundle), against the
-//    bundle in force there. It prints the verdict and, when the bundle authenticates and is
-//    valid, one line per zone (id, kind, vertices, limit, name). Exit 0 when a gateway would
-//    accept it (or already has it), 1 when it would refuse it.
+//    bundle in force there, and with `vehicle_id` as that vehicle's gateway (a bundle signed
+//    for another vehicle is refused as wrong_vehicle). It prints the verdict and, when the bundle
+//    authenticates and is valid, one line per zone (id, kind, vertices, limit, name). Exit 0 when a
+//    gateway would accept it (or already has it), 1 when it would refuse it.
 #pragma once
 
 #include <cstdint>
@@ -35,6 +38,7 @@ struct ZonesSignOptions {
   std::uint64_t version = 0;
   Micros issued_at{0};
   std::filesystem::path out;
+  std::string vehicle_id;  // empty: a fleet-wide bundle; else only that vehicle accepts it
 };
 int run_zones_sign(const ZonesSignOptions& options, std::ostream& out, std::ostream& err);
 
@@ -42,6 +46,7 @@ struct ZonesCheckOptions {
   std::filesystem::path bundle;
   std::map<std::string, std::string> trusted_keys;  // as [command.trusted_keys]
   std::optional<std::filesystem::path> in_force;
+  std::string vehicle_id;  // judge as this vehicle's gateway; empty: any vehicle
 };
 int run_zones_check(const ZonesCheckOptions& options, std::ostream& out, std::ostream& err);
 

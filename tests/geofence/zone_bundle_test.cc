@@ -133,6 +133,21 @@ TEST_F(ZoneBundles, MalformedPolygonsAreRefusedNamingZoneRingAndVertex) {
          r->mutable_lon_e7()->Truncate(3);
        },
        "zone 3 ('station'), ring 0: 2 distinct vertices (at least 3 needed)"},
+      {"two distinct vertices repeated (A-B-A-B)",
+       [](v1::ZoneBundle& b) {
+         *b.mutable_zones(2)->mutable_rings(0) =
+             to_proto({vertex_at(0, 0), vertex_at(100, 0), vertex_at(0, 0), vertex_at(100, 0)});
+       },
+       "zone 2 ('park'), ring 0: 2 distinct vertices (at least 3 needed)"},
+      {"every vertex on one line",
+       [](v1::ZoneBundle& b) {
+         *b.mutable_zones(3)->mutable_rings(0) = to_proto(
+             {vertex_at(0, 0), vertex_at(100, 100), vertex_at(300, 300), vertex_at(200, 200)});
+       },
+       "zone 3 ('station'), ring 0: all 4 vertices lie on one line (within 0.1 m: the ring "
+       "encloses no area)"},
+      {"a vehicle id that is not an id", [](v1::ZoneBundle& b) { b.set_vehicle_id("bike 7"); },
+       "vehicle_id 'bike 7' must be 1..64 characters of [A-Za-z0-9._-] (or empty: fleet-wide)"},
       {"latitude out of range",
        [](v1::ZoneBundle& b) { b.mutable_zones(1)->mutable_rings(1)->set_lat_e7(2, 900'000'001); },
        "zone 1 ('old-town'), ring 1: vertex 2: latitude 900000001e-7 is outside -90..90 degrees"},
@@ -191,6 +206,10 @@ TEST_F(ZoneBundles, MalformedPolygonsAreRefusedNamingZoneRingAndVertex) {
   r->add_lon_e7(r->lon_e7(0));
   *b.mutable_zones(2)->mutable_rings(0) =
       to_proto({vertex_at(0, 0), vertex_at(100, 100), vertex_at(100, 0), vertex_at(0, 100)});
+  EXPECT_TRUE(offer_fresh(b).accepted());
+  // A sliver 0.5 m wide is a zone (drawn on purpose along a kerb, say).
+  *b.mutable_zones(3)->mutable_rings(0) =
+      to_proto({vertex_at(0, 0), vertex_at(100, 0), vertex_at(100, 0.5)});
   EXPECT_TRUE(offer_fresh(b).accepted());
 }
 
@@ -268,6 +287,74 @@ TEST_F(ZoneBundles, TheBundleInForceSurvivesARestartAndATamperedFileIsRefused) {
   EXPECT_NE(error.find("missing"), std::string::npos) << error;
   EXPECT_FALSE(read_zone_file(dir.path(), error));  // a directory
   EXPECT_NE(error.find("not a regular file"), std::string::npos) << error;
+}
+
+// A bundle signed for one bike, replayed on another bike's own topic (or on the fleet topic):
+// refused as wrong_vehicle, whatever its version, and what is in force stays. An unnamed
+// (fleet-wide) bundle is accepted on the fleet topic only.
+TEST_F(ZoneBundles, ABundleSignedForAnotherVehicleIsRefusedOnEveryTopic) {
+  ZoneAuthority bike7(trusted, {}, "bike-7");
+  auto for_bike7 = bundle(4);
+  for_bike7.set_vehicle_id("bike-7");
+  auto for_bike8 = bundle(5);
+  for_bike8.set_vehicle_id("bike-8");
+
+  auto v = bike7.offer(signed_bundle(for_bike7), BundleTopic::kVehicle);
+  ASSERT_TRUE(v.accepted()) << v.detail;
+  EXPECT_EQ(v.detail, "version 4 in force: 4 zones, 80 vertices, for vehicle 'bike-7'");
+  EXPECT_EQ(bike7.in_force()->vehicle_id, "bike-7");
+
+  v = bike7.offer(signed_bundle(for_bike8), BundleTopic::kVehicle);
+  EXPECT_EQ(v.reason, BundleRefusal::kWrongVehicle);
+  EXPECT_EQ(bundle_refusal_name(v.reason), "wrong_vehicle");
+  EXPECT_EQ(v.detail,
+            "signed for vehicle 'bike-8', received on the vehicle's own topic of 'bike-7'");
+  EXPECT_EQ(v.in_force, 4u);
+  v = bike7.offer(signed_bundle(for_bike8), BundleTopic::kFleet);
+  EXPECT_EQ(v.reason, BundleRefusal::kWrongVehicle);
+  EXPECT_EQ(v.detail, "signed for vehicle 'bike-8', received on the fleet topic of 'bike-7'");
+
+  // A fleet-wide bundle (no vehicle) on the vehicle's own topic: refused, it could be any
+  // bike's; on the fleet topic: accepted.
+  v = bike7.offer(signed_bundle(bundle(6)), BundleTopic::kVehicle);
+  EXPECT_EQ(v.reason, BundleRefusal::kWrongVehicle);
+  EXPECT_EQ(v.detail,
+            "the bundle names no vehicle; on the vehicle's own topic only a bundle signed for "
+            "'bike-7' is accepted (zones sign --vehicle bike-7)");
+  EXPECT_EQ(bike7.in_force()->zones->version, 4u);
+  EXPECT_TRUE(bike7.offer(signed_bundle(bundle(6)), BundleTopic::kFleet).accepted());
+
+  // The stored file of another bike, copied over: refused at start-up.
+  ZoneAuthority other(trusted, {}, "bike-9");
+  EXPECT_EQ(other.offer(signed_bundle(for_bike7)).reason, BundleRefusal::kWrongVehicle);
+  // An operator's check with no vehicle given accepts a named bundle and says whose it is.
+  ZoneAuthority check(trusted);
+  EXPECT_TRUE(check.offer(signed_bundle(for_bike8)).accepted());
+}
+
+// The largest bundle a gateway accepts, in the worst shape (100,000 vertices zig-zagging across
+// the zone's whole height): accepted, and the zones kept in force stay within the documented
+// bound (issue 24: 1.6 GB before).
+TEST_F(ZoneBundles, TheLargestZigZagBundleIsKeptWithinItsMemoryBound) {
+  v1::ZoneBundle b;
+  b.set_version(1);
+  b.set_issued_at_us(kIssuedUs);
+  add_zone(b, "zig-zag", v1::ZONE_KIND_SLOW, {zig_zag(100'000, 3000)}, 12);
+  const std::string payload = signed_bundle(b);
+  ZoneAuthority authority(trusted);
+  const auto v = authority.offer(payload);
+  ASSERT_TRUE(v.accepted()) << v.detail;
+  const auto& set = *authority.in_force()->zones;
+  ASSERT_EQ(set.vertices, 100'000u);
+  std::size_t bytes = 0;
+  for (const auto& z : set.zones) {
+    bytes += z.shape.memory_bytes();
+    EXPECT_LE(z.shape.index_entries(), 16 * z.shape.vertex_count() + z.shape.band_count());
+  }
+  EXPECT_LE(bytes, zone_set_bytes_bound(set.vertices, set.zones.size()));
+  EXPECT_LE(bytes, 9'000'000u);  // docs/location.md: 84 bytes per vertex
+  EXPECT_EQ(set.zones[0].shape.locate(lat_at(-5), lon_at(1000), 1), Where::kInside);
+  EXPECT_EQ(set.zones[0].shape.locate(lat_at(-20), lon_at(1000), 1), Where::kOutside);
 }
 
 TEST(ZoneBundleKeys, AnUntrustableKeyInTheConfigurationIsNamed) {

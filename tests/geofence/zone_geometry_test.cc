@@ -118,5 +118,35 @@ TEST(ZoneGeometry, TheIndexStaysBoundedForAZigZagSpanningTheWholeHeight) {
             brute_inside(rings, lat_at(1000), lon_at(1000.5)) ? Where::kInside : Where::kOutside);
 }
 
+// The worst shapes for a band index: a zig-zag whose every edge spans the whole height, and a
+// comb of short base edges with long thin spikes through every band. The shape's memory --
+// capacity included, so an oversized index allocated first and kept as capacity fails -- stays
+// within the bound the header documents, and the answers stay those of a scan of every edge.
+TEST(ZoneGeometry, WorstShapesStayWithinTheDocumentedMemoryBound) {
+  Ring comb;
+  for (int i = 0; i < 8000; ++i) comb.push_back(vertex_at(i * 1.0, (i % 40 == 20) ? 5000 : 0));
+  comb.push_back(vertex_at(7999, -10));
+  comb.push_back(vertex_at(0, -10));
+  const std::vector<std::pair<const char*, Ring>> shapes{{"zig-zag", zig_zag(8000, 5000)},
+                                                         {"comb", comb}};
+  for (const auto& [name, ring] : shapes) {
+    const std::vector<Ring> rings{ring};
+    const auto z = ZonePolygon::build(rings);
+    const std::size_t v = z.vertex_count();
+    EXPECT_EQ(v, ring.size()) << name;
+    EXPECT_LE(z.index_entries(), ZonePolygon::max_index_entries(v, z.band_count())) << name;
+    EXPECT_LE(z.index_entries(), 16 * v + z.band_count()) << name;
+    EXPECT_LE(z.memory_bytes(), ZonePolygon::max_bytes(v, 1)) << name;
+    // About 77 bytes per vertex, as docs/location.md states.
+    EXPECT_LE(z.memory_bytes(), 80 * v + 20'000) << name;
+    std::mt19937 rng(9);
+    std::uniform_real_distribution<double> x(-50, 8050), y(-100, 5100);
+    for (int i = 0; i < 300; ++i) {
+      const double lat = lat_at(y(rng)), lon = lon_at(x(rng));
+      EXPECT_EQ(z.contains(lat, lon), brute_inside(rings, lat, lon)) << name << " " << i;
+    }
+  }
+}
+
 }  // namespace
 }  // namespace fleetgw::geofence

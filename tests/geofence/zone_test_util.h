@@ -75,6 +75,20 @@ inline Ring smooth_ring(std::size_t n, double r, double wave, double cx = 0, dou
   return ring;
 }
 
+// The worst shape for a band index (issue 24): `n` vertices zig-zagging between y = 0 and
+// y = height every `step` metres eastwards, so every edge spans the whole zone's height, closed
+// by a base 10 m below. A 100,000-vertex one is the largest bundle a gateway accepts.
+inline Ring zig_zag(std::size_t n, double height, double step = 0.5) {
+  Ring ring;
+  ring.reserve(n);
+  for (std::size_t i = 0; i + 2 < n; ++i) {
+    ring.push_back(vertex_at(static_cast<double>(i) * step, (i % 2) ? height : 0));
+  }
+  ring.push_back(vertex_at(static_cast<double>(n - 3) * step, -10));
+  ring.push_back(vertex_at(0, -10));
+  return ring;
+}
+
 inline v1::ZoneRing to_proto(const Ring& ring) {
   v1::ZoneRing r;
   for (const auto& v : ring) {

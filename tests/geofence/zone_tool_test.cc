@@ -93,6 +93,14 @@ TEST(ZonesGeojson, MalformedInputIsRefusedSayingWhere) {
   // The gateway's own rules apply too.
   EXPECT_EQ(one(R"({"id":"a","kind":"no_ride"})", R"([[[13.35,52.50],[13.45,52.50]]])"),
             "zone 0 ('a'), ring 0: 2 distinct vertices (at least 3 needed)");
+  // Issue 24: two points drawn back and forth, and a "polygon" along one street.
+  EXPECT_EQ(one(R"({"id":"a","kind":"no_ride"})",
+                R"([[[13.35,52.50],[13.45,52.50],[13.35,52.50],[13.45,52.50]]])"),
+            "zone 0 ('a'), ring 0: 2 distinct vertices (at least 3 needed)");
+  EXPECT_EQ(one(R"({"id":"a","kind":"no_ride"})",
+                R"([[[13.35,52.50],[13.40,52.50],[13.45,52.50],[13.35,52.50]]])"),
+            "zone 0 ('a'), ring 0: all 3 vertices lie on one line (within 0.1 m: the ring "
+            "encloses no area)");
   EXPECT_EQ(one(R"({"id":"a","kind":"slow"})"),
             "zone 0 ('a'): a slow zone needs speed_limit_kmh in 1..255, not 0");
 }
@@ -107,18 +115,21 @@ class ZonesTool : public ::testing::Test {
     key.write_pem(dir / "ops.pem");
     std::ofstream(dir / "city.geojson") << kCityGeojson;
   }
-  int sign(std::uint64_t version, const std::string& out_name, std::string* err_text = nullptr) {
+  int sign(std::uint64_t version, const std::string& out_name, std::string* err_text = nullptr,
+           const std::string& vehicle = "") {
     std::ostringstream out, err;
     const int rc = run_zones_sign(
-        {dir / "city.geojson", dir / "ops.pem", "", version, kIssued, dir / out_name}, out, err);
-    if (err_text) *err_text = err.str();
+        {dir / "city.geojson", dir / "ops.pem", "", version, kIssued, dir / out_name, vehicle}, out,
+        err);
+    if (err_text) *err_text = out.str() + err.str();
     return rc;
   }
-  int check(const std::string& name, std::optional<std::string> in_force, std::string& out_text) {
+  int check(const std::string& name, std::optional<std::string> in_force, std::string& out_text,
+            const std::string& vehicle = "") {
     std::ostringstream out, err;
     std::optional<std::filesystem::path> in;
     if (in_force) in = dir / *in_force;
-    const int rc = run_zones_check({dir / name, trusted, in}, out, err);
+    const int rc = run_zones_check({dir / name, trusted, in, vehicle}, out, err);
     out_text = out.str() + err.str();
     return rc;
   }
@@ -145,6 +156,29 @@ TEST_F(ZonesTool, SignedByTheToolAcceptedByTheCheckAsByAGateway) {
   EXPECT_NE(text.find("signature_invalid"), std::string::npos) << text;
 }
 
+// Issue 24: `zones sign --vehicle` binds a bundle to one vehicle; `zones check --vehicle`
+// judges it as that vehicle's gateway would.
+TEST_F(ZonesTool, ABundleSignedForOneVehicleIsRefusedByAnother) {
+  std::string text;
+  ASSERT_EQ(sign(6, "bike-7.pb", &text, "bike-7"), 0) << text;
+  EXPECT_NE(text.find("version 6, 3 zones, 18 vertices, for vehicle 'bike-7', signed by 'ops'"),
+            std::string::npos)
+      << text;
+  EXPECT_EQ(check("bike-7.pb", std::nullopt, text, "bike-7"), 0) << text;
+  EXPECT_NE(text.find("accepted: version 6 in force: 3 zones, 18 vertices, for vehicle 'bike-7'"),
+            std::string::npos)
+      << text;
+  EXPECT_EQ(check("bike-7.pb", std::nullopt, text, "bike-8"), 1) << text;
+  EXPECT_NE(text.find("refused (wrong_vehicle): signed for vehicle 'bike-7'"), std::string::npos)
+      << text;
+  // No vehicle given: accepted, saying whose it is.
+  EXPECT_EQ(check("bike-7.pb", std::nullopt, text), 0) << text;
+  EXPECT_NE(text.find("for vehicle 'bike-7'"), std::string::npos) << text;
+  EXPECT_EQ(sign(6, "bad.pb", &text, "bike 7"), 1);
+  EXPECT_NE(text.find("--vehicle 'bike 7' must be 1..64 characters"), std::string::npos) << text;
+  EXPECT_FALSE(std::filesystem::exists(dir / "bad.pb"));
+}
+
 TEST_F(ZonesTool, SignRefusesWithoutWritingAnything) {
   std::string err;
   EXPECT_EQ(sign(0, "v0.pb", &err), 1);
@@ -156,9 +190,10 @@ TEST_F(ZonesTool, SignRefusesWithoutWritingAnything) {
   EXPECT_NE(err.find("city.geojson: feature 0 ('x')"), std::string::npos) << err;
   EXPECT_FALSE(std::filesystem::exists(dir / "bad.pb"));
   std::ostringstream out, e2;
-  EXPECT_EQ(run_zones_sign({dir / "missing.geojson", dir / "ops.pem", "", 1, kIssued, dir / "m.pb"},
-                           out, e2),
-            1);
+  EXPECT_EQ(
+      run_zones_sign({dir / "missing.geojson", dir / "ops.pem", "", 1, kIssued, dir / "m.pb", ""},
+                     out, e2),
+      1);
   EXPECT_NE(e2.str().find("missing.geojson"), std::string::npos) << e2.str();
 }
 
