@@ -7,7 +7,11 @@
 PGBIN=$(ls -d /usr/lib/postgresql/*/bin 2>/dev/null | sort -V | tail -1)
 [[ -n $PGBIN ]] || { echo "ingest bench: PostgreSQL server binaries not installed" >&2; exit 77; }
 [[ $(id -u) == 0 ]] || { echo "ingest bench: run as root (PostgreSQL runs as postgres)" >&2; exit 1; }
-ulimit -n "$(ulimit -Hn)"  # a socket per vehicle in the broker and the fleet-sim
+# A socket per vehicle in the broker, three in the fleet-sim (libmosquitto's socket pair). Only
+# the soft limit can be raised without CAP_SYS_RESOURCE: a broker then holds at most about the
+# hard limit of sessions (20,000 on the development container), so bigger fleets go through
+# edge brokers bridged to the workers' broker (start_edge_brokers).
+ulimit -n "$(ulimit -Hn)"
 
 WORK=$(mktemp -d /tmp/fleetgw-ingest-bench-XXXXXX)
 chmod 755 "$WORK"
@@ -33,12 +37,31 @@ pg_cpu_s() {
   for pid in $PGPID $(pgrep -P "$PGPID"); do total=$(echo "$total + $(cpu_s "$pid")" | bc -l); done
   echo "$total"
 }
-workers_cpu_s() {
-  local total=0 w
-  for w in "${WORKERS[@]}"; do total=$(echo "$total + $(cpu_s "$w")" | bc -l); done
+# The same over a process and its descendants (a worker and its session processes).
+tree_cpu_s() {
+  local total c
+  total=$(cpu_s "$1")
+  for c in $(pgrep -P "$1"); do total=$(echo "$total + $(tree_cpu_s "$c")" | bc -l); done
   echo "$total"
 }
-psql_q() { psql -X -A -t -q -v ON_ERROR_STOP=1 "$CONNINFO" -c "$1"; }
+# Resident memory (kB) of a process and its descendants.
+tree_rss_kb() {
+  local total c
+  total=$(awk '/^VmRSS:/ { print $2 }' "/proc/$1/status" 2>/dev/null || echo 0)
+  for c in $(pgrep -P "$1"); do total=$((total + $(tree_rss_kb "$c"))); done
+  echo "$total"
+}
+workers_cpu_s() {
+  local total=0 w
+  for w in "${WORKERS[@]}"; do total=$(echo "$total + $(tree_cpu_s "$w")" | bc -l); done
+  echo "$total"
+}
+workers_rss_kb() {
+  local total=0 w
+  for w in "${WORKERS[@]}"; do total=$((total + $(tree_rss_kb "$w"))); done
+  echo "$total"
+}
+psql_q() { timeout "${QUERY_TIMEOUT_S:-600}" psql -X -A -t -q -v ON_ERROR_STOP=1 "$CONNINFO" -c "$1"; }
 
 # PostgreSQL: a private cluster on a Unix socket, fsync on (BUILD-NOTES: initdb refuses root).
 start_postgres() {
@@ -47,25 +70,54 @@ start_postgres() {
   local port
   port=$(free_port)
   runuser -u postgres -- "$PGBIN/initdb" -D "$WORK/pg" -A trust -U fleet -E UTF8 --locale=C >"$WORK/initdb.log"
+  # PG_LISTEN (e.g. 10.99.0.1): TCP for workers in other network namespaces (PG_HBA_NET trusted)
+  [[ -n ${PG_LISTEN:-} ]] && echo "host all fleet ${PG_HBA_NET:-10.99.0.0/16} trust" >>"$WORK/pg/pg_hba.conf"
   runuser -u postgres -- "$PGBIN/pg_ctl" -D "$WORK/pg" -l "$WORK/sock/pg.log" -w \
-    -o "-k $WORK/sock -p $port -c listen_addresses=''" start >/dev/null
+    -o "-k $WORK/sock -p $port -c listen_addresses='${PG_LISTEN:-}'" start >/dev/null
   PGPID=$(head -1 "$WORK/pg/postmaster.pid")
   CONNINFO="host=$WORK/sock port=$port user=fleet dbname=postgres"
 }
 
-# mosquitto: MQTT 5, no connection limit, session queues deep enough for a backlog.
+# mosquitto: MQTT 5, no connection limit, session queues deep enough for a backlog, no log line
+# per connection (50,000 of them at a fleet's start); BROKER_BIND (default 127.0.0.1) is where
+# it listens (0.0.0.0 for workers in other network namespaces).
+BROKER_SETTINGS='allow_anonymous true\nmax_connections -1\nmax_queued_messages 1000000\nset_tcp_nodelay true\nconnection_messages false\n'
 start_broker() {
   local port
   port=$(free_port)
-  printf 'listener %s 127.0.0.1\nallow_anonymous true\nmax_connections -1\nmax_queued_messages 1000000\nset_tcp_nodelay true\n' \
-    "$port" >"$WORK/mosquitto.conf"
+  printf "listener %s ${BROKER_BIND:-127.0.0.1}\n$BROKER_SETTINGS" "$port" >"$WORK/mosquitto.conf"
   mosquitto -c "$WORK/mosquitto.conf" 2>"$WORK/mosquitto.log" &
   BROKER=$!
   PIDS+=("$BROKER")
   BROKER_URI="tcp://127.0.0.1:$port"
-  for _ in $(seq 50); do
-    (exec 3<>"/dev/tcp/127.0.0.1/$port") 2>/dev/null && break
+  BROKER_PORT=$port
+  wait_port "$port"
+}
+wait_port() {  # until 127.0.0.1:PORT accepts a connection (10 s)
+  for _ in $(seq 100); do
+    (exec 3<>"/dev/tcp/127.0.0.1/$1") 2>/dev/null && return 0
     sleep 0.1
+  done
+  echo "ingest bench: nothing listens on 127.0.0.1:$1 after 10 s" >&2
+  exit 1
+}
+# start_edge_brokers N: N more mosquittos (EDGE_URIS, EDGE_PIDS) that the vehicles connect to,
+# each bridging fleet/v1/# (QoS 1, a persistent bridge session, MQTT 5) to the workers' broker:
+# the way past one broker process's descriptor limit on this machine.
+start_edge_brokers() {
+  local e port
+  EDGE_URIS=()
+  EDGE_PIDS=()
+  for e in $(seq "$1"); do
+    port=$(free_port)
+    printf "listener %s 127.0.0.1\n$BROKER_SETTINGS" "$port" >"$WORK/edge-$e.conf"
+    printf 'connection central\naddress 127.0.0.1:%s\nbridge_protocol_version mqttv50\nremote_clientid edge-%s\ncleansession false\ntopic fleet/v1/# out 1\n' \
+      "$BROKER_PORT" "$e" >>"$WORK/edge-$e.conf"
+    mosquitto -c "$WORK/edge-$e.conf" 2>"$WORK/edge-$e.log" &
+    EDGE_PIDS+=("$!")
+    PIDS+=("$!")
+    EDGE_URIS+=("tcp://127.0.0.1:$port")
+    wait_port "$port"
   done
 }
 
@@ -74,22 +126,33 @@ start_workers() {
   local w
   WORKERS=()
   for w in $(seq "$1"); do
+    # shellcheck disable=SC2086 # INGEST_ARGS: extra worker options, word-split on purpose
     "$FLEETGW" ingest --broker "$BROKER_URI" --group bench --client-id "bench-worker-$w" \
-      --pg "$CONNINFO" >>"$WORK/worker-$w.log" 2>&1 &
+      --pg "$CONNINFO" ${INGEST_ARGS:-} >>"$WORK/worker-$w.log" 2>&1 &
     WORKERS+=("$!")
     PIDS+=("$!")
   done
+  # Waits for the condition (each worker's "subscribed to" line), not a fixed budget: with a big
+  # backlog a worker subscribes late. STARTUP_TIMEOUT_S (300) only bounds a worker that never does.
+  local deadline=$((SECONDS + ${STARTUP_TIMEOUT_S:-300}))
   for w in $(seq "$1"); do
-    for _ in $(seq 300); do
-      [[ $(grep -c "subscribed to" "$WORK/worker-$w.log") -ge ${2:-1} ]] && break
+    until [[ $(grep -c "subscribed to" "$WORK/worker-$w.log") -ge ${2:-1} ]]; do
+      [[ $SECONDS -lt $deadline ]] || { echo "worker $w: not subscribed after ${STARTUP_TIMEOUT_S:-300} s"; cat "$WORK/worker-$w.log"; exit 1; }
+      kill -0 "${WORKERS[$((w - 1))]}" 2>/dev/null || { echo "worker $w exited"; cat "$WORK/worker-$w.log"; exit 1; }
       sleep 0.1
     done
-    [[ $(grep -c "subscribed to" "$WORK/worker-$w.log") -ge ${2:-1} ]] || { cat "$WORK/worker-$w.log"; exit 1; }
   done
 }
-stop_workers() {
+stop_workers() {  # SIGTERM; SIGKILL after STOP_TIMEOUT_S (60) for a worker that does not stop
   local w
-  for w in "${WORKERS[@]}"; do kill -TERM "$w"; done
+  for w in "${WORKERS[@]}"; do kill -TERM "$w" 2>/dev/null || true; done
+  for _ in $(seq $((${STOP_TIMEOUT_S:-60} * 10))); do
+    kill -0 "${WORKERS[@]}" 2>/dev/null || break
+    sleep 0.1
+  done
+  for w in "${WORKERS[@]}"; do
+    kill -0 "$w" 2>/dev/null && { echo "worker $w did not stop in ${STOP_TIMEOUT_S:-60} s: killed"; kill -KILL "$w"; }
+  done
   wait "${WORKERS[@]}" 2>/dev/null || true
 }
 

@@ -1,5 +1,5 @@
 // Options of `fleetgw ingest` (ingest_command.h).
-#include "gateway/app/ingest_command.h"
+#include "backend/app/ingest_command.h"
 
 #include <CLI/CLI.hpp>
 #include <cctype>
@@ -21,8 +21,23 @@ void add_ingest_options(CLI::App& app, ingest::IngestOptions& o) {
                  "libpq connection string, e.g. \"host=/run/postgresql dbname=fleet\" (passwords "
                  "belong in ~/.pgpass or PGPASSWORD, not here)")
       ->required();
-  app.add_option("--batch", o.batch_rows, "rows per INSERT statement")
-      ->check(CLI::Range(1, 2000))
+  app.add_option("--sessions", o.sessions,
+                 "MQTT sessions (processes) of this worker: at most this many messages per batch")
+      ->check(CLI::Range(1, 256))
+      ->capture_default_str();
+  app.add_option("--batch", o.batch_rows, "a batch closes at this many rows...")
+      ->check(CLI::Range(1, 1000000))
+      ->capture_default_str();
+  app.add_option("--batch-delay-ms", o.batch_delay_ms, "...or this long after its first message")
+      ->check(CLI::Range(1, 10000))
+      ->capture_default_str();
+  app.add_option("--partition-days-ahead", o.partition_days_ahead,
+                 "daily telemetry partitions created ahead")
+      ->check(CLI::Range(1, 366))
+      ->capture_default_str();
+  app.add_option("--retention-days", o.retention_days,
+                 "drop telemetry partitions older than this many days (0: keep everything)")
+      ->check(CLI::Range(0, 100000))
       ->capture_default_str();
   app.add_option("--session-expiry-s", o.session_expiry_s,
                  "how long the broker keeps this worker's queue while it is away")
@@ -45,8 +60,9 @@ void add_ingest_options(CLI::App& app, ingest::IngestOptions& o) {
   // passwords out of the command line, visible in ps); a command-line value wins. Not --duration
   // or --gaps: those are one-off runs, not a service's settings.
   for (const char* name :
-       {"broker", "topic-prefix", "group", "client-id", "pg", "batch", "session-expiry-s",
-        "ca-file", "cert-file", "key-file", "username", "password", "log-level"}) {
+       {"broker", "topic-prefix", "group", "client-id", "pg", "sessions", "batch", "batch-delay-ms",
+        "partition-days-ahead", "retention-days", "session-expiry-s", "ca-file", "cert-file",
+        "key-file", "username", "password", "log-level"}) {
     std::string env = "FLEETGW_INGEST_";
     for (const char* c = name; *c != '\0'; ++c) {
       env += *c == '-' ? '_' : static_cast<char>(std::toupper(static_cast<unsigned char>(*c)));

@@ -10,7 +10,7 @@
 
 #include <string_view>
 
-#include "gateway/ingest/ingest_options.h"
+#include "backend/ingest/ingest_options.h"
 
 namespace CLI {
 class App;

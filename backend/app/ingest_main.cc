@@ -1,12 +1,24 @@
 // fleetgw-ingest: `fleetgw ingest` as its own program (see ingest_command.h for why).
-#include <CLI/CLI.hpp>
+#include <google/protobuf/stubs/common.h>
+#include <google/protobuf/stubs/logging.h>
+#include <spdlog/sinks/stdout_color_sinks.h>
+#include <spdlog/spdlog.h>
 
+#include <CLI/CLI.hpp>
 #include <iostream>
 
-#include "gateway/app/ingest_command.h"
-#include "gateway/app/logging.h"
-#include "gateway/app/protobuf_log.h"
-#include "gateway/ingest/ingest_worker.h"
+#include "backend/app/ingest_command.h"
+#include "backend/ingest/ingest_worker.h"
+
+namespace {
+
+// Protobuf prints a stderr line for each invalid UTF-8 string it meets: hostile payloads must
+// not write one line each (issue 11). Decode failures are counted and logged by the worker.
+void quiet_protobuf(google::protobuf::LogLevel level, const char*, int, const std::string& m) {
+  if (level == google::protobuf::LOGLEVEL_FATAL) spdlog::critical("protobuf: {}", m);
+}
+
+}  // namespace
 
 int main(int argc, char** argv) {
   CLI::App app{"fleetgw ingest: MQTT 5 shared subscription → PostgreSQL (docs/backend.md)"};
@@ -17,9 +29,10 @@ int main(int argc, char** argv) {
   } catch (const CLI::ParseError& e) {
     return app.exit(e) == 0 ? 0 : 2;
   }
-  fleetgw::app::setup_logging(options.log_level);
-  // Hostile payloads must not write one stderr line each through protobuf (issue 11).
-  const fleetgw::app::ProtobufLogRoute protobuf_log;
+  spdlog::set_default_logger(spdlog::stderr_color_mt("fleetgw-ingest"));
+  spdlog::set_level(spdlog::level::from_str(options.log_level));
+  spdlog::set_pattern("%Y-%m-%d %H:%M:%S.%e %^%l%$ %v");
+  google::protobuf::SetLogHandler(quiet_protobuf);
   try {
     return fleetgw::ingest::run_ingest(options);
   } catch (const std::exception& e) {

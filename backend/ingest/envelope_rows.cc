@@ -1,15 +1,15 @@
 // Envelope → rows (envelope_rows.h): topic and payload checks, dispatch to the per-kind row
 // functions (record_rows.h), the commands seen on `cmd`, sequence ranges.
-#include "gateway/ingest/envelope_rows.h"
+#include "backend/ingest/envelope_rows.h"
 
 #include <fmt/format.h>
 
 #include <algorithm>
 
+#include "backend/ingest/record_rows.h"
+#include "backend/ingest/safe_text.h"
 #include "fleetgw/v1/command.pb.h"
 #include "fleetgw/v1/envelope.pb.h"
-#include "gateway/common/untrusted_text.h"
-#include "gateway/ingest/record_rows.h"
 
 namespace fleetgw::ingest {
 namespace {
@@ -26,7 +26,7 @@ std::variant<Decoded, Reject> command_message(std::string_view vehicle, std::str
   }
   if (cmd.vehicle_id() != vehicle) {
     return Reject{"vehicle_mismatch", fmt::format("command for \"{}\" on this vehicle's cmd topic",
-                                                  common::untrusted_excerpt(cmd.vehicle_id()))};
+                                                  untrusted_excerpt(cmd.vehicle_id()))};
   }
   if (cmd.command_id().empty()) return Reject{"not_a_command", "command without command_id"};
   Decoded d;
@@ -114,7 +114,7 @@ std::variant<Decoded, Reject> decode_message(std::string_view topic_prefix, std:
   }
   const std::string_view vehicle = rest.substr(0, slash);
   const std::string_view leaf = rest.substr(slash + 1);
-  if (vehicle.size() > 128 || !common::is_valid_utf8(vehicle)) {
+  if (vehicle.size() > 128 || !is_valid_utf8(vehicle)) {
     return Reject{"bad_topic", "vehicle id in the topic too long or not UTF-8"};
   }
   if (leaf == "cmd") return command_message(vehicle, payload);
@@ -133,14 +133,13 @@ std::variant<Decoded, Reject> decode_message(std::string_view topic_prefix, std:
                                                   static_cast<int>(e.body_case()))};
   }
   if (e.vehicle_id() != vehicle) {
-    return Reject{
-        "vehicle_mismatch",
-        fmt::format("Envelope.vehicle_id \"{}\" on the topic of \"{}\"",
-                    common::untrusted_excerpt(e.vehicle_id()), common::untrusted_excerpt(vehicle))};
+    return Reject{"vehicle_mismatch",
+                  fmt::format("Envelope.vehicle_id \"{}\" on the topic of \"{}\"",
+                              untrusted_excerpt(e.vehicle_id()), untrusted_excerpt(vehicle))};
   }
   if (leaf_of(e.body_case()) != leaf) {
     return Reject{"wrong_leaf", fmt::format("a {} body on leaf \"{}\"", leaf_of(e.body_case()),
-                                            common::untrusted_excerpt(leaf))};
+                                            untrusted_excerpt(leaf))};
   }
   Decoded d;
   d.vehicle_id = e.vehicle_id();

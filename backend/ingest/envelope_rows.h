@@ -7,7 +7,7 @@
 //    untrusted bytes. It returns either a Decoded (rows + the sequence ranges they account for)
 //    or a Reject {code, detail}: `code` is a short fixed string naming the reason class (for
 //    "logged once per reason" and counting), `detail` says what and where (field, value excerpt
-//    made safe with common::untrusted_excerpt).
+//    made safe with untrusted_excerpt).
 //  * Topics are <prefix>/<vehicle_id>/<leaf>; leaves as in docs/uplink.md. `cmd` carries a
 //    fleetgw.v1.SignedCommand, everything else a fleetgw.v1.Envelope whose vehicle_id must equal
 //    the topic's and whose body must be the leaf's kind.
@@ -28,7 +28,7 @@
 #include <variant>
 #include <vector>
 
-#include "gateway/ingest/pg.h"
+#include "backend/ingest/pg.h"
 
 namespace fleetgw::ingest {
 
@@ -71,6 +71,10 @@ struct Reject {
 };
 
 constexpr std::size_t kMaxText = 1024;
+// Samples per telemetry message: the gateway's own largest batch (`[mqtt] batch_max_samples`
+// is at most 10,000). A larger one is rejected as too_many_samples before any row is built, so
+// one message's rows stay within ~10 MB (docs/backend.md "Memory").
+constexpr std::size_t kMaxSamples = 10'000;
 
 std::variant<Decoded, Reject> decode_message(std::string_view topic_prefix, std::string_view topic,
                                              std::string_view payload);

@@ -1,5 +1,5 @@
 // Options of `fleetgw ingest` (header only: the CLI of the fleetgw binary validates them without
-// linking libpq; fleetgw-ingest runs them, see gateway/app/ingest_command.h).
+// linking libpq; fleetgw-ingest runs them, see backend/app/ingest_command.h).
 #pragma once
 
 #include <cstddef>
@@ -12,12 +12,17 @@ struct IngestOptions {
   std::string broker = "tcp://127.0.0.1:1883";
   std::string topic_prefix = "fleet/v1";
   std::string group = "fleetgw-ingest";
-  // MQTT client id; must stay the same across restarts of one worker so its persistent
-  // session (and the messages the broker queued for it) is resumed. Default:
-  // "<group>-<hostname>".
+  // MQTT client id prefix; must stay the same across restarts of one worker so its persistent
+  // sessions (and the messages the broker queued for them) are resumed: session i is
+  // "<client_id>-s<i>". Default: "<group>-<hostname>".
   std::string client_id;
-  std::string pg;                // libpq conninfo ("host=/run/postgresql dbname=fleet")
-  std::size_t batch_rows = 500;  // rows per INSERT statement (a telemetry batch is one message)
+  std::string pg;  // libpq conninfo ("host=/run/postgresql dbname=fleet")
+  // MQTT sessions (processes) of this worker: at most this many messages per batch.
+  std::size_t sessions = 16;
+  std::size_t batch_rows = 5000;      // a batch closes at this many rows...
+  std::uint32_t batch_delay_ms = 50;  // ...or this long after its first message
+  int partition_days_ahead = 7;       // telemetry partitions created ahead
+  int retention_days = 0;             // telemetry partitions older than this dropped (0: never)
   std::uint32_t session_expiry_s = 7 * 24 * 3600;
   std::uint32_t max_packet_bytes = 1024 * 1024;
   std::string ca_file;

@@ -1,13 +1,137 @@
-// PostgreSQL writes of the ingest (ingest_store.h).
-#include "gateway/ingest/ingest_store.h"
+// PostgreSQL writes of the ingest (ingest_store.h): COPY into staging tables, one
+// INSERT ... SELECT per table, ranges merged in one statement, one transaction per batch.
+#include "backend/ingest/ingest_store.h"
+
+#include <fmt/format.h>
 
 #include <algorithm>
-#include <span>
+#include <array>
+#include <map>
+#include <utility>
 
-#include "gateway/common/untrusted_text.h"
-#include "gateway/ingest/migrations.h"
+#include "backend/ingest/migrations.h"
+#include "backend/ingest/record_rows.h"
+#include "backend/ingest/safe_text.h"
 
 namespace fleetgw::ingest {
+namespace {
+
+// Every destination table, in the order a batch writes them.
+constexpr std::array<const TableSpec*, 13> kTables = {
+    &rows::kRides,   &rows::kFaults,   &rows::kTelemetry, &rows::kPacks,  &rows::kLocks,
+    &rows::kResults, &rows::kCommands, &rows::kInfo,      &rows::kAlarms, &rows::kEvictions,
+    &rows::kZones,   &rows::kStatus,   &rows::kState};
+
+std::string stage_name(const TableSpec& t) {
+  return "stage_" + std::string(t.table);
+}
+
+// One value in COPY's text format: \N for NULL; backslash, tab, newline and CR escaped.
+void append_copy_value(std::string& out, const PgParam& v) {
+  if (!v) {
+    out += "\\N";
+    return;
+  }
+  for (char c : *v) {
+    switch (c) {
+      case '\\':
+        out += "\\\\";
+        break;
+      case '\t':
+        out += "\\t";
+        break;
+      case '\n':
+        out += "\\n";
+        break;
+      case '\r':
+        out += "\\r";
+        break;
+      default:
+        out += c;
+    }
+  }
+}
+
+void append_copy_row(std::string& out, std::span<const PgParam> row) {
+  for (std::size_t i = 0; i < row.size(); ++i) {
+    if (i > 0) out += '\t';
+    append_copy_value(out, row[i]);
+  }
+  out += '\n';
+}
+
+// A text[] literal of `items` (quoted and escaped as PostgreSQL's array input expects).
+std::string text_array(const std::vector<std::string>& items) {
+  std::string out = "{";
+  for (const std::string& s : items) {
+    out += out.size() > 1 ? ",\"" : "\"";
+    for (char c : s) {
+      if (c == '"' || c == '\\') out += '\\';
+      out += c;
+    }
+    out += '"';
+  }
+  return out + "}";
+}
+
+// Column 1 of a vehicle_state row (updated_at_us) as a number.
+std::int64_t updated_at(std::span<const PgParam> row) {
+  return row[1] ? std::stoll(*row[1]) : 0;
+}
+
+// Ranges of the batch merged per (vehicle, store).
+using RangeKey = std::pair<std::string, std::string>;
+std::map<RangeKey, std::vector<SequenceRange>> merged_ranges(
+    std::span<const Decoded* const> messages) {
+  std::map<RangeKey, std::vector<SequenceRange>> all;
+  for (const Decoded* d : messages) {
+    if (d->ranges.empty()) continue;
+    auto& v = all[{d->vehicle_id, d->store_id}];
+    v.insert(v.end(), d->ranges.begin(), d->ranges.end());
+  }
+  for (auto& [key, v] : all) {
+    std::sort(v.begin(), v.end(),
+              [](const SequenceRange& a, const SequenceRange& b) { return a.first < b.first; });
+    std::vector<SequenceRange> out;
+    for (const SequenceRange& r : v) {
+      // r.first - 1 instead of last + 1: a range may end at 2^63-1.
+      if (!out.empty() && r.first - 1 <= out.back().last) {
+        out.back().last = std::max(out.back().last, r.last);
+      } else {
+        out.push_back(r);
+      }
+    }
+    v = std::move(out);
+  }
+  return all;
+}
+
+// Existing ranges touching or adjacent to a staged one are deleted and merged with the staged
+// ones (gaps and islands over first_seq); written without `+ 1` so 2^63-1 cannot overflow.
+constexpr std::string_view kMergeRanges = R"sql(
+WITH gone AS (
+  DELETE FROM sequence_ranges r USING stage_ranges n
+  WHERE r.vehicle_id = n.vehicle_id AND r.store_id = n.store_id
+    AND r.first_seq - 1 <= n.last_seq AND r.last_seq >= n.first_seq - 1
+  RETURNING r.vehicle_id, r.store_id, r.first_seq, r.last_seq),
+alls AS (
+  SELECT DISTINCT vehicle_id, store_id, first_seq, last_seq FROM gone
+  UNION ALL SELECT vehicle_id, store_id, first_seq, last_seq FROM stage_ranges),
+marked AS (
+  SELECT *, CASE WHEN first_seq - 1 <= max(last_seq) OVER (PARTITION BY vehicle_id, store_id
+              ORDER BY first_seq, last_seq ROWS BETWEEN UNBOUNDED PRECEDING AND 1 PRECEDING)
+            THEN 0 ELSE 1 END AS starts
+  FROM alls),
+grouped AS (
+  SELECT *, sum(starts) OVER (PARTITION BY vehicle_id, store_id ORDER BY first_seq, last_seq
+                              ROWS UNBOUNDED PRECEDING) AS island
+  FROM marked)
+INSERT INTO sequence_ranges (vehicle_id, store_id, first_seq, last_seq)
+SELECT vehicle_id, store_id, min(first_seq), max(last_seq) FROM grouped
+GROUP BY vehicle_id, store_id, island
+)sql";
+
+}  // namespace
 
 bool is_transient(const PgError& e) {
   const std::string& s = e.sqlstate();
@@ -17,12 +141,12 @@ bool is_transient(const PgError& e) {
   return cls == "08" || cls == "40" || cls == "53" || cls == "57" || cls == "58";
 }
 
-IngestStore::IngestStore(std::string conninfo, std::size_t rows_per_statement)
-    : conninfo_(std::move(conninfo)),
-      rows_per_statement_(std::max<std::size_t>(1, rows_per_statement)) {}
+IngestStore::IngestStore(std::string conninfo, std::size_t /*unused_rows_per_statement*/)
+    : conninfo_(std::move(conninfo)) {}
 
 int IngestStore::connect() {
   conn_.reset();
+  staging_ready_ = false;
   conn_.emplace(conninfo_);
   return migrate(*conn_);
 }
@@ -32,72 +156,153 @@ PgConnection& IngestStore::conn() {
   return *conn_;
 }
 
-const std::string& IngestStore::insert_sql(const TableSpec& t, std::size_t rows) {
-  std::string& sql = sql_cache_[{t.table, rows}];
-  if (!sql.empty()) return sql;
-  sql = "INSERT INTO " + std::string(t.table) + " (" + std::string(t.columns) + ") VALUES ";
-  int n = 1;
-  for (std::size_t r = 0; r < rows; ++r) {
-    sql += r ? ",(" : "(";
-    for (int c = 0; c < t.column_count; ++c) sql += (c ? ",$" : "$") + std::to_string(n++);
-    sql += ")";
+void IngestStore::prepare_staging(PgConnection& c) {
+  if (staging_ready_) return;
+  // Session-local tables with exactly the columns a batch COPYs, emptied at every commit.
+  std::string sql;
+  for (const TableSpec* t : kTables) {
+    sql += fmt::format(
+        "CREATE TEMP TABLE IF NOT EXISTS {} ON COMMIT DELETE ROWS AS SELECT {} FROM {} WITH NO "
+        "DATA;\n",
+        stage_name(*t), t->columns, t->table);
   }
-  sql += " " + std::string(t.on_conflict);
-  return sql;
+  sql +=
+      "CREATE TEMP TABLE IF NOT EXISTS stage_ranges (vehicle_id text NOT NULL, store_id text NOT "
+      "NULL, first_seq bigint NOT NULL, last_seq bigint NOT NULL) ON COMMIT DELETE ROWS;";
+  c.exec(sql, "staging tables");
+  staging_ready_ = true;
 }
 
-WriteStats IngestStore::write(const Decoded& d) {
+void IngestStore::insert_reject(PgConnection& c, const RejectRow& r) {
+  const PgParam p[] = {untrusted_excerpt(r.topic, 256),
+                       r.reject.code + ": " + truncate_utf8(r.reject.detail, 512),
+                       std::to_string(r.payload_bytes)};
+  c.exec_params("INSERT INTO rejected_messages (topic, reason, payload_bytes) VALUES ($1, $2, $3)",
+                p, "rejected_messages");
+}
+
+WriteStats IngestStore::write_all(std::span<const Decoded* const> messages,
+                                  std::span<const RejectRow> rejects) {
   PgConnection& c = conn();
+  prepare_staging(c);
   WriteStats stats;
   PgTransaction tx(c);
-  const bool latest_only = std::all_of(d.rows.begin(), d.rows.end(),
-                                       [](const RowSet& r) { return r.table->latest_value; });
+  bool latest_only = !messages.empty();
+  for (const Decoded* d : messages) {
+    for (const RowSet& r : d->rows) latest_only = latest_only && r.table->latest_value;
+  }
   if (latest_only) {
-    // A status or state row is replaced by the next one (and the broker delivers the retained
-    // message again at every subscribe): not worth a WAL flush (3 ms here) before the ack.
+    // Status and state rows are replaced by the next ones (and a retained message comes again
+    // at every subscribe): not worth a WAL flush before the acknowledgement.
     c.exec("SET LOCAL synchronous_commit = off", "latest value commit");
   }
-  if (!d.ranges.empty()) {
-    // One lock per message (a message is one vehicle's): concurrent writers of one vehicle
-    // queue here, before any row lock, so range merging never deadlocks.
-    const PgParam key[] = {d.vehicle_id + "/" + d.store_id};
-    c.exec_params("SELECT pg_advisory_xact_lock(hashtextextended($1, 0))", key, "vehicle lock");
+  const auto ranges = merged_ranges(messages);
+  if (!ranges.empty()) {
+    // One lock per (vehicle, store), all taken before any row lock, in one order (by hash).
+    std::vector<std::string> keys;
+    for (const auto& [key, v] : ranges) keys.push_back(key.first + "/" + key.second);
+    const PgParam p[] = {text_array(keys)};
+    c.exec_params(
+        "SELECT pg_advisory_xact_lock(k) FROM (SELECT DISTINCT hashtextextended(u, 0) AS k "
+        "FROM unnest($1::text[]) AS u ORDER BY 1) s",
+        p, "vehicle locks");
   }
-  for (const RowSet& set : d.rows) {
-    const std::size_t cols = static_cast<std::size_t>(set.table->column_count);
-    const std::size_t total = set.rows();
-    for (std::size_t first = 0; first < total; first += rows_per_statement_) {
-      const std::size_t n = std::min(rows_per_statement_, total - first);
-      const std::span<const PgParam> values(set.values.data() + first * cols, n * cols);
-      const PgResult r = c.exec_params(insert_sql(*set.table, n), values, set.table->table);
-      stats.inserted += r.affected();
-      stats.duplicates += static_cast<std::int64_t>(n) - r.affected();
+  if (hook_) hook_(BatchPoint::kBeforeCopy);
+  std::string data;
+  for (const TableSpec* t : kTables) {
+    const std::size_t cols = static_cast<std::size_t>(t->column_count);
+    std::vector<std::span<const PgParam>> staged_rows;
+    for (const Decoded* d : messages) {
+      for (const RowSet& set : d->rows) {
+        if (set.table != t) continue;
+        for (std::size_t i = 0; i < set.rows(); ++i) {
+          staged_rows.emplace_back(set.values.data() + i * cols, cols);
+        }
+      }
+    }
+    if (staged_rows.empty()) continue;
+    std::int64_t superseded = 0;
+    if (t->latest_value) {
+      // An upsert may touch a row once per statement: keep the batch's last status per vehicle
+      // and its newest state (the others are older than it: out of order).
+      std::map<std::string_view, std::size_t> newest;
+      for (std::size_t i = 0; i < staged_rows.size(); ++i) {
+        auto [it, fresh] = newest.try_emplace(*staged_rows[i][0], i);
+        if (fresh) continue;
+        if (t != &rows::kState ||
+            updated_at(staged_rows[i]) >= updated_at(staged_rows[it->second])) {
+          it->second = i;  // arrived later and is newer: as if applied after the other
+        } else {
+          ++superseded;  // a state older than one the batch already has: out of order
+        }
+      }
+      std::vector<std::span<const PgParam>> kept;
+      for (const auto& [vehicle, i] : newest) kept.push_back(staged_rows[i]);
+      staged_rows = std::move(kept);
+    }
+    data.clear();
+    for (const auto& row : staged_rows) append_copy_row(data, row);
+    c.copy_in(fmt::format("COPY {} FROM STDIN", stage_name(*t)), data, t->table);
+    const PgResult r = c.exec(fmt::format("INSERT INTO {} ({}) SELECT * FROM {} {}", t->table,
+                                          t->columns, stage_name(*t), t->on_conflict),
+                              t->table);
+    const std::int64_t staged = static_cast<std::int64_t>(staged_rows.size());
+    stats.inserted += r.affected();
+    if (t == &rows::kState) {
+      stats.stale_states += staged - r.affected() + superseded;
+    } else if (!t->latest_value) {
+      stats.duplicates += staged - r.affected();
     }
   }
-  for (const SequenceRange& range : d.ranges) {
-    // Delete every range touching or adjacent to [first, last] and insert their union.
-    const PgParam p[] = {d.vehicle_id, d.store_id, std::to_string(range.first),
-                         std::to_string(range.last)};
-    c.exec_params(
-        "WITH gone AS (DELETE FROM sequence_ranges WHERE vehicle_id = $1 AND store_id = $2 "
-        "AND first_seq <= $4::bigint + 1 AND last_seq >= $3::bigint - 1 "
-        "RETURNING first_seq, last_seq) "
-        "INSERT INTO sequence_ranges (vehicle_id, store_id, first_seq, last_seq) "
-        "SELECT $1, $2, LEAST($3::bigint, min(first_seq)), GREATEST($4::bigint, max(last_seq)) "
-        "FROM gone",
-        p, "sequence_ranges");
+  if (!ranges.empty()) {
+    data.clear();
+    for (const auto& [key, v] : ranges) {
+      for (const SequenceRange& s : v) {
+        const PgParam row[] = {key.first, key.second, std::to_string(s.first),
+                               std::to_string(s.last)};
+        append_copy_row(data, row);
+      }
+    }
+    c.copy_in("COPY stage_ranges FROM STDIN", data, "sequence_ranges");
+    c.exec(kMergeRanges, "sequence_ranges");
   }
+  for (const RejectRow& r : rejects) insert_reject(c, r);
+  if (hook_) hook_(BatchPoint::kAfterCopy);
   tx.commit();
+  if (hook_) hook_(BatchPoint::kAfterCommit);
   return stats;
 }
 
+BatchResult IngestStore::write_batch(std::span<const Decoded* const> messages,
+                                     std::span<const RejectRow> rejects) {
+  BatchResult result;
+  result.refused.resize(messages.size());
+  try {
+    result.stats = write_all(messages, rejects);
+    return result;
+  } catch (const PgError& e) {
+    if (is_transient(e) || messages.empty()) throw;
+  }
+  // A poison row: each message alone, so the others still commit.
+  for (std::size_t i = 0; i < messages.size(); ++i) {
+    try {
+      result.stats += write_all(messages.subspan(i, 1), {});
+    } catch (const PgError& e) {
+      if (is_transient(e)) throw;
+      result.refused[i] = Reject{"database_refused", e.what()};
+    }
+  }
+  if (!rejects.empty()) write_all({}, rejects);
+  return result;
+}
+
+WriteStats IngestStore::write(const Decoded& d) {
+  const Decoded* one[] = {&d};
+  return write_all(one, {});
+}
+
 void IngestStore::write_reject(std::string_view topic, const Reject& r, std::size_t payload_bytes) {
-  const PgParam p[] = {common::untrusted_excerpt(topic, 256),
-                       r.code + ": " + common::truncate_utf8(r.detail, 512),
-                       std::to_string(payload_bytes)};
-  conn().exec_params(
-      "INSERT INTO rejected_messages (topic, reason, payload_bytes) VALUES ($1, $2, $3)", p,
-      "rejected_messages");
+  insert_reject(conn(), RejectRow{topic, r, payload_bytes});
 }
 
 std::vector<Gap> IngestStore::gaps() {
@@ -111,6 +316,15 @@ std::vector<Gap> IngestStore::gaps() {
         {std::string(r.text(i, 0)), std::string(r.text(i, 1)), r.int64(i, 2), r.int64(i, 3)});
   }
   return out;
+}
+
+int IngestStore::maintain_partitions(int days_ahead, int retention_days) {
+  const PgParam p[] = {std::to_string(days_ahead), std::to_string(retention_days)};
+  return static_cast<int>(
+      conn()
+          .exec_params("SELECT fleet_maintain_telemetry_partitions($1::int, $2::int)", p,
+                       "telemetry partitions")
+          .int64(0, 0));
 }
 
 }  // namespace fleetgw::ingest

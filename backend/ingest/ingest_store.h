@@ -1,42 +1,68 @@
-// The ingest's PostgreSQL side: one decoded message → one transaction.
+// The ingest's PostgreSQL side: a batch of decoded messages → one transaction.
 //
 // Contract:
 //  * IngestStore connects lazily (and again after a broken connection) and applies the
 //    migrations (migrations.h) at its first connection.
-//  * write(d) runs ONE transaction: a per-(vehicle, store) advisory lock when it has sequence
-//    ranges to merge (taken first, so two
-//    workers writing the same vehicle serialise instead of deadlocking), every RowSet as
-//    multi-row INSERTs of at most `rows_per_statement` rows with the table's conflict clause
-//    (records: ON CONFLICT DO NOTHING on (vehicle_id, store_id, sequence)), then each sequence
-//    range merged into sequence_ranges; COMMIT. It returns only after the commit succeeded
-//    (durably: WAL flushed, except for messages of latest-value tables only, status and state,
-//    committed with synchronous_commit off); on any failure nothing of the message is kept and
-//    PgError is thrown.
-//  * is_transient(e): a failure worth retrying (connection lost, server shutting down,
-//    serialisation failure, resources); anything else (the server refused the data) is not, and
-//    the caller records the message as rejected instead of retrying it for ever.
+//  * write_batch(messages) writes every message of the batch in ONE transaction, at bulk speed:
+//    per destination table, one COPY of all the batch's rows into a temporary staging table and
+//    one `INSERT ... SELECT ... ON CONFLICT` into the table (records: DO NOTHING on their key;
+//    latest values: an upsert, the batch's newest row per vehicle only); then the batch's
+//    sequence ranges, merged per (vehicle, store) in memory, COPYed and merged into
+//    sequence_ranges by one statement. Per-(vehicle, store) advisory locks, taken first and in
+//    one fixed order, only when the batch has ranges to merge (two workers writing one vehicle
+//    serialise instead of deadlocking). It returns only after the commit succeeded (WAL
+//    flushed, except for batches of latest-value rows only: synchronous_commit off).
+//  * A batch the server refuses for a reason that is not transient (a poison row) is written
+//    again one message per transaction: the messages the server refuses are returned as
+//    rejected (reason `database_refused` with the server's message, not written), the others
+//    are committed. A transient failure (is_transient) throws PgError: nothing of the batch is
+//    known committed; the caller retries the whole batch (idempotent).
+//  * write(d) = one message in one transaction, PgError on any failure (tests, tools).
+//  * Counters: `inserted` rows added (records) or replaced (latest values); `duplicates`
+//    records (and commands) already there: redeliveries; `stale_states` VehicleState upserts
+//    older than the stored state (out of order, not applied), counted apart from duplicates.
 //  * write_reject() stores one row in rejected_messages (topic and detail as untrusted excerpts).
 //  * gaps() = the view sequence_gaps: holes in the accounted sequences, per (vehicle, store).
-//  * Not thread-safe: one IngestStore per worker thread.
+//  * Not thread-safe: one IngestStore per thread.
 #pragma once
 
 #include <cstddef>
 #include <cstdint>
-#include <map>
+#include <functional>
 #include <optional>
+#include <span>
 #include <string>
 #include <string_view>
-#include <utility>
 #include <vector>
 
-#include "gateway/ingest/envelope_rows.h"
-#include "gateway/ingest/pg.h"
+#include "backend/ingest/envelope_rows.h"
+#include "backend/ingest/pg.h"
 
 namespace fleetgw::ingest {
 
 struct WriteStats {
-  std::int64_t inserted = 0;    // rows the statements added or updated
-  std::int64_t duplicates = 0;  // rows already there (ON CONFLICT DO NOTHING)
+  std::int64_t inserted = 0;
+  std::int64_t duplicates = 0;
+  std::int64_t stale_states = 0;
+  WriteStats& operator+=(const WriteStats& o) {
+    inserted += o.inserted;
+    duplicates += o.duplicates;
+    stale_states += o.stale_states;
+    return *this;
+  }
+};
+
+struct BatchResult {
+  WriteStats stats;
+  // One entry per message of the batch: set when the database refused that message.
+  std::vector<std::optional<Reject>> refused;
+};
+
+// A message rejected before the database (decode_message) or by it, for rejected_messages.
+struct RejectRow {
+  std::string_view topic;
+  Reject reject;
+  std::size_t payload_bytes = 0;
 };
 
 struct Gap {
@@ -48,25 +74,39 @@ struct Gap {
 
 bool is_transient(const PgError& e);
 
+// Test hook points inside a batch (FLEETGW_INGEST_CRASH_AT, ingest_worker.h).
+enum class BatchPoint { kBeforeCopy, kAfterCopy, kAfterCommit };
+
 class IngestStore {
  public:
-  IngestStore(std::string conninfo, std::size_t rows_per_statement);
+  explicit IngestStore(std::string conninfo, std::size_t unused_rows_per_statement = 0);
 
+  // `rejects` are stored in rejected_messages in the same transaction.
+  BatchResult write_batch(std::span<const Decoded* const> messages,
+                          std::span<const RejectRow> rejects = {});
   WriteStats write(const Decoded& d);
   void write_reject(std::string_view topic, const Reject& r, std::size_t payload_bytes);
   std::vector<Gap> gaps();
+  // Creates the telemetry partitions of [now - 1 day, now + days_ahead] and drops those that
+  // ended more than retention_days ago (0: keep all). Returns the partitions dropped.
+  int maintain_partitions(int days_ahead, int retention_days);
 
   // Connects (and migrates) now; throws PgError. Returns the migrations applied.
   int connect();
+  // Called at each point of a batch (tests crash the process there).
+  void set_batch_hook(std::function<void(BatchPoint)> hook) { hook_ = std::move(hook); }
 
  private:
   PgConnection& conn();
-  const std::string& insert_sql(const TableSpec& t, std::size_t rows);
+  WriteStats write_all(std::span<const Decoded* const> messages,
+                       std::span<const RejectRow> rejects);
+  void insert_reject(PgConnection& c, const RejectRow& r);
+  void prepare_staging(PgConnection& c);
 
   std::string conninfo_;
-  std::size_t rows_per_statement_;
   std::optional<PgConnection> conn_;
-  std::map<std::pair<std::string_view, std::size_t>, std::string> sql_cache_;
+  bool staging_ready_ = false;
+  std::function<void(BatchPoint)> hook_;
 };
 
 }  // namespace fleetgw::ingest

@@ -1,31 +1,41 @@
 // `fleetgw ingest`: a reference backend consumer. Subscribes with an MQTT 5 shared subscription
-// ($share/<group>/<prefix>/#, QoS 1, persistent session) and writes every decoded message into
-// PostgreSQL through IngestStore, acknowledging a message to the broker only after its
-// transaction committed.
+// ($share/<group>/<prefix>/#, QoS 1, persistent sessions) and writes the decoded messages into
+// PostgreSQL in batches (IngestStore::write_batch), acknowledging each message to the broker
+// only after the transaction holding its rows committed.
 //
-// How the acknowledgement waits for the commit (docs/backend.md, "Exactly once"): Paho C 1.3.12
-// has no manual-acknowledgement API, but it calls the message callback on its receive thread
-// BEFORE it sends the PUBACK of a QoS 1 message (verified against mosquitto: a worker killed
-// inside the callback gets the message again, DUP set, on its next connection). The callback
-// therefore decodes, writes and commits, and only then returns; a process killed at any point
-// before the return leaves the message unacknowledged in its session on the broker. The price:
-// one transaction per MQTT message (a telemetry message carries up to 200 samples).
+// How the acknowledgements wait for a batch (docs/backend.md, "Exactly once"): Paho C 1.3.12
+// has no manual-acknowledgement API; it sends the PUBACK of a QoS 1 message when the message
+// callback returns, and serves every client of a process from one receive thread. So the worker
+// is a process with K children (--sessions), each holding one MQTT session of the group
+// (mqtt_session.h): a child's callback hands its message over a socket to this process and
+// blocks until told the batch holding it committed. This process decodes, batches (closed at
+// --batch rows, when every session has a message in hand, or --batch-delay-ms after its first
+// message) and writes; a batch holds at most K messages.
 //
 // Contract:
-//  * run_ingest() returns the process exit status: 0 after SIGINT/SIGTERM or `duration_s`,
-//    1 when PostgreSQL or the broker cannot be reached at start (named on stderr), 2 for bad
-//    options; with `gaps` it prints the gap report (one line per hole) and returns 0 when it is
-//    empty, 1 otherwise.
-//  * A malformed message (decode_message() Reject, or data the server refuses) is acknowledged
-//    (it would come back for ever otherwise), stored in rejected_messages, counted by reason,
-//    and logged once per reason with its topic (later ones at debug level).
-//  * PostgreSQL unavailable while a message is in hand: retried with back-off (100 ms .. 5 s),
-//    the message stays unacknowledged; a stop request during that wait exits (status 3) without
-//    acknowledging it: the broker delivers it again.
-//  * On exit one summary line: messages, records, rows inserted, duplicates, rejects by reason.
+//  * run_ingest() returns the process exit status: 0 after SIGINT/SIGTERM or `duration_s` once
+//    every message in hand is committed and acknowledged and every session disconnected (a
+//    clean drain, no _exit), 3 when it stopped with messages it could not commit (PostgreSQL
+//    down: not acknowledged, the broker delivers them again), 1 when PostgreSQL or the broker
+//    cannot be reached at start (named on stderr) or a session process died, 2 for bad
+//    options; with `gaps` it prints the gap report (one line per hole) and returns 0 when it
+//    is empty, 1 otherwise.
+//  * A malformed message (decode_message() Reject) or one the database refuses is
+//    acknowledged (it would come back for ever otherwise) once stored in rejected_messages in
+//    the batch's transaction, counted by reason, and logged once per reason with its topic
+//    (later ones at debug level); the rest of its batch commits.
+//  * PostgreSQL unavailable: the batch is retried with back-off (100 ms .. 5 s) from the poll
+//    loop (no library callback sleeps), its messages stay unacknowledged; no new batch starts,
+//    so at most K messages are in memory whatever the backlog.
+//  * Memory: one message's rows are bounded by decode_message (kMaxSamples, the broker's
+//    packet limit); after a message over 64 KiB, freed memory is given back (malloc_trim).
+//  * Test hook: FLEETGW_INGEST_CRASH_AT=before_copy|after_copy|after_commit SIGKILLs the worker
+//    at that point of its FLEETGW_INGEST_CRASH_BATCH-th batch holding records (default 1).
+//  * On exit one summary line: messages, records, rows inserted, duplicate records ignored,
+//    rejects by reason, out-of-order states ignored, batches.
 #pragma once
 
-#include "gateway/ingest/ingest_options.h"
+#include "backend/ingest/ingest_options.h"
 
 namespace fleetgw::ingest {
 

@@ -3,7 +3,7 @@
 // and its Envelope agree exactly. Every record table is keyed by (vehicle_id, store_id, sequence)
 // (docs/backend.md explains the key) and carries created_at_us (the gateway's clock) and
 // committed_at_us (the database's clock at insert, for the delivery delay).
-#include "gateway/ingest/migrations.h"
+#include "backend/ingest/migrations.h"
 
 #include <string>
 
@@ -169,9 +169,99 @@ ALTER TABLE status ADD COLUMN publish_refusals bigint,
   ADD COLUMN last_publish_refusal_at_us bigint;
 )sql";
 
+// v3 (issue 25): telemetry partitioned by day of sampled_at_us (declarative partitioning), with
+// a default partition for samples outside any day partition (a gateway without a clock stamps
+// 1970) and functions the worker calls to create partitions ahead and drop old ones
+// (--partition-days-ahead, --retention-days). The key gains sampled_at_us (a partitioned
+// table's unique key must hold the partition key): a redelivered sample repeats its
+// sampled_at_us, so it still conflicts. Every row of the old table moves over. Plus the indexes
+// the analyst queries of docs/backend.md use.
+constexpr std::string_view kV3 = R"sql(
+ALTER TABLE telemetry_samples RENAME TO telemetry_samples_v2;
+ALTER INDEX telemetry_samples_pkey RENAME TO telemetry_samples_v2_pkey;
+ALTER INDEX telemetry_by_time RENAME TO telemetry_v2_by_time;
+
+CREATE TABLE telemetry_samples (
+  vehicle_id text NOT NULL, store_id text NOT NULL, sequence bigint NOT NULL,
+  created_at_us bigint NOT NULL, committed_at_us bigint NOT NULL DEFAULT fleet_now_us(),
+  sampled_at_us bigint NOT NULL,
+  speed_dkmh integer, motor_rpm integer, power_w integer, voltage_mv integer,
+  current_ma integer, cadence_rpm integer, torque_dnm integer, assist integer,
+  soc_pct integer, range_m integer, odo_m bigint, trip_m bigint, pcb_temp_c integer,
+  motor_temp_c integer, mcu_temp_c integer, remaining_mah integer, full_mah integer,
+  pack_temp_c integer, lat_e7 integer, lon_e7 integer,
+  PRIMARY KEY (vehicle_id, store_id, sequence, sampled_at_us)) PARTITION BY RANGE (sampled_at_us);
+CREATE INDEX telemetry_by_time ON telemetry_samples (vehicle_id, sampled_at_us);
+CREATE TABLE telemetry_samples_default PARTITION OF telemetry_samples DEFAULT;
+
+-- The partition of the UTC day starting at day_us (telemetry_samples_pYYYYMMDD), made once;
+-- rows of that day already in the default partition move into it.
+CREATE FUNCTION fleet_telemetry_partition(day_us bigint) RETURNS void LANGUAGE plpgsql AS $$
+DECLARE
+  name text := 'telemetry_samples_p' ||
+               to_char(to_timestamp(day_us / 1e6) AT TIME ZONE 'UTC', 'YYYYMMDD');
+  day_end bigint := day_us + 86400000000;
+BEGIN
+  IF to_regclass(name) IS NOT NULL THEN RETURN; END IF;
+  EXECUTE format('CREATE TABLE %I (LIKE telemetry_samples INCLUDING DEFAULTS)', name);
+  EXECUTE format('WITH moved AS (DELETE FROM telemetry_samples_default WHERE sampled_at_us >= %s '
+                 'AND sampled_at_us < %s RETURNING *) INSERT INTO %I SELECT * FROM moved',
+                 day_us, day_end, name);
+  EXECUTE format('ALTER TABLE telemetry_samples ATTACH PARTITION %I FOR VALUES FROM (%s) TO (%s)',
+                 name, day_us, day_end);
+END $$;
+
+-- Partitions from yesterday to days_ahead days ahead; with retention_days > 0, day partitions
+-- that ended more than retention_days ago are dropped. Returns the number dropped. Workers
+-- call it at start and hourly; the lock makes concurrent calls take turns.
+CREATE FUNCTION fleet_maintain_telemetry_partitions(days_ahead int, retention_days int)
+RETURNS int LANGUAGE plpgsql AS $$
+DECLARE
+  today bigint := (floor(fleet_now_us() / 86400000000.0) * 86400000000)::bigint;
+  part record;
+  dropped int := 0;
+BEGIN
+  PERFORM pg_advisory_xact_lock(7363453106150742);
+  FOR i IN -1..days_ahead LOOP
+    PERFORM fleet_telemetry_partition(today + i * 86400000000);
+  END LOOP;
+  IF retention_days > 0 THEN
+    FOR part IN SELECT c.relname FROM pg_inherits h JOIN pg_class c ON c.oid = h.inhrelid
+                WHERE h.inhparent = 'telemetry_samples'::regclass
+                  AND c.relname ~ '^telemetry_samples_p[0-9]{8}$' LOOP
+      IF to_date(substr(part.relname, 20), 'YYYYMMDD') + 1 <=
+         (now() AT TIME ZONE 'UTC')::date - retention_days THEN
+        EXECUTE format('DROP TABLE %I', part.relname);
+        dropped := dropped + 1;
+      END IF;
+    END LOOP;
+  END IF;
+  RETURN dropped;
+END $$;
+
+-- Every row of the old table is kept: the days it holds (years 2000-2099; others go to the
+-- default partition) get their partitions first.
+DO $$
+DECLARE d bigint;
+BEGIN
+  FOR d IN SELECT DISTINCT (floor(sampled_at_us / 86400000000.0) * 86400000000)::bigint
+           FROM telemetry_samples_v2
+           WHERE sampled_at_us >= 946684800000000 AND sampled_at_us < 4102444800000000 LOOP
+    PERFORM fleet_telemetry_partition(d);
+  END LOOP;
+END $$;
+INSERT INTO telemetry_samples SELECT * FROM telemetry_samples_v2;
+DROP TABLE telemetry_samples_v2;
+
+-- Fault rates by firmware: raised faults per vehicle; the latest device info per vehicle.
+CREATE INDEX fault_events_by_kind ON fault_events (kind, vehicle_id);
+CREATE INDEX device_info_latest ON device_info (vehicle_id, created_at_us DESC);
+)sql";
+
 constexpr Migration kMigrations[] = {
     {1, "records, latest state, sequence ranges, rejected messages", kV1},
     {2, "zone events, status publish refusals", kV2},
+    {3, "telemetry partitioned by day, analyst indexes", kV3},
 };
 
 // Any constant: the lock only serialises ingest workers migrating the same database.

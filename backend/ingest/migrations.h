@@ -14,7 +14,7 @@
 #include <span>
 #include <string_view>
 
-#include "gateway/ingest/pg.h"
+#include "backend/ingest/pg.h"
 
 namespace fleetgw::ingest {
 

@@ -70,6 +70,8 @@ class PgConnection {
   PgResult exec(std::string_view sql, std::string_view what);
   PgResult exec_params(std::string_view sql, std::span<const PgParam> params,
                        std::string_view what);
+  // COPY ... FROM STDIN (text format) with `data` as the rows; throws PgError like exec().
+  void copy_in(std::string_view sql, std::string_view data, std::string_view what);
   bool ok() const { return PQstatus(conn_.get()) == CONNECTION_OK; }
   PGconn* raw() { return conn_.get(); }
 

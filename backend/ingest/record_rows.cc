@@ -1,6 +1,6 @@
 // One function per Envelope body kind (record_rows.h): the column order of each TableSpec is
 // the order of its RowBuilder calls.
-#include "gateway/ingest/record_rows.h"
+#include "backend/ingest/record_rows.h"
 
 #include <nlohmann/json.hpp>
 
@@ -83,7 +83,9 @@ const TableSpec kZones{"zone_events",
                        "zone_id, zone_name, kind, transition, at_us, lat_e7, lon_e7, "
                        "bundle_version, speed_limit_kmh",
                        14, kIgnore};
-// A state older than the stored one (a late duplicate) does not replace it.
+// A state older than the stored one (a late duplicate) does not replace it, unless the stored one
+// claims a time more than 10 minutes ahead of the database's clock: a gateway whose clock was
+// wrong once must not freeze its vehicle's state for ever (issue 24).
 const TableSpec kState{
     "vehicle_state",
     "vehicle_id, updated_at_us, online, mode, soc_pct, range_m, odo_m, lat_e7, lon_e7", 9,
@@ -91,7 +93,8 @@ const TableSpec kState{
     "EXCLUDED.updated_at_us, online = EXCLUDED.online, mode = EXCLUDED.mode, soc_pct = "
     "EXCLUDED.soc_pct, range_m = EXCLUDED.range_m, odo_m = EXCLUDED.odo_m, lat_e7 = "
     "EXCLUDED.lat_e7, lon_e7 = EXCLUDED.lon_e7 WHERE EXCLUDED.updated_at_us >= "
-    "vehicle_state.updated_at_us",
+    "vehicle_state.updated_at_us OR vehicle_state.updated_at_us > fleet_now_us() + "
+    "600000000",
     true};
 
 RowSet& new_rows(Decoded& d, const TableSpec& t) {
@@ -291,18 +294,21 @@ void status_rows(const v1::Envelope& e, RowBuilder& b) {
   b.raw(enum_name(&v1::BusState_Name<v1::BusState>, s.bus_state()));
   b.text("firmware_version", s.firmware_version());
   b.boolean(s.last_will());
-  nlohmann::json attention = nlohmann::json::array();
+  // A PostgreSQL array literal: each element double-quoted, `"` and `\` backslash-escaped and
+  // every other byte (newline included) kept as it is, so the stored text is the sent text.
+  std::string array = "{";
   for (const std::string& a : s.attention()) {
     if (a.size() > kMaxText || a.find('\0') != std::string::npos) {
       b.fail("bad_text", "status.attention: an entry too long or with a NUL byte");
     }
-    attention.push_back(a);
+    array += array.size() > 1 ? ",\"" : "\"";
+    for (char c : a) {
+      if (c == '"' || c == '\\') array += '\\';
+      array += c;
+    }
+    array += '"';
   }
-  // A PostgreSQL array literal from JSON strings: {"a","b"} quotes and escapes the same way.
-  std::string array = attention.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
-  array.front() = '{';
-  array.back() = '}';
-  b.raw(array);
+  b.raw(array + "}");
   b.u64("status.publish_refusals", s.publish_refusals());
   b.text("status.last_publish_refusal", s.last_publish_refusal());
   b.u32("status.last_publish_refusal_code", s.last_publish_refusal_code());
@@ -345,6 +351,11 @@ void state_rows(const v1::Envelope& e, RowBuilder& b) {
 }
 
 std::optional<Reject> telemetry_rows(const v1::Envelope& e, Decoded& d) {
+  if (static_cast<std::size_t>(e.telemetry().samples_size()) > kMaxSamples) {
+    // Checked before any row is built: rows cost ~1 KB per sample in memory (issue 24).
+    return Reject{"too_many_samples", fmt::format("telemetry batch of {} samples (at most {})",
+                                                  e.telemetry().samples_size(), kMaxSamples)};
+  }
   RowSet& rows = new_rows(d, kTelemetry);
   RowBuilder b(rows.values);
   std::vector<std::uint64_t> seqs;

@@ -1,4 +1,4 @@
-// Internal to gateway/ingest (used by envelope_rows.cc): the destination tables, the checked
+// Internal to backend/ingest (used by envelope_rows.cc): the destination tables, the checked
 // row builder and one function per Envelope body kind that appends that body's row.
 //
 // Contract:
@@ -20,9 +20,9 @@
 #include <string_view>
 #include <vector>
 
+#include "backend/ingest/envelope_rows.h"
+#include "backend/ingest/safe_text.h"
 #include "fleetgw/v1/envelope.pb.h"
-#include "gateway/common/untrusted_text.h"
-#include "gateway/ingest/envelope_rows.h"
 
 namespace fleetgw::ingest::rows {
 
@@ -40,8 +40,7 @@ class RowBuilder {
     if (s.size() > kMaxText) {
       fail("text_too_long", fmt::format("{}: {} bytes (at most {})", field, s.size(), kMaxText));
     } else if (s.find('\0') != std::string_view::npos) {
-      fail("nul_in_text",
-           fmt::format("{}: NUL byte in \"{}\"", field, common::untrusted_excerpt(s)));
+      fail("nul_in_text", fmt::format("{}: NUL byte in \"{}\"", field, untrusted_excerpt(s)));
     }
     out_.emplace_back(std::string(s));
   }

@@ -12,7 +12,7 @@
 #include "gateway/app/command_tool.h"
 #include "gateway/app/completion.h"
 #include "gateway/app/db_command.h"
-#include "gateway/app/ingest_command.h"
+#include "backend/app/ingest_command.h"
 #include "gateway/app/logging.h"
 #include "gateway/app/ride_command.h"
 #include "gateway/app/sibling_program.h"

@@ -1,7 +1,7 @@
-// Unit tests of the ingest's pure half (gateway/ingest/envelope_rows.h): topics and Envelopes
+// Unit tests of the ingest's pure half (backend/ingest/envelope_rows.h): topics and Envelopes
 // to rows, the sequence ranges they account for, and every hostile input rejected with a reason
 // (never a crash, never a database error).
-#include "gateway/ingest/envelope_rows.h"
+#include "backend/ingest/envelope_rows.h"
 
 #include <google/protobuf/stubs/logging.h>
 #include <gtest/gtest.h>
@@ -318,6 +318,26 @@ TEST(IngestRows, RangesMergeSortedRunsAndDuplicates) {
   EXPECT_EQ(to_ranges({5, 3, 4, 4, 9, 10, 1}),
             (std::vector<SequenceRange>{{1, 1}, {3, 5}, {9, 10}}));
   EXPECT_TRUE(to_ranges({}).empty());
+}
+
+// Issue 24: rows cost ~1 KB per sample in memory; a batch larger than the gateway's own largest
+// (10,000 samples) is refused before any row is built, whatever its size on the wire.
+TEST(IngestRows, TelemetryBatchOverTheGatewaysLargestIsRejectedBeforeRows) {
+  const auto batch = [](int samples) {
+    v1::Envelope e = envelope(0);
+    for (int i = 0; i < samples; ++i) {
+      e.mutable_telemetry()->add_samples()->set_sequence(static_cast<std::uint64_t>(i) + 1);
+    }
+    return decode_message("fleet/v1", "fleet/v1/bike-1/telemetry", e.SerializeAsString());
+  };
+  const auto largest = batch(10'000);
+  ASSERT_TRUE(std::holds_alternative<Decoded>(largest));
+  EXPECT_EQ(std::get<Decoded>(largest).records, 10'000u);
+  const auto worst = batch(240'000);
+  ASSERT_TRUE(std::holds_alternative<Reject>(worst));
+  EXPECT_EQ(std::get<Reject>(worst).code, "too_many_samples");
+  EXPECT_NE(std::get<Reject>(worst).detail.find("240000"), std::string::npos)
+      << std::get<Reject>(worst).detail;
 }
 
 }  // namespace

@@ -16,8 +16,8 @@
 #include <string>
 #include <vector>
 
+#include "backend/ingest/pg.h"
 #include "fleetgw/v1/envelope.pb.h"
-#include "gateway/ingest/pg.h"
 #include "tests/ingest/pg_fixture.h"
 #include "tests/support/mosquitto_fixture.h"
 #include "tests/support/process.h"
@@ -213,7 +213,7 @@ TEST_F(IngestE2E, DatabaseOutageHoldsMessagesUntilItEnds) {
     pub.publish("fleet/v1/outage-bike/fault", e.SerializeAsString(), 1, false)->wait();
   }
   pub.disconnect()->wait();
-  ASSERT_TRUE(wait_until([&] { return w->log_contains("stays unacknowledged"); }, 30s)) << w->log();
+  ASSERT_TRUE(wait_until([&] { return w->log_contains("stay unacknowledged"); }, 30s)) << w->log();
   pg_->start();
   EXPECT_TRUE(wait_until(
       [&] {

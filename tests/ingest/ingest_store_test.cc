@@ -1,15 +1,18 @@
 // IngestStore against a real PostgreSQL (a private cluster started by the test): migrations,
 // idempotent inserts on (vehicle_id, store_id, sequence), gap tracking reconciled with eviction
 // reports, a wiped store (new store_id) beside the old one. Skipped when PostgreSQL is absent.
-#include "gateway/ingest/ingest_store.h"
+#include "backend/ingest/ingest_store.h"
 
 #include <gtest/gtest.h>
 
+#include <chrono>
+#include <cstdint>
+#include <limits>
 #include <memory>
 #include <optional>
 
+#include "backend/ingest/migrations.h"
 #include "fleetgw/v1/envelope.pb.h"
-#include "gateway/ingest/migrations.h"
 #include "tests/ingest/pg_fixture.h"
 
 namespace {
@@ -262,6 +265,156 @@ TEST_F(IngestStoreTest, RejectIsStoredWithItsReason) {
   ASSERT_EQ(r.rows(), 1);
   EXPECT_EQ(r.text(0, 0), "fleet/v1/b1/ride\\x1b[31m");
   EXPECT_EQ(r.text(0, 1), "not_an_envelope: 3 bytes");
+}
+
+// Issue 24: a VehicleState stamped far in the future (a gateway's wrong clock) must not freeze
+// the vehicle's state: later real ones replace it. An older state after a real one is still
+// out of order, and counted as such (not as a duplicate).
+TEST_F(IngestStoreTest, StateFromTheFutureIsReplacedByLaterRealOnes) {
+  IngestStore s(cluster_->conninfo());
+  const auto state = [](std::int64_t at_us, std::uint32_t soc) {
+    v1::Envelope e;
+    e.set_vehicle_id("b1");
+    e.mutable_state()->set_updated_at_us(at_us);
+    e.mutable_state()->set_soc_pct(soc);
+    return std::get<Decoded>(
+        fleetgw::ingest::decode_message("fleet/v1", "fleet/v1/b1/state", e.SerializeAsString()));
+  };
+  const std::int64_t now = std::chrono::duration_cast<std::chrono::microseconds>(
+                               std::chrono::system_clock::now().time_since_epoch())
+                               .count();
+  constexpr std::int64_t kYearUs = 365LL * 24 * 3600 * 1'000'000;
+  s.write(state(now + 10 * kYearUs, 10));
+  EXPECT_EQ(s.write(state(now, 50)).stale_states, 0);
+  EXPECT_EQ(count("SELECT soc_pct FROM vehicle_state WHERE vehicle_id = 'b1'"), 50);
+  const auto late = s.write(state(now - 1'000'000, 20));
+  EXPECT_EQ(late.stale_states, 1);
+  EXPECT_EQ(late.duplicates, 0);
+  EXPECT_EQ(count("SELECT soc_pct FROM vehicle_state WHERE vehicle_id = 'b1'"), 50);
+}
+
+// Issue 24: the docs allow sequences up to 2^63-1; the range bookkeeping must not overflow.
+TEST_F(IngestStoreTest, SequenceAtTheTopOfBigintIsAccounted) {
+  IngestStore s(cluster_->conninfo());
+  constexpr auto kMax = static_cast<std::uint64_t>(std::numeric_limits<std::int64_t>::max());
+  EXPECT_EQ(s.write(record("b1", "s1", kMax)).inserted, 1);
+  EXPECT_EQ(s.write(record("b1", "s1", kMax - 1)).inserted, 1);
+  EXPECT_EQ(s.write(record("b1", "s1", kMax)).duplicates, 1);
+  EXPECT_EQ(count("SELECT count(*) FROM sequence_ranges"), 1);
+  EXPECT_EQ(count("SELECT count(*) FROM sequence_ranges WHERE last_seq = 9223372036854775807 "
+                  "AND first_seq = 9223372036854775806"),
+            1);
+  const auto gaps = s.gaps();
+  ASSERT_EQ(gaps.size(), 1u);
+  EXPECT_EQ(gaps[0].first_missing, 1);
+  EXPECT_EQ(gaps[0].last_missing, std::numeric_limits<std::int64_t>::max() - 2);
+}
+
+// Issue 24: a status attention text is stored exactly as sent (a newline, quotes, backslashes).
+TEST_F(IngestStoreTest, AttentionTextIsStoredAsSent) {
+  IngestStore s(cluster_->conninfo());
+  v1::Envelope e;
+  e.set_vehicle_id("b1");
+  const std::vector<std::string> texts = {"outbox full\nsince 10:00", "say \"hi\" \\o/",
+                                          "tab\there, {braces}", ""};
+  for (const std::string& t : texts) e.mutable_status()->add_attention(t);
+  s.write(std::get<Decoded>(
+      fleetgw::ingest::decode_message("fleet/v1", "fleet/v1/b1/status", e.SerializeAsString())));
+  PgConnection c(cluster_->conninfo());
+  const auto r = c.exec("SELECT unnest(attention) FROM status WHERE vehicle_id = 'b1'", "att");
+  ASSERT_EQ(r.rows(), static_cast<int>(texts.size()));
+  for (int i = 0; i < r.rows(); ++i) EXPECT_EQ(r.text(i, 0), texts[i]);
+}
+
+// One batch: records (one already stored: a duplicate), two states of one vehicle out of order;
+// the counters name each apart.
+TEST_F(IngestStoreTest, BatchCountsDuplicatesAndOutOfOrderStatesApart) {
+  IngestStore s(cluster_->conninfo());
+  s.write(record("b1", "s1", 1));
+  const auto state = [](std::int64_t at_us) {
+    v1::Envelope e;
+    e.set_vehicle_id("b2");
+    e.mutable_state()->set_updated_at_us(at_us);
+    return std::get<Decoded>(
+        fleetgw::ingest::decode_message("fleet/v1", "fleet/v1/b2/state", e.SerializeAsString()));
+  };
+  const Decoded a = record("b1", "s1", 1), b = record("b1", "s1", 2), c = record("b1", "s1", 3),
+                newer = state(2'000), older = state(1'000);
+  const Decoded* batch[] = {&a, &b, &c, &newer, &older};
+  const auto r = s.write_batch(batch);
+  EXPECT_EQ(r.stats.duplicates, 1);
+  EXPECT_EQ(r.stats.stale_states, 1);
+  EXPECT_EQ(r.stats.inserted, 3);  // two records and one state
+  EXPECT_EQ(count("SELECT updated_at_us FROM vehicle_state WHERE vehicle_id = 'b2'"), 2'000);
+  EXPECT_EQ(count("SELECT count(*) FROM sequence_ranges"), 1);
+  EXPECT_TRUE(s.gaps().empty());
+}
+
+// A database of schema v2 (today's before issue 25) with telemetry over several days, one
+// sample without a clock (1970) and other records: migrated to partitioned telemetry, every row
+// kept, each day in its partition, and a day's query reads that partition only.
+TEST_F(IngestStoreTest, MigrationToPartitionedTelemetryKeepsEveryRow) {
+  {
+    PgConnection c(cluster_->conninfo());
+    c.exec(
+        "CREATE TABLE schema_migrations (version integer PRIMARY KEY, name text NOT NULL, "
+        "applied_at timestamptz NOT NULL DEFAULT now())",
+        "schema_migrations");
+    for (const auto& m : fleetgw::ingest::migrations()) {
+      if (m.version > 2) break;
+      c.exec(m.sql, "old migration");
+      c.exec("INSERT INTO schema_migrations (version, name) VALUES (" + std::to_string(m.version) +
+                 ", 'old')",
+             "old row");
+    }
+    // 3 days x 100 samples, plus one at 1970-01-01.
+    c.exec(
+        "INSERT INTO telemetry_samples (vehicle_id, store_id, sequence, created_at_us, "
+        "sampled_at_us, speed_dkmh) SELECT 'b1', 's1', g, 1, 1700000000000000 + (g / 100) * "
+        "86400000000 + g, g FROM generate_series(0, 299) g",
+        "old telemetry");
+    c.exec(
+        "INSERT INTO telemetry_samples (vehicle_id, store_id, sequence, created_at_us, "
+        "sampled_at_us) VALUES ('b1', 's1', 1000, 1, 0)",
+        "no clock");
+    c.exec("INSERT INTO sequence_ranges VALUES ('b1', 's1', 1, 299), ('b1', 's1', 1000, 1000)",
+           "ranges");
+  }
+  IngestStore s(cluster_->conninfo());
+  EXPECT_EQ(s.connect(), static_cast<int>(fleetgw::ingest::migrations().size()) - 2);
+  EXPECT_EQ(count("SELECT count(*) FROM telemetry_samples"), 301);
+  EXPECT_EQ(count("SELECT sum(speed_dkmh) FROM telemetry_samples"), 299 * 300 / 2);
+  EXPECT_EQ(count("SELECT count(*) FROM telemetry_samples_default"), 1);
+  EXPECT_EQ(count("SELECT count(DISTINCT tableoid) FROM telemetry_samples"), 4);
+  EXPECT_EQ(count("SELECT count(*) FROM sequence_ranges"), 2);
+  // A redelivered old sample is still a duplicate.
+  v1::Envelope e;
+  e.set_vehicle_id("b1");
+  e.set_store_id("s1");
+  v1::TelemetrySample* sample = e.mutable_telemetry()->add_samples();
+  sample->set_sequence(5);
+  sample->set_sampled_at_us(1700000000000000 + 5);
+  EXPECT_EQ(s.write(std::get<Decoded>(fleetgw::ingest::decode_message(
+                        "fleet/v1", "fleet/v1/b1/telemetry", e.SerializeAsString())))
+                .duplicates,
+            1);
+  // Partition pruning: a one-day range reads one partition.
+  PgConnection c(cluster_->conninfo());
+  const auto plan = c.exec(
+      "EXPLAIN SELECT count(*) FROM telemetry_samples WHERE sampled_at_us >= 1700006400000000 "
+      "AND sampled_at_us < 1700092800000000",
+      "plan");
+  std::string text;
+  for (int i = 0; i < plan.rows(); ++i) text += std::string(plan.text(i, 0)) + "\n";
+  EXPECT_EQ(text.find("telemetry_samples_default"), std::string::npos) << text;
+  EXPECT_NE(text.find("telemetry_samples_p"), std::string::npos) << text;
+  // Partitions ahead, and retention drops the old days (their rows only).
+  EXPECT_EQ(s.maintain_partitions(3, 0), 0);
+  EXPECT_GE(count("SELECT count(*) FROM pg_inherits WHERE inhparent = "
+                  "'telemetry_samples'::regclass"),
+            4 + 5);
+  EXPECT_EQ(s.maintain_partitions(3, 30), 3);
+  EXPECT_EQ(count("SELECT count(*) FROM telemetry_samples"), 1);
 }
 
 }  // namespace
