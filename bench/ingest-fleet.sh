@@ -1,22 +1,33 @@
 #!/usr/bin/env bash
-# A simulated fleet through a real broker into PostgreSQL (issue 15, figures): `fleetgw
-# fleet-sim` (VEHICLES vehicles, each its own MQTT 5 session, the default configuration's
-# traffic, RIDING_SHARE of them riding) → a local mosquitto → two `fleetgw ingest` workers
-# (shared subscription) → a private PostgreSQL cluster (fsync on). Reports:
-#   records committed per second, and whether every record landed exactly once (the fleet-sim's
-#     own count of records per store against the rows, and the gap report);
+# A simulated fleet through a real broker into PostgreSQL (issues 15 and 25, figures):
+# fleetgw-fleet-sim (VEHICLES vehicles, each its own MQTT 5 session, the default configuration's
+# traffic, RIDING_SHARE of them riding) → a local mosquitto → WORKERS `fleetgw ingest` workers
+# (shared subscription) → a private PostgreSQL cluster (fsync on). Above PER_BROKER vehicles
+# (18,000: one broker process holds at most about `ulimit -Hn` sessions, 20,000 here) the
+# vehicles connect to ceil(VEHICLES / PER_BROKER) edge mosquittos bridged (QoS 1) to the
+# workers' broker, one fleet-sim per edge. Reports:
+#   whether every record landed exactly once: the fleet-sims' own count of records per store
+#     (last_sequence, all acknowledged) against the rows, and the gap report;
+#   honest counters: records created / rows; messages published by the fleet (each once) and
+#     re-sent after a reconnect (redeliveries), sessions lost (keep-alive timeouts among them);
+#     the workers' own counters (duplicates ignored, out-of-order state upserts ignored: named as
+#     such, they are not duplicate records);
+#   records committed per second;
 #   delay from a record's created_at_us to its committed row, p50/p99: records the gateway
 #     publishes at once (rides, lock events, pack statistics, device info: broker + ingest +
 #     commit), and telemetry samples (the gateway's batching included by design: a riding batch
 #     leaves 5 s after its first sample (mqtt.batch_max_ms), a parked one after 300 s);
-#   CPU seconds (user + sys, from /proc) of the broker, the two ingest workers, PostgreSQL's
-#     processes and the fleet-sim itself, and as a share of one core;
+#   CPU seconds (user + sys) of the broker(s), the ingest workers, PostgreSQL's processes and the
+#     fleet-sim(s), and as a share of one core;
 #   MQTT PUBLISH bytes per vehicle per riding hour and per parked hour (counted by fleet-sim;
 #     CONNECT, pings and acknowledgements excluded).
-# A benchmark, not a test. Needs root (PostgreSQL runs as `postgres`, ulimit -n raised).
-# Environment: FLEETGW (default build/gateway/app/fleetgw), VEHICLES (1000), DURATION_S (120;
-#   600 is the issue's 10 minutes), RIDING_SHARE (0.3), WORKERS (2), KEEP=1 keeps the work
-#   directory.
+# Every step has a timeout (the fleet-sim's run + ramp + 120 s; the settle wait SETTLE_TIMEOUT_S,
+# 600; a worker's start STARTUP_TIMEOUT_S, 300, its stop STOP_TIMEOUT_S, 60; a query
+# QUERY_TIMEOUT_S, 600). A benchmark, not a test. Needs root (PostgreSQL runs as `postgres`).
+# Environment: FLEETGW (default build/gateway/app/fleetgw; fleetgw-ingest and fleetgw-fleet-sim
+#   beside it), VEHICLES (1000), DURATION_S (120; 600 is the issue's 10 minutes), RIDING_SHARE
+#   (0.3), WORKERS (2), CONNECT_RATE (1000 sessions/s), PER_BROKER (18000), INGEST_ARGS, KEEP=1
+#   keeps the work directory.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 FLEETGW=$(realpath "${FLEETGW:-build/gateway/app/fleetgw}")
@@ -24,61 +35,127 @@ VEHICLES=${VEHICLES:-1000}
 DURATION_S=${DURATION_S:-120}
 RIDING_SHARE=${RIDING_SHARE:-0.3}
 NWORKERS=${WORKERS:-2}
+CONNECT_RATE=${CONNECT_RATE:-1000}
+PER_BROKER=${PER_BROKER:-18000}
+SIM=$(dirname "$FLEETGW")/fleetgw-fleet-sim
+[[ -x $SIM ]] || { echo "ingest-fleet: no $SIM" >&2; exit 1; }
 source bench/ingest-lib.sh
 
 start_postgres
 start_broker
+EDGES=$(((VEHICLES + PER_BROKER - 1) / PER_BROKER))
+SIM_URIS=("$BROKER_URI")
+BROKER_PIDS=("$BROKER")
+if [[ $EDGES -gt 1 ]]; then
+  start_edge_brokers "$EDGES"
+  SIM_URIS=("${EDGE_URIS[@]}")
+  BROKER_PIDS+=("${EDGE_PIDS[@]}")
+fi
 start_workers "$NWORKERS"
+brokers_cpu_s() {
+  local total=0 b
+  for b in "${BROKER_PIDS[@]}"; do total=$(echo "$total + $(cpu_s "$b")" | bc -l); done
+  echo "$total"
+}
 
-echo "ingest-fleet: $VEHICLES vehicles ($RIDING_SHARE riding) for $DURATION_S s -> mosquitto -> $NWORKERS ingest workers -> PostgreSQL"
-B0=$(cpu_s "$BROKER"); I0=$(workers_cpu_s)
+echo "ingest-fleet: $VEHICLES vehicles ($RIDING_SHARE riding) for $DURATION_S s -> ${#SIM_URIS[@]} mosquitto(s)$([[ $EDGES -gt 1 ]] && echo " bridged to one") -> $NWORKERS ingest workers -> PostgreSQL"
+B0=$(brokers_cpu_s); I0=$(workers_cpu_s)
 P0=$(pg_cpu_s)
 START_US=$(($(date +%s%N) / 1000))
-/usr/bin/time -f '%U %S' -o "$WORK/sim.time" "$FLEETGW" fleet-sim --vehicles "$VEHICLES" \
-  --broker "$BROKER_URI" --duration-s "$DURATION_S" --riding-share "$RIDING_SHARE" \
-  >"$WORK/sim.json" 2>"$WORK/sim.log" || { echo "fleet-sim failed:"; tail -5 "$WORK/sim.log"; }
+# One fleet-sim per broker, each its slice of the fleet (vehicle ids stay sim-bike-0..N-1).
+SIM_PIDS=()
+N_SIMS=${#SIM_URIS[@]}
+SIM_TIMEOUT=$((DURATION_S + VEHICLES / CONNECT_RATE + 120))
+for k in $(seq 0 $((N_SIMS - 1))); do
+  first=$((VEHICLES * k / N_SIMS))
+  count=$((VEHICLES * (k + 1) / N_SIMS - first))
+  timeout -k 10 "$SIM_TIMEOUT" /usr/bin/time -f '%U %S' -o "$WORK/sim-$k.time" \
+    "$SIM" --vehicles "$count" --first-index "$first" --broker "${SIM_URIS[$k]}" \
+    --duration-s "$DURATION_S" --riding-share "$RIDING_SHARE" \
+    --connect-rate "$(echo "$CONNECT_RATE / $N_SIMS" | bc -l)" --report "$WORK/sim-$k.json" \
+    2>"$WORK/sim-$k.log" &
+  SIM_PIDS+=("$!")
+done
+SIM_OK=1
+for k in "${!SIM_PIDS[@]}"; do
+  wait "${SIM_PIDS[$k]}" || { SIM_OK=0; echo "fleet-sim $k failed (exit $?):"; tail -5 "$WORK/sim-$k.log"; }
+done
+# The fleet's report: the sims' reports merged (sums; stores concatenated).
+/usr/bin/python3 - "$WORK" "$N_SIMS" >"$WORK/sim.json" <<'EOF'
+import json, sys
+work, n = sys.argv[1], int(sys.argv[2])
+total = {"stores": []}
+for k in range(n):
+    try:
+        r = json.load(open(f"{work}/sim-{k}.json"))
+    except (OSError, ValueError):
+        total["failed_sims"] = total.get("failed_sims", 0) + 1
+        continue
+    for key, v in r.items():
+        if key == "stores":
+            total["stores"] += v
+        elif isinstance(v, (int, float)) and key not in ("duration_s", "last_connack_s"):
+            total[key] = total.get(key, 0) + v
+        else:
+            total[key] = max(total.get(key, 0), v)
+json.dump(total, sys.stdout)
+EOF
 
-# Every record the fleet created, accounted for in PostgreSQL (or 120 s of patience).
+# Every record the fleet created, accounted for in PostgreSQL (or SETTLE_TIMEOUT_S of patience).
 EXPECTED=$(expected_records "$WORK/sim.json")
-for _ in $(seq 1200); do
+GOT=0
+SETTLE_END=$((SECONDS + ${SETTLE_TIMEOUT_S:-600}))
+while [[ $SECONDS -lt $SETTLE_END ]]; do
   GOT=$(accounted)
   [[ $GOT -ge $EXPECTED ]] && break
-  sleep 0.1
+  sleep 0.5
 done
 END_US=$(psql_q "SELECT max(committed_at_us) FROM (SELECT max(committed_at_us) AS committed_at_us FROM telemetry_samples UNION ALL SELECT max(committed_at_us) FROM pack_snapshots) t")
-B1=$(cpu_s "$BROKER"); I1=$(workers_cpu_s)
+B1=$(brokers_cpu_s); I1=$(workers_cpu_s)
 P1=$(pg_cpu_s)
 stop_workers
 
 ROWS=$(psql_q "SELECT (SELECT count(*) FROM telemetry_samples) + (SELECT count(*) FROM rides) + (SELECT count(*) FROM lock_events) + (SELECT count(*) FROM pack_snapshots) + (SELECT count(*) FROM device_info)")
-GAPS=$("$FLEETGW" ingest --gaps --pg "$CONNINFO" 2>/dev/null | wc -l)
+GAPS=$(timeout "${QUERY_TIMEOUT_S:-600}" "$FLEETGW" ingest --gaps --pg "$CONNINFO" 2>/dev/null | wc -l)
 WALL_S=$(echo "($END_US - $START_US) / 1000000" | bc -l)
 pct() {  # p50/p99 in ms of a delay column expression over a FROM clause
   psql_q "SELECT round((percentile_cont(0.5) WITHIN GROUP (ORDER BY d) / 1000)::numeric, 1) || ' / ' || round((percentile_cont(0.99) WITHIN GROUP (ORDER BY d) / 1000)::numeric, 1) || ' ms (n=' || count(*) || ')' FROM ($1) q"
 }
 RECORDS="SELECT created_at_us, committed_at_us FROM rides UNION ALL SELECT created_at_us, committed_at_us FROM lock_events UNION ALL SELECT created_at_us, committed_at_us FROM pack_snapshots UNION ALL SELECT created_at_us, committed_at_us FROM device_info"
 RECORD_DELAY=$(pct "SELECT committed_at_us - created_at_us AS d FROM ($RECORDS) r")
-# After the fleet's 30 s boot spread and a minute of running: the steady state.
-STEADY_DELAY=$(pct "SELECT committed_at_us - created_at_us AS d FROM ($RECORDS) r WHERE created_at_us > $START_US + 60000000")
+# After the connect ramp, the fleet's 30 s boot spread and a minute of running: the steady state.
+STEADY_FROM=$((START_US + (VEHICLES / CONNECT_RATE + 60) * 1000000))
+STEADY_DELAY=$(pct "SELECT committed_at_us - created_at_us AS d FROM ($RECORDS) r WHERE created_at_us > $STEADY_FROM")
 FIRST_DELAY=$(pct "SELECT committed_at_us - created_at_us AS d FROM telemetry_samples")
-SIM_CPU=$(awk '{ print $1 + $2 }' "$WORK/sim.time")
-read -r RIDING_N PARKED_N RIDE_B PARK_B SIM_S UNACKED CONNECTED < <(/usr/bin/python3 -c '
+SIM_CPU=$(cat "$WORK"/sim-*.time 2>/dev/null | awk '{ s += $1 + $2 } END { print s + 0 }')
+read -r RIDING_N PARKED_N RIDE_B PARK_B SIM_S UNACKED CONNECTED MESSAGES RESENT DROPS < <(/usr/bin/python3 -c '
 import json, sys
 r = json.load(open(sys.argv[1]))
-print(r["riding"], r["vehicles"] - r["riding"], r["riding_packet_bytes"], r["parked_packet_bytes"], r["duration_s"], r["unacknowledged"], r["connected"])' "$WORK/sim.json")
+g = lambda k: r.get(k, 0)
+print(g("riding"), g("vehicles") - g("riding"), g("riding_packet_bytes"), g("parked_packet_bytes"), g("duration_s"), g("unacknowledged") + g("failed_processes") + g("failed_sims"), g("connected"), g("messages"), g("resent"), g("disconnects"))' "$WORK/sim.json")
+# The workers' own counters: their last "ingest: N messages, ..." line each, summed by field.
+WORKER_COUNTS=$(for f in "$WORK"/worker-*.log; do grep -o 'ingest: [0-9]* messages, .*' "$f" | tail -1; done | /usr/bin/python3 -c '
+import re, sys
+sums = {}
+for line in sys.stdin:
+    for n, name in re.findall(r"(\d+) ([a-z][a-z -]*[a-z])", line):
+        sums[name] = sums.get(name, 0) + int(n)
+print(", ".join(f"{v} {k}" for k, v in sums.items()) or "-")')
 share() { echo "scale=2; 100 * ($1) / $WALL_S" | bc -l; }
 per_hour() { [[ $2 -gt 0 ]] && echo "scale=0; $1 * 3600 / $2 / $SIM_S" | bc -l || echo "-"; }
 
 echo "vehicles connected          $CONNECTED of $VEHICLES ($RIDING_N riding, $PARKED_N parked), unacknowledged publishes $UNACKED"
 echo "records created / in PG     $EXPECTED / $ROWS rows ($GOT accounted), gaps: $GAPS"
+echo "messages published          $MESSAGES (each once), re-sent after a reconnect $RESENT, sessions lost $DROPS"
+echo "workers' counters           $WORKER_COUNTS"
 printf 'records committed           %.0f /s over %.0f s (first record to last commit)\n' "$(echo "$EXPECTED / $WALL_S" | bc -l)" "$WALL_S"
 echo "delay record -> row         $RECORD_DELAY (rides, locks, packs, info; whole run)"
-echo "  the same after 60 s        $STEADY_DELAY"
+echo "  the same after the ramp+60 s $STEADY_DELAY"
 echo "delay telemetry sample      $FIRST_DELAY (created_at_us of its batch, batching wait included)"
-printf 'CPU broker                  %.1f s (%.1f %% of a core)\n' "$(echo "$B1 - $B0" | bc -l)" "$(share "$B1 - $B0")"
+printf 'CPU broker(s)               %.1f s (%.1f %% of a core)\n' "$(echo "$B1 - $B0" | bc -l)" "$(share "$B1 - $B0")"
 printf 'CPU ingest (%s workers)      %.1f s (%.1f %% of a core)\n' "$NWORKERS" "$(echo "$I1 - $I0" | bc -l)" "$(share "$I1 - $I0")"
 printf 'CPU PostgreSQL              %.1f s (%.1f %% of a core)\n' "$(echo "$P1 - $P0" | bc -l)" "$(share "$P1 - $P0")"
-printf 'CPU fleet-sim               %.1f s\n' "$SIM_CPU"
+printf 'CPU fleet-sim               %.1f s (%.1f %% of a core)\n' "$SIM_CPU" "$(share "$SIM_CPU")"
 echo "bytes/vehicle/riding hour   $(per_hour "$RIDE_B" "$RIDING_N") B (MQTT PUBLISH packets)"
 echo "bytes/vehicle/parked hour   $(per_hour "$PARK_B" "$PARKED_N") B (MQTT PUBLISH packets)"
-[[ $GAPS == 0 && $ROWS == "$EXPECTED" && $UNACKED == 0 ]] || { echo "ingest-fleet: NOT exactly once"; exit 1; }
+[[ $SIM_OK == 1 && $GAPS == 0 && $ROWS == "$EXPECTED" && $UNACKED == 0 ]] || { echo "ingest-fleet: NOT exactly once"; exit 1; }

@@ -51,6 +51,18 @@ tree_rss_kb() {
   for c in $(pgrep -P "$1"); do total=$((total + $(tree_rss_kb "$c"))); done
   echo "$total"
 }
+# Proportional set size (kB) of a process and its descendants: shared pages counted once.
+tree_pss_kb() {
+  local total c
+  total=$(awk '/^Pss:/ { print $2 }' "/proc/$1/smaps_rollup" 2>/dev/null || echo 0)
+  for c in $(pgrep -P "$1"); do total=$((total + $(tree_pss_kb "$c"))); done
+  echo "$total"
+}
+workers_pss_kb() {
+  local total=0 w
+  for w in "${WORKERS[@]}"; do total=$((total + $(tree_pss_kb "$w"))); done
+  echo "$total"
+}
 workers_cpu_s() {
   local total=0 w
   for w in "${WORKERS[@]}"; do total=$(echo "$total + $(tree_cpu_s "$w")" | bc -l); done

@@ -17,6 +17,7 @@ BUILD_PACKAGES=(
   libtomlplusplus-dev libcli11-dev nlohmann-json3-dev libasio-dev
   libsystemd-dev libgps-dev help2man
   libpq-dev
+  libmosquitto-dev  # fleetgw-fleet-sim: thousands of MQTT 5 sessions on one event loop
   clang libclang-rt-14-dev lld
 )
 if [ "${1:-}" = --build ]; then
