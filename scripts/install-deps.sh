@@ -17,6 +17,7 @@ BUILD_PACKAGES=(
   libtomlplusplus-dev libcli11-dev nlohmann-json3-dev libasio-dev
   libsystemd-dev libgps-dev help2man
   libpq-dev
+  libcpp-httplib-dev libsodium-dev  # fleetgw serve: HTTPS server, Argon2id (docs/console.md)
   libmosquitto-dev  # fleetgw-fleet-sim: thousands of MQTT 5 sessions on one event loop
   clang libclang-rt-14-dev lld
 )
@@ -33,6 +34,7 @@ else
     qemu-system-x86 busybox-static cpio xz-utils kmod
     dpkg-dev file systemd adduser lintian
     chromium
+    libjs-leaflet  # fleetgw serve: the console's map library, served from /usr/share/javascript
     nodejs  # test-side: aedes, a second MQTT broker (tests/support/aedes, fetched by npm)
     "$@"
   )

@@ -282,7 +282,7 @@ void WebServer::Impl::routes() {
     auto c = pool.lease();
     reply(res, 200, {{"vehicles", fleet(*c)}});
   });
-  s.Get(R"(/api/vehicles/([^/]+))", [this](const httplib::Request& req, httplib::Response& res) {
+  s.Get(R"(/api/vehicles/(.+))", [this](const httplib::Request& req, httplib::Response& res) {
     if (!authorise(req, res, Role::Viewer, "vehicle")) return;
     auto c = pool.lease();
     const std::optional<json> v = vehicle(*c, req.matches[1].str());

@@ -46,6 +46,7 @@ class PgResult {
   };
   explicit PgResult(std::unique_ptr<PGresult, Deleter> r) : r_(std::move(r)) {}
   int rows() const { return PQntuples(r_.get()); }
+  int cols() const { return PQnfields(r_.get()); }
   bool null(int row, int col) const { return PQgetisnull(r_.get(), row, col) != 0; }
   std::string text(int row, int col) const {
     return {PQgetvalue(r_.get(), row, col),
