@@ -17,6 +17,11 @@ install(FILES ${PROJECT_SOURCE_DIR}/docs/backend.md ${FLEETGW_DEPLOY_DIR}/debian
 if(TARGET fleetgw_man_pages)
   install(FILES ${CMAKE_BINARY_DIR}/deploy/man/fleetgw-ingest.1.gz
           DESTINATION ${CMAKE_INSTALL_MANDIR}/man1 COMPONENT fleetgw-ingest)
+  # fleetgw-fleet-sim (backend/fleet_sim installs it here): its page is `fleetgw fleet-sim`'s.
+  if(TARGET fleetgw-fleet-sim)
+    install(FILES ${CMAKE_BINARY_DIR}/deploy/man/fleetgw-fleet-sim.1.gz
+            DESTINATION ${CMAKE_INSTALL_MANDIR}/man1 COMPONENT fleetgw-ingest)
+  endif()
 endif()
 
 list(APPEND CPACK_COMPONENTS_ALL fleetgw-ingest)

@@ -53,7 +53,8 @@ project_version=$(sed -n 's/^CMAKE_PROJECT_VERSION:STATIC=//p' "$BUILD/CMakeCach
 [ "$(dpkg-deb -f "$deb" Architecture)" = "$(dpkg --print-architecture)" ] ||
   fail "architecture $(dpkg-deb -f "$deb" Architecture)"
 contents=$(dpkg-deb -c "$deb")
-for f in ./usr/bin/fleetgw-ingest ./lib/systemd/system/fleetgw-ingest.service \
+for f in ./usr/bin/fleetgw-ingest ./usr/bin/fleetgw-fleet-sim \
+         ./usr/share/man/man1/fleetgw-fleet-sim.1.gz ./lib/systemd/system/fleetgw-ingest.service \
          ./etc/fleetgw-ingest/ingest.env ./usr/share/man/man1/fleetgw-ingest.1.gz \
          ./usr/share/doc/fleetgw-ingest/copyright ./usr/share/doc/fleetgw-ingest/backend.md \
          ./usr/share/doc/fleetgw-ingest/changelog.Debian.gz; do
@@ -70,12 +71,13 @@ conffiles=$(dpkg-deb --ctrl-tarfile "$deb" | tar -xO ./conffiles)
   fail "conffiles is \"$conffiles\""
 depends=$(dpkg-deb -f "$deb" Depends)
 echo "Depends: $depends"
-for lib in libpq5 libc6 libstdc++6 libpaho-mqttpp3 adduser; do
+for lib in libpq5 libc6 libstdc++6 libpaho-mqttpp3 libmosquitto1 adduser; do
   grep -q "$lib" <<<"$depends" && ok "depends on $lib" || fail "Depends lacks $lib"
 done
 grep -qw fleetgw <<<"${depends//fleetgw-ingest/}" && fail "depends on the gateway's package" ||
   ok "does not depend on fleetgw"
 check_stripped "$deb" /usr/bin/fleetgw-ingest
+check_stripped "$deb" /usr/bin/fleetgw-fleet-sim
 
 echo "== lintian"
 check_lintian "$deb"
