@@ -7,16 +7,30 @@
 namespace fleetgw::storage {
 
 std::vector<OutboxEntry> Store::peek_outbox(std::size_t limit, std::size_t max_bytes) {
+  return peek_outbox(limit, max_bytes, {});
+}
+
+std::vector<OutboxEntry> Store::peek_outbox(std::size_t limit, std::size_t max_bytes,
+                                            std::span<const OutboxKind> skip_kinds) {
   std::vector<OutboxEntry> out;
   if (limit == 0) return out;
   try {
     auto& db = impl_->db;
     auto& in_flight = impl_->in_flight;
+    // One cached statement per number of skipped kinds (at most one per kind): the walk stays on
+    // outbox_by_priority, the skipped kinds' rows are passed over inside SQLite.
+    std::string sql = "SELECT seq, priority, kind, created_us, payload, source_id FROM outbox ";
+    if (!skip_kinds.empty()) {
+      sql += "WHERE kind NOT IN (?";
+      for (std::size_t i = 1; i < skip_kinds.size(); ++i) sql += ", ?";
+      sql += ") ";
+    }
+    sql += "ORDER BY priority, seq LIMIT ?";
+    auto st = db.cached(sql);
+    int index = 1;
+    for (const auto k : skip_kinds) st->bind(index++, to_string(k));
     // At most in_flight.size() rows are skipped, so this LIMIT never cuts off an eligible entry.
-    auto st = db.cached(
-        "SELECT seq, priority, kind, created_us, payload, source_id FROM outbox "
-        "ORDER BY priority, seq LIMIT ?");
-    st->bind(1, static_cast<std::int64_t>(limit + in_flight.size()));
+    st->bind(index, static_cast<std::int64_t>(limit + in_flight.size()));
     std::size_t bytes = 0;
     while (out.size() < limit && st->step()) {
       const auto seq = static_cast<std::uint64_t>(st->column_int64(0));

@@ -225,6 +225,11 @@ class Store {
   // `max_bytes` -- except that the first entry is always returned so a single large payload
   // cannot block the queue. The returned entries become in flight.
   std::vector<OutboxEntry> peek_outbox(std::size_t limit, std::size_t max_bytes);
+  // Same, leaving out every entry whose kind is in `skip_kinds` (the uplink's kinds the broker
+  // refuses, waiting for their retry): filtered in the query, so a backlog of a refused kind
+  // costs no reads and does not hold back the kinds behind it.
+  std::vector<OutboxEntry> peek_outbox(std::size_t limit, std::size_t max_bytes,
+                                       std::span<const OutboxKind> skip_kinds);
   // Deletes the acknowledged entries (only those); returns how many rows existed and were
   // deleted (an entry evicted meanwhile is not counted). Clears their in-flight mark. On a
   // disk error nothing is deleted (the entries are sent again later), 0 is returned and the

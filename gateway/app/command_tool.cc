@@ -16,6 +16,7 @@
 #include "gateway/command/sha256.h"
 #include "gateway/command/verifier.h"
 #include "gateway/common/untrusted_text.h"
+#include "gateway/uplink/connect_diagnosis.h"
 #include "gateway/uplink/mqtt5.h"
 #include "gateway/uplink/mqtt_connection.h"
 #include "gateway/uplink/tcp_nodelay.h"
@@ -145,6 +146,21 @@ class Inbox {
   std::deque<mqtt::const_message_ptr> queue_;
 };
 
+// ": <reason>" for a failed connect, found by repeating its steps (host lookup, TCP, TLS
+// handshake with the same CA, client certificate and host-name check) as the gateway's uplink
+// does; "" when every step succeeds (the cause lies beyond TLS) or nothing can be probed. The
+// probe is bounded by `budget` (at least 1 s, at most 5 s: a tool waiting on a dead network
+// should not wait again for long).
+std::string connect_failure_reason(const uplink::ConnectionSettings& settings,
+                                   std::chrono::milliseconds budget) {
+  const auto target = uplink::probe_target(settings.broker_uri, settings.tls);
+  if (!target) return "";
+  const auto timeout =
+      std::clamp(budget, std::chrono::milliseconds(1000), std::chrono::milliseconds(5000));
+  const std::string reason = uplink::diagnose_connect(*target, timeout);
+  return reason.empty() ? "" : ": " + reason;
+}
+
 }  // namespace
 
 int run_command_tool(const CommandToolOptions& o) {
@@ -253,7 +269,17 @@ int run_command_tool(const CommandToolOptions& o) {
                           deadline - std::chrono::steady_clock::now()));
     };
     try {
-      if (!client.connect(opts)->wait_for(remaining())) {
+      bool connected = false;
+      try {
+        connected = client.connect(opts)->wait_for(remaining());
+      } catch (const mqtt::exception& e) {
+        // Paho says only "TCP/TLS connect failure"; the uplink's diagnosis names the cause
+        // ("TLS: certificate verify failed (certificate has expired)", "connection refused"...).
+        err << "command: broker " << o.broker << ": " << e.what()
+            << connect_failure_reason(settings, remaining()) << '\n';
+        return kExitNoAnswer;
+      }
+      if (!connected) {
         err << "command: no connection to the broker within " << o.timeout.count() << " s\n";
         return kExitNoAnswer;
       }

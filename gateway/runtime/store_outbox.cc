@@ -9,6 +9,20 @@
 
 namespace fleetgw::runtime {
 
+namespace {
+
+// Every storage kind, to translate the uplink's excluded kinds back (uplink_kind() is the map).
+constexpr storage::OutboxKind kStorageKinds[] = {
+    storage::OutboxKind::kTelemetry,      storage::OutboxKind::kRide,
+    storage::OutboxKind::kFault,          storage::OutboxKind::kPack,
+    storage::OutboxKind::kLock,           storage::OutboxKind::kInfo,
+    storage::OutboxKind::kStatus,         storage::OutboxKind::kCommandResult,
+    storage::OutboxKind::kEvictionReport, storage::OutboxKind::kAlarm,
+    storage::OutboxKind::kZone,
+};
+
+}  // namespace
+
 std::string uplink_kind(storage::OutboxKind kind) {
   switch (kind) {
     case storage::OutboxKind::kTelemetry:
@@ -61,13 +75,20 @@ std::string eviction_payload_from_json(std::string_view text, uint64_t seq) {
 
 std::vector<uplink::OutgoingRecord> StoreOutbox::peek(std::size_t max_entries,
                                                       std::size_t max_bytes,
-                                                      const std::set<std::uint64_t>& exclude) {
+                                                      const std::set<std::uint64_t>& exclude,
+                                                      const uplink::KindSet& exclude_kinds) {
   std::vector<uplink::OutgoingRecord> out;
   if (max_entries == 0) return out;
   retry_deletes();
+  std::vector<storage::OutboxKind> skip;
+  if (!exclude_kinds.empty()) {
+    for (const auto k : kStorageKinds) {
+      if (exclude_kinds.contains(uplink_kind(k))) skip.push_back(k);
+    }
+  }
   store_.release_all();
   auto rows = store_.peek_outbox(max_entries + exclude.size() + undeleted_.size(),
-                                 std::numeric_limits<std::size_t>::max());
+                                 std::numeric_limits<std::size_t>::max(), skip);
   store_.release_all();
   std::size_t bytes = 0;
   for (auto& row : rows) {

@@ -1,9 +1,10 @@
 // StoreOutbox: the SQLite store's outbox seen through the uplink's OutboxSource interface.
 //
 // Contract:
-//  * peek() honours the uplink's `exclude` set (its own in-flight records) and returns entries
-//    in (priority, sequence) order; the first entry is always returned, whatever its size. The
-//    store's own in-flight marks are not used: the uplink is the single owner of "in flight".
+//  * peek() honours the uplink's `exclude` set (its own in-flight records) and `exclude_kinds`
+//    (filtered in the store's query) and returns entries in (priority, sequence) order; the first
+//    entry is always returned, whatever its size. The store's own in-flight marks are not used: the
+//    uplink is the single owner of "in flight".
 //  * Kind names are translated from storage's vocabulary to the uplink's; the store's JSON
 //    eviction reports become fleetgw.v1.EvictionReport payloads on the way out.
 //  * ack() deletes exactly the acknowledged rows. Nothing here throws (storage contract B). A
@@ -28,8 +29,10 @@ class StoreOutbox final : public uplink::OutboxSource {
 
   explicit StoreOutbox(storage::Store& store) : store_(store) {}
 
+  using uplink::OutboxSource::peek;
   std::vector<uplink::OutgoingRecord> peek(std::size_t max_entries, std::size_t max_bytes,
-                                           const std::set<std::uint64_t>& exclude) override;
+                                           const std::set<std::uint64_t>& exclude,
+                                           const uplink::KindSet& exclude_kinds) override;
   void ack(std::span<const std::uint64_t> seqs) override;
   uplink::OutboxStats stats() const override;
   // Acknowledged entries whose deletion failed and is still to be retried.

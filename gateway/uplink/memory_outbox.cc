@@ -15,13 +15,14 @@ std::uint64_t MemoryOutbox::push(int priority, std::string kind, std::int64_t cr
 }
 
 std::vector<OutgoingRecord> MemoryOutbox::peek(std::size_t max_entries, std::size_t max_bytes,
-                                               const std::set<std::uint64_t>& exclude) {
+                                               const std::set<std::uint64_t>& exclude,
+                                               const KindSet& exclude_kinds) {
   std::lock_guard lock(mutex_);
   std::vector<OutgoingRecord> out;
   std::size_t bytes = 0;
   for (const auto& [key, entry] : entries_) {
     if (out.size() >= max_entries) break;
-    if (exclude.contains(entry.seq)) continue;
+    if (exclude.contains(entry.seq) || exclude_kinds.contains(entry.kind)) continue;
     if (!out.empty() && bytes + entry.payload.size() > max_bytes) break;
     bytes += entry.payload.size();
     out.push_back(entry);

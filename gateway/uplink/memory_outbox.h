@@ -20,8 +20,10 @@ class MemoryOutbox final : public OutboxSource {
  public:
   std::uint64_t push(int priority, std::string kind, std::int64_t created_us, std::string payload);
 
+  using OutboxSource::peek;
   std::vector<OutgoingRecord> peek(std::size_t max_entries, std::size_t max_bytes,
-                                   const std::set<std::uint64_t>& exclude) override;
+                                   const std::set<std::uint64_t>& exclude,
+                                   const KindSet& exclude_kinds) override;
   void ack(std::span<const std::uint64_t> seqs) override;
   OutboxStats stats() const override;
 

@@ -7,7 +7,9 @@
 //    every sequence number in `exclude` (records the uplink already holds in flight). It returns
 //    at most `max_entries` records and stops before the total payload size would exceed
 //    `max_bytes` -- except that the first record is always returned, whatever its size, so an
-//    oversized record cannot wedge the queue.
+//    oversized record cannot wedge the queue. The four-argument form also skips every record
+//    whose kind is in `exclude_kinds` (kinds the broker refuses and the uplink retries later:
+//    the records of other kinds behind them keep flowing).
 //  * ack() deletes records for good. The uplink calls it only after the broker acknowledged the
 //    publish carrying exactly those records; unknown sequence numbers are ignored (a duplicate
 //    ack after a reconnect is harmless).
@@ -19,6 +21,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <set>
 #include <span>
 #include <string>
@@ -59,12 +62,20 @@ struct OutboxStats {
   std::int64_t oldest_created_us = 0;  // created_us of the oldest stored record; 0 when empty
 };
 
+// A set of record kinds (names of fleetgw::uplink::kind); transparent, so a string_view finds.
+using KindSet = std::set<std::string, std::less<>>;
+
 class OutboxSource {
  public:
   virtual ~OutboxSource() = default;
 
   virtual std::vector<OutgoingRecord> peek(std::size_t max_entries, std::size_t max_bytes,
-                                           const std::set<std::uint64_t>& exclude) = 0;
+                                           const std::set<std::uint64_t>& exclude,
+                                           const KindSet& exclude_kinds) = 0;
+  std::vector<OutgoingRecord> peek(std::size_t max_entries, std::size_t max_bytes,
+                                   const std::set<std::uint64_t>& exclude) {
+    return peek(max_entries, max_bytes, exclude, KindSet{});
+  }
   virtual void ack(std::span<const std::uint64_t> seqs) = 0;
   virtual OutboxStats stats() const = 0;
 };

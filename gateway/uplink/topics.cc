@@ -35,19 +35,27 @@ Topics::Topics(std::string_view prefix, std::string_view vehicle_id) {
                                 "' is invalid: 1..64 characters of [A-Za-z0-9._-]");
   }
   base = std::string(prefix) + "/" + std::string(vehicle_id);
-  telemetry = base + "/telemetry";
-  ride = base + "/ride";
-  fault = base + "/fault";
-  pack = base + "/pack";
-  lock = base + "/lock";
-  info = base + "/info";
-  status = base + "/status";
-  eviction = base + "/eviction";
-  alarm = base + "/alarm";
-  zone = base + "/zone";
-  state = base + "/state";
-  cmd = base + "/cmd";
-  cmd_result = base + "/cmd/result";
+  for (const auto& t : kTopicTable) {
+    this->*t.member = (t.fleet_wide ? std::string(prefix) : base) + "/" + std::string(t.leaf);
+  }
+}
+
+const TopicSpec* find_topic(const Topics& topics, const std::string* topic) {
+  for (const auto& t : kTopicTable) {
+    if (&(topics.*t.member) == topic) return &t;
+  }
+  return nullptr;
+}
+
+std::vector<std::string> acl_patterns(std::string_view prefix) {
+  std::vector<std::string> out;
+  out.reserve(kTopicTable.size());
+  for (const auto& t : kTopicTable) {
+    out.push_back(std::string("pattern ") +
+                  (t.direction == TopicDirection::kPublish ? "write " : "read ") +
+                  std::string(prefix) + (t.fleet_wide ? "/" : "/%u/") + std::string(t.leaf));
+  }
+  return out;
 }
 
 }  // namespace fleetgw::uplink

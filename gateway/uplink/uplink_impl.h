@@ -9,6 +9,7 @@
 
 #include <chrono>
 #include <cstdint>
+#include <map>
 #include <memory>
 #include <set>
 #include <string>
@@ -86,9 +87,11 @@ struct Uplink::Impl {
   void on_publish_done(Micros now, const detail::PublishDone& d);
   void on_refused(Micros now, const std::string& topic, std::vector<std::uint64_t> seqs,
                   int reason);
-  void on_refusal_cleared();
+  void on_accepted(std::string_view kind);
+  void refusals_changed(std::string_view kind);
   void retry_refused(Micros now);
   void forget_refused();
+  KindSet blocked_kinds() const;
   void resend_stale(Micros now);
   void release(const std::vector<std::uint64_t>& seqs);
   void reject(const OutgoingRecord& e, std::string_view why);
@@ -108,14 +111,30 @@ struct Uplink::Impl {
   Backoff backoff;
   // ---- MQTT 5 (docs/uplink.md, "MQTT 5") ----
   mqtt::properties envelope_props;  // on every publish under MQTT 5; empty under 3.1.1
-  // Publishes the broker refused (PUBACK reason code >= 0x80): their records stay claimed (so the
-  // drain skips them) until refusal_retry_at, and the drain takes no new records meanwhile, so
-  // a refusing broker costs one window of publishes per back-off period, not a hot loop.
-  Backoff refusal_backoff;
-  std::vector<std::uint64_t> refused_held;  // waiting for refusal_retry_at
-  std::set<std::uint64_t> refused_seqs;     // refused at least once and not acked since
-  Micros refusal_retry_at{0};               // 0 = no refusal pending
-  std::set<std::string> logged_refusals;    // each distinct reason (and topic) logged once
+  // Publishes the broker refused (PUBACK reason code >= 0x80), one lane per kind (the topic's
+  // kTopicTable entry): a refused kind's records stay claimed until the lane's retry time, its
+  // newer records are not drawn from the outbox meanwhile (order within a kind is kept), and
+  // every other kind keeps flowing. A lane's wait doubles while its refusals go on, so a
+  // refusing broker costs one window of that kind per back-off period, never a hot loop; any
+  // accepted publish of the kind closes the lane.
+  struct RefusedLane {
+    explicit RefusedLane(Backoff b) : backoff(b) {}
+    std::vector<std::uint64_t> held;  // claimed, waiting for retry_at
+    Backoff backoff;
+    Micros retry_at{0};  // 0 = nothing held: the kind is drawn again
+    std::string why;     // "0x87 Not authorized (<topic>)"
+    int code = 0;
+    Micros at{0};  // `now` of its latest refusal
+  };
+  struct RefusedLanes {
+    std::map<std::string, RefusedLane, std::less<>> by_kind;
+    // Records held for a retry, all kinds (UplinkStats::refused_records).
+    std::size_t size() const;
+  };
+  Backoff refusal_backoff;     // copied into each new lane (and stepped, so their jitter differs)
+  RefusedLanes refused_held;   // by kind
+  Micros refusal_retry_at{0};  // the earliest lane's retry; 0 = no records held
+  std::set<std::string> logged_refusals;  // each distinct reason (and topic) logged once
   UplinkState state = UplinkState::kStopped;
   UplinkStats counters;
   v1::BusState bus_state = v1::BUS_STATE_UNSPECIFIED;

@@ -1,7 +1,8 @@
 // Uplink publishing: draining the outbox in order within the in-flight window, telemetry
 // batching (samples spliced as stored, envelope_writer.h), status messages, direct publishes,
 // acking records once their publish completed, and holding the records of publishes an MQTT 5
-// broker refused until their retry. See uplink.h for the contract.
+// broker refused until their retry, one lane per kind (the other kinds keep flowing). See
+// uplink.h for the contract.
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
@@ -147,6 +148,24 @@ mqtt::message_ptr Uplink::Impl::make_message(const std::string& topic, std::stri
   return msg;
 }
 
+namespace {
+
+// The record kind of a publish: its topic's kTopicTable entry ("other" for a topic outside the
+// table, which the uplink never publishes to).
+std::string_view kind_of(const Topics& topics, const std::string* topic) {
+  const TopicSpec* spec = topic != nullptr ? find_topic(topics, topic) : nullptr;
+  if (spec == nullptr || spec->record_kind.empty()) return "other";
+  return spec->record_kind;
+}
+
+}  // namespace
+
+std::size_t Uplink::Impl::RefusedLanes::size() const {
+  std::size_t n = 0;
+  for (const auto& [kind, lane] : by_kind) n += lane.held.size();
+  return n;
+}
+
 void Uplink::Impl::on_publish_done(Micros now, const detail::PublishDone& d) {
   const auto it = in_flight.find(d.id);
   if (it == in_flight.end()) return;  // given up on earlier (QoS 0 across a connection loss)
@@ -159,12 +178,8 @@ void Uplink::Impl::on_publish_done(Micros now, const detail::PublishDone& d) {
     if (!seqs.empty()) {
       outbox.ack(seqs);
       counters.acked_records += seqs.size();
-      if (!refused_seqs.empty()) {
-        bool was_refused = false;
-        for (const auto s : seqs) was_refused |= refused_seqs.erase(s) > 0;
-        if (was_refused) on_refusal_cleared();
-      }
     }
+    if (!refused_held.by_kind.empty()) on_accepted(kind_of(topics, topic));
   } else if (const int reason = is_refusal(d.reason) ? d.reason : d.rc;
              config.protocol == MqttProtocol::kV5 && is_refusal(reason)) {
     // Paho's own failures are negative; a positive code >= 0x80 is the broker's answer.
@@ -178,59 +193,107 @@ void Uplink::Impl::on_publish_done(Micros now, const detail::PublishDone& d) {
   release(seqs);
 }
 
-// The broker answered "no" (MQTT 5 PUBACK reason code >= 0x80): the records were not delivered
-// and stay in the outbox. They stay claimed, and the drain takes nothing new, until the retry
-// time; the wait doubles while refusals go on (refusal_backoff), so a broker that keeps refusing
-// sees one window of publishes per back-off period, never a hot loop.
+// The broker answered "no" (MQTT 5 PUBACK reason code >= 0x80) to a publish of one kind: its
+// records were not delivered and stay in the outbox, claimed until the lane's retry time; the
+// kind's newer records are not drawn meanwhile, every other kind keeps flowing.
 void Uplink::Impl::on_refused(Micros now, const std::string& topic, std::vector<std::uint64_t> seqs,
                               int reason) {
   ++counters.publish_refusals;
   ++counters.failed_publishes;
-  const std::string why = reason_text(reason) + " (" + topic + ")";
-  // A new reason goes into the retained status at the next poll; not when the status itself was
-  // refused (it would be refused again, in a loop).
-  if (why != counters.last_publish_refusal && topic != topics.status) status_changed = true;
-  counters.last_publish_refusal = why;
-  counters.last_publish_refusal_code = reason;
-  counters.last_publish_refusal_us = now.count();
-  if (!seqs.empty() && refusal_retry_at.count() == 0) {
-    refusal_retry_at = now + duration_cast<Micros>(refusal_backoff.next());
+  const std::string_view kind = kind_of(topics, &topic);
+  auto lane_it = refused_held.by_kind.find(kind);
+  if (lane_it == refused_held.by_kind.end()) {
+    lane_it = refused_held.by_kind.emplace(std::string(kind), RefusedLane(refusal_backoff)).first;
+    refusal_backoff.next();  // the next lane's jitter differs from this one's
+    refusal_backoff.reset();
   }
-  if (logged_refusals.insert(why).second) {
+  RefusedLane& lane = lane_it->second;
+  lane.why = reason_text(reason) + " (" + topic + ")";
+  lane.code = reason;
+  lane.at = now;
+  if (!seqs.empty() && lane.retry_at.count() == 0) {
+    lane.retry_at = now + duration_cast<Micros>(lane.backoff.next());
+  }
+  if (logged_refusals.insert(lane.why).second) {
     spdlog::warn(
         "uplink: the broker refused a publish: {}; {} record(s) stay in the outbox, retried "
-        "with back-off (next in {} ms)",
-        why, seqs.size(),
-        refusal_retry_at.count() != 0 ? (refusal_retry_at - now).count() / 1000 : 0);
+        "with back-off (next in {} ms); other kinds keep flowing",
+        lane.why, seqs.size(),
+        lane.retry_at.count() != 0 ? (lane.retry_at - now).count() / 1000 : 0);
   }
-  for (const auto s : seqs) refused_seqs.insert(s);
-  refused_held.insert(refused_held.end(), seqs.begin(), seqs.end());
+  lane.held.insert(lane.held.end(), seqs.begin(), seqs.end());
+  if (kind == kind::kTelemetry && !batch.empty()) {
+    // Samples batched behind the refused ones would overtake them: back to the outbox.
+    release(batch.seqs);
+    batch = PendingBatch{};
+  }
+  refusals_changed(kind);
 }
 
-// A record the broker had refused got through: the cause is gone (e.g. the ACL was fixed).
-void Uplink::Impl::on_refusal_cleared() {
-  spdlog::info("uplink: the broker accepts the publishes it refused before ({})",
-               counters.last_publish_refusal);
-  refusal_backoff.reset();
-  logged_refusals.clear();  // a later refusal is news again
-  counters.last_publish_refusal.clear();
-  counters.last_publish_refusal_code = 0;
-  counters.last_publish_refusal_us = 0;
-  status_changed = true;
+// The broker accepted a publish of `kind`: the cause of its refusals is gone (e.g. the ACL was
+// fixed). Records it still holds go out at once.
+void Uplink::Impl::on_accepted(std::string_view kind) {
+  const auto it = refused_held.by_kind.find(kind);
+  if (it == refused_held.by_kind.end()) return;
+  spdlog::info("uplink: the broker accepts the {} publishes it refused before ({})", kind,
+               it->second.why);
+  release(it->second.held);
+  logged_refusals.erase(it->second.why);  // a later refusal is news again
+  refused_held.by_kind.erase(it);
+  refusals_changed(kind);
 }
 
-// The back-off after a refusal passed: the held records become eligible again (they go first,
-// in outbox order) and the drain resumes.
-void Uplink::Impl::retry_refused(Micros) {
+// The refusals in force, one per kind, go into the counters (and so into every Status):
+// last_publish_refusal names each refused kind's reason and topic, "; "-separated.
+void Uplink::Impl::refusals_changed(std::string_view kind) {
+  std::string text;
+  const RefusedLane* latest = nullptr;
   refusal_retry_at = Micros{0};
-  release(refused_held);
-  refused_held.clear();
+  for (const auto& [k, lane] : refused_held.by_kind) {
+    text += (text.empty() ? "" : "; ") + lane.why;
+    if (latest == nullptr || lane.at > latest->at) latest = &lane;
+    if (lane.retry_at.count() != 0 &&
+        (refusal_retry_at.count() == 0 || lane.retry_at < refusal_retry_at)) {
+      refusal_retry_at = lane.retry_at;
+    }
+  }
+  // News for the retained status at the next poll; not when only the status itself was refused
+  // (it would be refused again, in a loop).
+  if (text != counters.last_publish_refusal && kind != kind::kStatus) status_changed = true;
+  counters.last_publish_refusal = std::move(text);
+  counters.last_publish_refusal_code = latest != nullptr ? latest->code : 0;
+  counters.last_publish_refusal_us = latest != nullptr ? latest->at.count() : 0;
 }
 
-// The client was replaced or stopped: nothing is claimed any more.
+// A lane's back-off passed: its held records become eligible again (they go first within their
+// kind, in outbox order).
+void Uplink::Impl::retry_refused(Micros now) {
+  for (auto& [kind, lane] : refused_held.by_kind) {
+    if (lane.retry_at.count() == 0 || lane.retry_at > now) continue;
+    lane.retry_at = Micros{0};
+    release(lane.held);
+    lane.held.clear();
+  }
+  refusals_changed(kind::kStatus);  // only the retry time changed: no status news
+}
+
+// The client was replaced or stopped: nothing is claimed any more. The reasons stay (the broker
+// still refuses until a publish of the kind is accepted), the records are simply drawn again.
 void Uplink::Impl::forget_refused() {
+  for (auto& [kind, lane] : refused_held.by_kind) {
+    lane.retry_at = Micros{0};
+    lane.held.clear();
+  }
   refusal_retry_at = Micros{0};
-  refused_held.clear();
+}
+
+// Kinds whose refused records wait for their retry: the drain leaves their newer records too.
+KindSet Uplink::Impl::blocked_kinds() const {
+  KindSet out;
+  for (const auto& [kind, lane] : refused_held.by_kind) {
+    if (lane.retry_at.count() != 0) out.insert(kind);
+  }
+  return out;
 }
 
 void Uplink::Impl::reject(const OutgoingRecord& e, std::string_view why) {
@@ -311,7 +374,8 @@ bool Uplink::Impl::publish_record(const OutgoingRecord& e) {
 
 void Uplink::Impl::drain(Micros now) {
   if (state != UplinkState::kConnected) return;
-  if (refusal_retry_at.count() != 0) return;  // the broker refused records: wait for the retry
+  // Kinds the broker refused wait for their lane's retry; the others are drawn as usual.
+  const KindSet blocked = blocked_kinds();
   // A full batch left pending because the window was closed goes first.
   if (!batch.empty() && capacity() > 0 &&
       (batch.seqs.size() >= config.telemetry_batch_max_samples || batch_due(now))) {
@@ -324,7 +388,7 @@ void Uplink::Impl::drain(Micros now) {
     // records does not copy thousands of entries per poll.
     const std::size_t want = std::min<std::size_t>(
         head_is_telemetry ? capacity() * config.telemetry_batch_max_samples : capacity(), 4096);
-    const auto entries = outbox.peek(want, config.max_fetch_bytes, claimed);
+    const auto entries = outbox.peek(want, config.max_fetch_bytes, claimed, blocked);
     more = entries.size() == want;
     if (entries.empty()) break;
     head_is_telemetry = entries.back().kind == kind::kTelemetry;
