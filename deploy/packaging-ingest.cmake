@@ -22,6 +22,11 @@ if(TARGET fleetgw_man_pages)
     install(FILES ${CMAKE_BINARY_DIR}/deploy/man/fleetgw-fleet-sim.1.gz
             DESTINATION ${CMAKE_INSTALL_MANDIR}/man1 COMPONENT fleetgw-ingest)
   endif()
+  # fleetgw-serve and the console's files (backend/web installs them here).
+  if(TARGET fleetgw-serve)
+    install(FILES ${CMAKE_BINARY_DIR}/deploy/man/fleetgw-serve.1.gz
+            DESTINATION ${CMAKE_INSTALL_MANDIR}/man1 COMPONENT fleetgw-ingest)
+  endif()
 endif()
 
 list(APPEND CPACK_COMPONENTS_ALL fleetgw-ingest)
@@ -34,7 +39,7 @@ decodes the gateways' protobuf envelopes and writes rides, faults, telemetry,\n\
 pack statistics, lock events, commands and status into PostgreSQL, batched and\n\
 idempotent. Runs on a backend host; the gateway itself is package fleetgw.")
 # libpq5, Paho and the C++ runtime come from dpkg-shlibdeps; adduser for the postinst.
-set(CPACK_DEBIAN_FLEETGW-INGEST_PACKAGE_DEPENDS "adduser")
+set(CPACK_DEBIAN_FLEETGW-INGEST_PACKAGE_DEPENDS "adduser, libjs-leaflet")  # libjs-leaflet: fleetgw serve
 set(CPACK_DEBIAN_FLEETGW-INGEST_PACKAGE_SUGGESTS "postgresql, mosquitto")
 set(CPACK_DEBIAN_FLEETGW-INGEST_PACKAGE_CONTROL_EXTRA
     ${FLEETGW_DEPLOY_DIR}/debian/fleetgw-ingest/conffiles

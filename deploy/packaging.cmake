@@ -76,7 +76,8 @@ if(NOT CMAKE_CROSSCOMPILING AND TARGET fleetgw-watch)
     add_custom_target(fleetgw_man_pages ALL DEPENDS ${man_outputs})
     install(DIRECTORY ${man_dir}/ DESTINATION ${CMAKE_INSTALL_MANDIR}/man1 COMPONENT fleetgw
             FILES_MATCHING PATTERN "*.1.gz" PATTERN "fleetgw-ingest.1.gz" EXCLUDE
-            PATTERN "fleetgw-fleet-sim.1.gz" EXCLUDE)  # in fleetgw-ingest, with the program
+            PATTERN "fleetgw-fleet-sim.1.gz" EXCLUDE
+            PATTERN "fleetgw-serve.1.gz" EXCLUDE)  # in fleetgw-ingest, with the program
   else()
     message(STATUS "help2man not found: the packages will have no manual pages")
   endif()

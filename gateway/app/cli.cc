@@ -287,6 +287,11 @@ int run_cli(int argc, char** argv) {
       "fleet-sim", "N simulated vehicles, each with its own MQTT 5 session, against a broker");
   fleet_sim_cmd->prefix_command()->set_help_flag();
 
+  // serve: every argument (--help too) goes to fleetgw-serve, the backend's web server
+  auto* serve_cmd = app.add_subcommand(
+      "serve", "the operator console and API over the ingest's PostgreSQL (fleetgw-serve)");
+  serve_cmd->prefix_command()->set_help_flag();
+
   // status
   auto* status_cmd = app.add_subcommand(
       "status", "health of the running service (exit 1: needs attention, 3: no answer)");
@@ -455,6 +460,9 @@ int run_cli(int argc, char** argv) {
     }
     if (ingest_cmd->parsed()) {
       return exec_subcommand_program("fleetgw-ingest", "ingest", argc, argv);
+    }
+    if (serve_cmd->parsed()) {
+      return exec_subcommand_program("fleetgw-serve", "serve", argc, argv);
     }
     if (status_cmd->parsed()) {
       if (!status_config.empty()) {

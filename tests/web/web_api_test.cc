@@ -210,6 +210,21 @@ TEST_F(WebApi, EventStreamAnnouncesANewAlarm) {
   EXPECT_NE(received.find("event: fleet"), std::string::npos) << received;
 }
 
+// Under TLS the session cookie is Secure and browsers are told to stay on HTTPS.
+TEST(WebServe, HttpsSessionCookieIsSecureAndHstsIsSent) {
+  if (postgres_bin_dir().empty()) GTEST_SKIP() << "PostgreSQL server binaries not installed";
+  ServeStack stack({}, /*tls=*/true);
+  ASSERT_EQ(stack.add_operator("olga", "operator", "operator-password"), 0);
+  const LoginResult l = stack.login("olga", "operator-password");
+  ASSERT_EQ(l.status, 200) << stack.log();
+  EXPECT_NE(l.set_cookie.find("; Secure"), std::string::npos) << l.set_cookie;
+  EXPECT_NE(l.set_cookie.find("HttpOnly"), std::string::npos) << l.set_cookie;
+  auto res = stack.client().Get("/api/fleet", {{"Cookie", l.cookie}});
+  ASSERT_TRUE(res);
+  EXPECT_EQ(res->status, 200);
+  EXPECT_EQ(res->get_header_value("Strict-Transport-Security"), "max-age=31536000");
+}
+
 // Plain HTTP off loopback is refused before anything is bound.
 TEST(WebServe, PlainHttpOnANonLoopbackAddressNeedsInsecureHttp) {
   if (postgres_bin_dir().empty()) GTEST_SKIP() << "PostgreSQL server binaries not installed";

@@ -16,7 +16,8 @@ std::int64_t now_us() {
       .count();
 }
 
-ServeStack::ServeStack(std::vector<std::string> extra_args) : dir_("fleetgw-web") {
+ServeStack::ServeStack(std::vector<std::string> extra_args, bool tls)
+    : dir_("fleetgw-web"), tls_(tls) {
   cluster_ = std::make_unique<PostgresCluster>();
   conninfo_ = cluster_->conninfo();
   // The ingest's schema exactly as the ingest creates it: its first run applies the migrations
@@ -33,6 +34,15 @@ ServeStack::ServeStack(std::vector<std::string> extra_args) : dir_("fleetgw-web"
       FLEETGW_SERVE_BINARY, "--pg", conninfo_, "--listen", "127.0.0.1:" + std::to_string(port_),
       "--poll-ms",          "200"};
   argv.insert(argv.end(), extra_args.begin(), extra_args.end());
+  if (tls_) {
+    run_program(
+        {"openssl", "req", "-x509", "-newkey", "ec", "-pkeyopt", "ec_paramgen_curve:P-256",
+         "-nodes", "-keyout", (dir_ / "key.pem").string(), "-out", (dir_ / "cert.pem").string(),
+         "-days", "1", "-subj", "/CN=127.0.0.1", "-addext", "subjectAltName=IP:127.0.0.1"},
+        dir_ / "openssl.log");
+    argv.insert(argv.end(), {"--tls-cert", (dir_ / "cert.pem").string(), "--tls-key",
+                             (dir_ / "key.pem").string()});
+  }
   serve_ = std::make_unique<ChildProcess>(argv, dir_ / "serve.log");
   const bool up = wait_until(
       [&] {
@@ -61,7 +71,8 @@ int ServeStack::add_operator(const std::string& name, const std::string& role,
 }
 
 httplib::Client ServeStack::client() const {
-  httplib::Client c("127.0.0.1", port_);
+  httplib::Client c(url());
+  if (tls_) c.set_ca_cert_path((dir_ / "cert.pem").string());
   c.set_connection_timeout(5, 0);
   c.set_read_timeout(20, 0);
   return c;

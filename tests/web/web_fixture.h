@@ -44,10 +44,14 @@ struct VehicleRow {
 
 class ServeStack {
  public:
-  explicit ServeStack(std::vector<std::string> extra_args = {});
+  // tls: a throw-away self-signed certificate for 127.0.0.1 (openssl CLI) and HTTPS; the
+  // clients then trust exactly that certificate.
+  explicit ServeStack(std::vector<std::string> extra_args = {}, bool tls = false);
   ~ServeStack();
 
-  std::string url() const { return "http://127.0.0.1:" + std::to_string(port_); }
+  std::string url() const {
+    return std::string(tls_ ? "https" : "http") + "://127.0.0.1:" + std::to_string(port_);
+  }
   std::uint16_t port() const { return port_; }
   const std::string& conninfo() const { return conninfo_; }
   web::PgConnection& db() { return *db_; }
@@ -80,6 +84,7 @@ class ServeStack {
   std::unique_ptr<web::PgConnection> db_;
   std::uint16_t port_ = 0;
   std::unique_ptr<ChildProcess> serve_;
+  bool tls_ = false;
 };
 
 std::int64_t now_us();
