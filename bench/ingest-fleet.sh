@@ -62,6 +62,16 @@ echo "ingest-fleet: $VEHICLES vehicles ($RIDING_SHARE riding) for $DURATION_S s 
 B0=$(brokers_cpu_s); I0=$(workers_cpu_s)
 P0=$(pg_cpu_s)
 START_US=$(($(date +%s%N) / 1000))
+# CPU of this shell's reaped children (`times`' second line, run in this shell, not a
+# subshell): around the fleet-sims' wait it is theirs (timeout waits for fleet-sim, which waits
+# for its shard processes).
+children_cpu_s() {
+  times >"$WORK/times"
+  tail -1 "$WORK/times" | /usr/bin/python3 -c '
+import re, sys
+print(sum(int(m) * 60 + float(s) for m, s in re.findall(r"(\d+)m([\d.]+)s", sys.stdin.read())))'
+}
+children_cpu_s >"$WORK/sim-cpu-0"
 # One fleet-sim per broker, each its slice of the fleet (vehicle ids stay sim-bike-0..N-1).
 SIM_PIDS=()
 N_SIMS=${#SIM_URIS[@]}
@@ -69,17 +79,19 @@ SIM_TIMEOUT=$((DURATION_S + VEHICLES / CONNECT_RATE + 120))
 for k in $(seq 0 $((N_SIMS - 1))); do
   first=$((VEHICLES * k / N_SIMS))
   count=$((VEHICLES * (k + 1) / N_SIMS - first))
-  timeout -k 10 "$SIM_TIMEOUT" /usr/bin/time -f '%U %S' -o "$WORK/sim-$k.time" \
-    "$SIM" --vehicles "$count" --first-index "$first" --broker "${SIM_URIS[$k]}" \
+  timeout -k 10 "$SIM_TIMEOUT" "$SIM" --vehicles "$count" --first-index "$first" --broker "${SIM_URIS[$k]}" \
     --duration-s "$DURATION_S" --riding-share "$RIDING_SHARE" \
     --connect-rate "$(echo "$CONNECT_RATE / $N_SIMS" | bc -l)" --report "$WORK/sim-$k.json" \
     2>"$WORK/sim-$k.log" &
   SIM_PIDS+=("$!")
+  PIDS+=("$!")  # timeout passes a SIGTERM on to the fleet-sim (no /usr/bin/time between them)
 done
 SIM_OK=1
 for k in "${!SIM_PIDS[@]}"; do
   wait "${SIM_PIDS[$k]}" || { SIM_OK=0; echo "fleet-sim $k failed (exit $?):"; tail -5 "$WORK/sim-$k.log"; }
 done
+children_cpu_s >"$WORK/sim-cpu-1"
+SIM_CPU=$(echo "$(cat "$WORK/sim-cpu-1") - $(cat "$WORK/sim-cpu-0")" | bc -l)
 # The fleet's report: the sims' reports merged (sums; stores concatenated).
 /usr/bin/python3 - "$WORK" "$N_SIMS" >"$WORK/sim.json" <<'EOF'
 import json, sys
@@ -127,7 +139,6 @@ RECORD_DELAY=$(pct "SELECT committed_at_us - created_at_us AS d FROM ($RECORDS) 
 STEADY_FROM=$((START_US + (VEHICLES / CONNECT_RATE + 60) * 1000000))
 STEADY_DELAY=$(pct "SELECT committed_at_us - created_at_us AS d FROM ($RECORDS) r WHERE created_at_us > $STEADY_FROM")
 FIRST_DELAY=$(pct "SELECT committed_at_us - created_at_us AS d FROM telemetry_samples")
-SIM_CPU=$(cat "$WORK"/sim-*.time 2>/dev/null | awk '{ s += $1 + $2 } END { print s + 0 }')
 read -r RIDING_N PARKED_N RIDE_B PARK_B SIM_S UNACKED CONNECTED MESSAGES RESENT DROPS < <(/usr/bin/python3 -c '
 import json, sys
 r = json.load(open(sys.argv[1]))
@@ -150,7 +161,7 @@ echo "messages published          $MESSAGES (each once), re-sent after a reconne
 echo "workers' counters           $WORKER_COUNTS"
 printf 'records committed           %.0f /s over %.0f s (first record to last commit)\n' "$(echo "$EXPECTED / $WALL_S" | bc -l)" "$WALL_S"
 echo "delay record -> row         $RECORD_DELAY (rides, locks, packs, info; whole run)"
-echo "  the same after the ramp+60 s $STEADY_DELAY"
+echo "  after the ramp + 60 s     $STEADY_DELAY"
 echo "delay telemetry sample      $FIRST_DELAY (created_at_us of its batch, batching wait included)"
 printf 'CPU broker(s)               %.1f s (%.1f %% of a core)\n' "$(echo "$B1 - $B0" | bc -l)" "$(share "$B1 - $B0")"
 printf 'CPU ingest (%s workers)      %.1f s (%.1f %% of a core)\n' "$NWORKERS" "$(echo "$I1 - $I0" | bc -l)" "$(share "$I1 - $I0")"

@@ -1,7 +1,7 @@
 // fleetgw-fleet-sim (`fleetgw fleet-sim` execs it): N simulated vehicles, each with its own
-// MQTT 5 session (client id = the vehicle id, persistent session, QoS 1), publishing the traffic
-// of fleet_sim_model.h in real time against a broker: what a fleet costs the broker and the
-// ingest, and the sender's side of an exactly-once check.
+// MQTT 5 session (client id = the vehicle id, QoS 1, no session expiry: sim_shard.cc), publishing
+// the traffic of fleet_sim_model.h in real time against a broker: what a fleet costs the broker and
+// the ingest, and the sender's side of an exactly-once check.
 //
 // Contract:
 //  * Vehicles are "<id-prefix><first-index + i>"; the first round(N * riding_share) ride, the

@@ -62,9 +62,6 @@ class Fd {
 struct MosqDelete {
   void operator()(mosquitto* m) const { mosquitto_destroy(m); }
 };
-struct PropertyDelete {
-  void operator()(mosquitto_property* p) const { mosquitto_property_free_all(&p); }
-};
 
 constexpr std::int64_t kSecond = 1'000'000;
 
@@ -114,7 +111,6 @@ class Shard {
   ShardPlan plan_;
   Fd epoll_;
   Fd signals_;
-  std::unique_ptr<mosquitto_property, PropertyDelete> connect_props_;
   std::vector<std::unique_ptr<Client>> clients_;
   bool draining_ = false;
   std::minstd_rand rng_;
@@ -138,13 +134,6 @@ Shard::Shard(const ShardPlan& plan)
           }(),
           "signalfd") {
   rng_.seed(static_cast<unsigned>(plan_.shard) + 1);
-  mosquitto_property* props = nullptr;
-  // The gateway's session: kept by the broker for an hour while the vehicle is away.
-  if (mosquitto_property_add_int32(&props, MQTT_PROP_SESSION_EXPIRY_INTERVAL, 3600) !=
-      MOSQ_ERR_SUCCESS) {
-    throw std::runtime_error("fleet-sim: cannot build the CONNECT properties");
-  }
-  connect_props_.reset(props);
   epoll_event ev{};
   ev.events = EPOLLIN;
   ev.data.u64 = UINT64_MAX;  // the signalfd
@@ -266,12 +255,15 @@ void Shard::start_session(Client& c, std::int64_t now) {
       bind = "127.0.0." +
              std::to_string(2 + fleet_index % static_cast<std::size_t>(plan_.source_addresses));
     }
-    // The first connect is a blocking TCP connect (libmosquitto has no asynchronous connect that
-    // takes MQTT 5 properties): on loopback it completes at once; reconnects are asynchronous
-    // and reuse the stored properties and bind address.
-    rc = mosquitto_connect_bind_v5(c.mosq.get(), plan_.host.c_str(), plan_.port,
-                                   plan_.options.keepalive_s, bind.empty() ? nullptr : bind.c_str(),
-                                   connect_props_.get());
+    // Asynchronous, like every reconnect: a blocking connect to a broker whose accept queue is
+    // full (a starved broker) would stall this loop, and with it every other session's
+    // keep-alive (measured: connect() blocked for the SYN retries, the broker then dropped
+    // thousands of sessions). libmosquitto's asynchronous connect takes no MQTT 5 properties,
+    // so no session expiry: the vehicle subscribes to nothing, a kept session would hold
+    // nothing, and its outbox (below) is what survives a lost session.
+    rc = mosquitto_connect_bind_async(c.mosq.get(), plan_.host.c_str(), plan_.port,
+                                      plan_.options.keepalive_s,
+                                      bind.empty() ? nullptr : bind.c_str());
   } else {
     rc = mosquitto_reconnect_async(c.mosq.get());
   }
