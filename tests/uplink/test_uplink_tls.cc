@@ -263,5 +263,63 @@ TEST_F(UplinkTls, AclLetsAVehicleWriteOnlyItsOwnTopics) {
   EXPECT_TRUE(bike_a.wait_until([](auto& m) { return !m.empty(); }, 5s));
 }
 
+// Every topic of the gateway's topic table (topics.h) through the shipped ACL: a client holding
+// bike-t's certificate publishes on each published topic and the backend receives it; the backend
+// publishes on each subscribed topic and the vehicle receives it. The test above only covered
+// telemetry, status and cmd; the shipped file then denied alarm, state and zone.
+TEST_F(UplinkTls, ShippedAclGrantsEveryTopicOfTheTopicTable) {
+  MosquittoBroker broker(tls_options(pki_->server()));
+  broker.start();
+  Subscriber backend(broker.uri(), "fleet/v1/#", "backend-table", backend_ssl());
+  const auto cert = pki_->issue_client("bike-t");
+  mqtt::ssl_options ssl;
+  ssl.set_trust_store(pki_->ca_cert().string());
+  ssl.set_key_store(cert.cert.string());
+  ssl.set_private_key(cert.key.string());
+  const Topics topics("fleet/v1", "bike-t");
+  Subscriber bike(broker.uri(), topics.cmd, "bike-t", ssl);
+  std::vector<std::string> published, subscribed;
+  for (const auto& t : kTopicTable) {
+    const std::string& name = topics.*t.member;
+    if (t.direction == TopicDirection::kPublish) {
+      published.push_back(name);
+      bike.client().publish(name, "from-vehicle:" + name, 1, false)->wait();
+    } else {
+      subscribed.push_back(name);
+      if (name != topics.cmd) bike.client().subscribe(name, 1)->wait();
+    }
+  }
+  const auto has_all = [](const std::vector<testing::Received>& m,
+                          const std::vector<std::string>& topics_wanted, const std::string& tag) {
+    for (const auto& t : topics_wanted) {
+      if (std::none_of(m.begin(), m.end(),
+                       [&](const auto& r) { return r.topic == t && r.payload == tag + t; })) {
+        return false;
+      }
+    }
+    return true;
+  };
+  EXPECT_TRUE(
+      backend.wait_until([&](const auto& m) { return has_all(m, published, "from-vehicle:"); }, 5s))
+      << broker.log();
+  for (const auto& name : published) {
+    const auto m = backend.messages();
+    EXPECT_TRUE(std::any_of(m.begin(), m.end(), [&](const auto& r) { return r.topic == name; }))
+        << "the shipped ACL denies the vehicle's publish on " << name;
+  }
+  for (const auto& name : subscribed) {
+    backend.client().publish(name, "from-backend:" + name, 1, false)->wait();
+  }
+  EXPECT_TRUE(
+      bike.wait_until([&](const auto& m) { return has_all(m, subscribed, "from-backend:"); }, 5s))
+      << broker.log();
+  for (const auto& name : subscribed) {
+    const auto m = bike.messages();
+    EXPECT_TRUE(std::any_of(m.begin(), m.end(), [&](const auto& r) { return r.topic == name; }))
+        << "the shipped ACL does not let the vehicle read " << name;
+  }
+  EXPECT_EQ(broker.log().find("Denied"), std::string::npos) << broker.log();
+}
+
 }  // namespace
 }  // namespace fleetgw::uplink
