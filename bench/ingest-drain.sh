@@ -48,6 +48,7 @@ T1=$(date +%s%N)
 I1=$(workers_cpu_s)
 P1=$(pg_cpu_s)
 RSS_END=$(workers_rss_kb)
+PSS_END=$(workers_pss_kb)
 stop_workers
 S=$(echo "($T1 - $T0) / 1000000000" | bc -l)
 ROWS=$(psql_q "SELECT (SELECT count(*) FROM telemetry_samples) + (SELECT count(*) FROM rides) + (SELECT count(*) FROM lock_events) + (SELECT count(*) FROM pack_snapshots) + (SELECT count(*) FROM device_info)")
@@ -57,8 +58,11 @@ printf 'drained in                  %.1f s (worker start-up included)\n' "$S"
 printf 'committed                   %.0f messages/s, %.0f records/s (%.0f messages/s per worker)\n' \
   "$(echo "$MESSAGES / $S" | bc -l)" "$(echo "$EXPECTED / $S" | bc -l)" "$(echo "$MESSAGES / $S / $NWORKERS" | bc -l)"
 printf 'CPU ingest / PostgreSQL     %.1f s / %.1f s\n' "$(echo "$I1 - $I0" | bc -l)" "$(echo "$P1 - $P0" | bc -l)"
-printf 'worker RSS peak / at end     %.1f MB / %.1f MB (all its processes)\n' \
-  "$(echo "$RSS_PEAK / 1024" | bc -l)" "$(echo "$RSS_END / 1024" | bc -l)"
+printf 'worker RSS peak / at end     %.1f MB / %.1f MB (all its processes; PSS at end %.1f MB)\n' \
+  "$(echo "$RSS_PEAK / 1024" | bc -l)" "$(echo "$RSS_END / 1024" | bc -l)" "$(echo "$PSS_END / 1024" | bc -l)"
+# First to last commit, from the rows' own committed_at_us: the drain without the start-up.
+COMMIT_S=$(psql_q "SELECT greatest(max(m) - min(n), 1) / 1e6 FROM (SELECT min(committed_at_us) n, max(committed_at_us) m FROM telemetry_samples UNION ALL SELECT min(committed_at_us), max(committed_at_us) FROM lock_events UNION ALL SELECT min(committed_at_us), max(committed_at_us) FROM pack_snapshots) t")
+printf 'first to last commit        %.2f s: %.0f records/s\n' "$COMMIT_S" "$(echo "$EXPECTED / $COMMIT_S" | bc -l)"
 
 # The same rows by a plain COPY loader into database "loader" of the same cluster.
 LOADER_DB="${CONNINFO/dbname=postgres/dbname=loader}"
@@ -81,13 +85,13 @@ L1=$(date +%s%N)
 LP1=$(pg_cpu_s)
 LS=$(echo "($L1 - $L0) / 1000000000" | bc -l)
 LC=$(awk '{ print $1 + $2 }' "$WORK/loader.cpu")
-W_RATE=$(echo "$WROTE / $S" | bc -l)
+W_RATE=$(echo "$WROTE / $COMMIT_S" | bc -l)
 L_RATE=$(echo "$LOADED / $LS" | bc -l)
 W_CPU=$(echo "($I1 - $I0 + $P1 - $P0) * 1000000 / $WROTE" | bc -l)
 L_CPU=$(echo "($LC + $LP1 - $LP0) * 1000000 / $LOADED" | bc -l)
 printf 'COPY loader, same rows       %d rows in %.2f s: %.0f rows/s; CPU psql / PostgreSQL %.2f s / %.2f s\n' \
   "$LOADED" "$LS" "$L_RATE" "$LC" "$(echo "$LP1 - $LP0" | bc -l)"
-printf 'worker vs COPY loader        %.0f vs %.0f rows/s (%.0f %%); CPU %.1f vs %.1f us per row (%.2fx)\n' \
+printf 'worker vs COPY loader        %.0f vs %.0f rows/s (%.0f %%, worker first to last commit); CPU %.1f vs %.1f us per row (%.2fx)\n' \
   "$W_RATE" "$L_RATE" "$(echo "100 * $W_RATE / $L_RATE" | bc -l)" "$W_CPU" "$L_CPU" \
   "$(echo "$W_CPU / $L_CPU" | bc -l)"
 [[ $GOT -ge $EXPECTED && $ROWS == "$EXPECTED" ]] || { echo "ingest-drain: NOT exactly once"; exit 1; }

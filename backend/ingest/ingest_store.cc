@@ -1,5 +1,5 @@
-// PostgreSQL writes of the ingest (ingest_store.h): COPY into staging tables, one
-// INSERT ... SELECT per table, ranges merged in one statement, one transaction per batch.
+// PostgreSQL writes of the ingest (ingest_store.h): one INSERT ... SELECT FROM unnest(arrays)
+// per table, ranges merged in one statement, one transaction per batch.
 #include "backend/ingest/ingest_store.h"
 
 #include <fmt/format.h>
@@ -22,42 +22,20 @@ constexpr std::array<const TableSpec*, 13> kTables = {
     &rows::kResults, &rows::kCommands, &rows::kInfo,      &rows::kAlarms, &rows::kEvictions,
     &rows::kZones,   &rows::kStatus,   &rows::kState};
 
-std::string stage_name(const TableSpec& t) {
-  return "stage_" + std::string(t.table);
-}
-
-// One value in COPY's text format: \N for NULL; backslash, tab, newline and CR escaped.
-void append_copy_value(std::string& out, const PgParam& v) {
+// One element of a text[] literal: NULL, or double-quoted with `"` and `\` escaped (every other
+// byte, newline included, kept as it is).
+void append_element(std::string& out, const PgParam& v) {
+  if (out.size() > 1) out += ',';
   if (!v) {
-    out += "\\N";
+    out += "NULL";
     return;
   }
+  out += '"';
   for (char c : *v) {
-    switch (c) {
-      case '\\':
-        out += "\\\\";
-        break;
-      case '\t':
-        out += "\\t";
-        break;
-      case '\n':
-        out += "\\n";
-        break;
-      case '\r':
-        out += "\\r";
-        break;
-      default:
-        out += c;
-    }
+    if (c == '"' || c == '\\') out += '\\';
+    out += c;
   }
-}
-
-void append_copy_row(std::string& out, std::span<const PgParam> row) {
-  for (std::size_t i = 0; i < row.size(); ++i) {
-    if (i > 0) out += '\t';
-    append_copy_value(out, row[i]);
-  }
-  out += '\n';
+  out += '"';
 }
 
 // A text[] literal of `items` (quoted and escaped as PostgreSQL's array input expects).
@@ -109,14 +87,17 @@ std::map<RangeKey, std::vector<SequenceRange>> merged_ranges(
 // Existing ranges touching or adjacent to a staged one are deleted and merged with the staged
 // ones (gaps and islands over first_seq); written without `+ 1` so 2^63-1 cannot overflow.
 constexpr std::string_view kMergeRanges = R"sql(
-WITH gone AS (
-  DELETE FROM sequence_ranges r USING stage_ranges n
+WITH n AS (
+  SELECT * FROM unnest($1::text[], $2::text[], $3::bigint[], $4::bigint[])
+    AS n(vehicle_id, store_id, first_seq, last_seq)),
+gone AS (
+  DELETE FROM sequence_ranges r USING n
   WHERE r.vehicle_id = n.vehicle_id AND r.store_id = n.store_id
     AND r.first_seq - 1 <= n.last_seq AND r.last_seq >= n.first_seq - 1
   RETURNING r.vehicle_id, r.store_id, r.first_seq, r.last_seq),
 alls AS (
   SELECT DISTINCT vehicle_id, store_id, first_seq, last_seq FROM gone
-  UNION ALL SELECT vehicle_id, store_id, first_seq, last_seq FROM stage_ranges),
+  UNION ALL SELECT vehicle_id, store_id, first_seq, last_seq FROM n),
 marked AS (
   SELECT *, CASE WHEN first_seq - 1 <= max(last_seq) OVER (PARTITION BY vehicle_id, store_id
               ORDER BY first_seq, last_seq ROWS BETWEEN UNBOUNDED PRECEDING AND 1 PRECEDING)
@@ -146,7 +127,8 @@ IngestStore::IngestStore(std::string conninfo, std::size_t /*unused_rows_per_sta
 
 int IngestStore::connect() {
   conn_.reset();
-  staging_ready_ = false;
+  insert_sql_.clear();
+  merge_prepared_ = false;
   conn_.emplace(conninfo_);
   return migrate(*conn_);
 }
@@ -156,21 +138,39 @@ PgConnection& IngestStore::conn() {
   return *conn_;
 }
 
-void IngestStore::prepare_staging(PgConnection& c) {
-  if (staging_ready_) return;
-  // Session-local tables with exactly the columns a batch COPYs, emptied at every commit.
-  std::string sql;
-  for (const TableSpec* t : kTables) {
-    sql += fmt::format(
-        "CREATE TEMP TABLE IF NOT EXISTS {} ON COMMIT DELETE ROWS AS SELECT {} FROM {} WITH NO "
-        "DATA;\n",
-        stage_name(*t), t->columns, t->table);
+const std::string& IngestStore::insert_sql(PgConnection& c, const TableSpec& t) {
+  std::string& sql = insert_sql_[&t];
+  if (!sql.empty()) return sql;
+  // Every column travels as a text[] parameter and is cast to its column's type: one statement
+  // per table and batch, no temporary table (whose truncation at each commit cost more than
+  // the rows). The types come from the catalog, in the spec's column order.
+  const PgParam p[] = {std::string(t.table), std::string(t.columns)};
+  const PgResult types = c.exec_params(
+      "SELECT format_type(a.atttypid, a.atttypmod) FROM unnest(string_to_array($2, ', ')) WITH "
+      "ORDINALITY AS k(name, ord) JOIN pg_attribute a ON a.attrelid = $1::regclass AND "
+      "a.attname = k.name ORDER BY k.ord",
+      p, "column types");
+  if (types.rows() != t.column_count) {
+    throw PgError(fmt::format("{}: {} of {} columns found", t.table, types.rows(), t.column_count),
+                  "");
   }
-  sql +=
-      "CREATE TEMP TABLE IF NOT EXISTS stage_ranges (vehicle_id text NOT NULL, store_id text NOT "
-      "NULL, first_seq bigint NOT NULL, last_seq bigint NOT NULL) ON COMMIT DELETE ROWS;";
-  c.exec(sql, "staging tables");
-  staging_ready_ = true;
+  std::string select;
+  std::string from;
+  std::string names;
+  for (int i = 0; i < t.column_count; ++i) {
+    select += fmt::format("{}u.c{}::{}", i ? ", " : "", i, types.text(i, 0));
+    from += fmt::format("{}${}::text[]", i ? ", " : "", i + 1);
+    names += fmt::format("{}c{}", i ? ", " : "", i);
+  }
+  // Prepared once per connection: the statement's name is what the batch executes (kept only
+  // once the server has it).
+  const std::string name = fmt::format("insert_{}", t.table);
+  c.prepare(name,
+            fmt::format("INSERT INTO {} ({}) SELECT {} FROM unnest({}) AS u({}) {}", t.table,
+                        t.columns, select, from, names, t.on_conflict),
+            t.column_count, t.table);
+  sql = name;
+  return sql;
 }
 
 void IngestStore::insert_reject(PgConnection& c, const RejectRow& r) {
@@ -184,7 +184,6 @@ void IngestStore::insert_reject(PgConnection& c, const RejectRow& r) {
 WriteStats IngestStore::write_all(std::span<const Decoded* const> messages,
                                   std::span<const RejectRow> rejects) {
   PgConnection& c = conn();
-  prepare_staging(c);
   WriteStats stats;
   PgTransaction tx(c);
   bool latest_only = !messages.empty();
@@ -208,7 +207,6 @@ WriteStats IngestStore::write_all(std::span<const Decoded* const> messages,
         p, "vehicle locks");
   }
   if (hook_) hook_(BatchPoint::kBeforeCopy);
-  std::string data;
   for (const TableSpec* t : kTables) {
     const std::size_t cols = static_cast<std::size_t>(t->column_count);
     std::vector<std::span<const PgParam>> staged_rows;
@@ -240,12 +238,13 @@ WriteStats IngestStore::write_all(std::span<const Decoded* const> messages,
       for (const auto& [vehicle, i] : newest) kept.push_back(staged_rows[i]);
       staged_rows = std::move(kept);
     }
-    data.clear();
-    for (const auto& row : staged_rows) append_copy_row(data, row);
-    c.copy_in(fmt::format("COPY {} FROM STDIN", stage_name(*t)), data, t->table);
-    const PgResult r = c.exec(fmt::format("INSERT INTO {} ({}) SELECT * FROM {} {}", t->table,
-                                          t->columns, stage_name(*t), t->on_conflict),
-                              t->table);
+    const std::string& statement = insert_sql(c, *t);
+    std::vector<PgParam> columns(cols, std::string("{"));
+    for (const auto& row : staged_rows) {
+      for (std::size_t i = 0; i < cols; ++i) append_element(*columns[i], row[i]);
+    }
+    for (PgParam& column : columns) *column += '}';
+    const PgResult r = c.exec_prepared(statement, columns, t->table);
     const std::int64_t staged = static_cast<std::int64_t>(staged_rows.size());
     stats.inserted += r.affected();
     if (t == &rows::kState) {
@@ -255,16 +254,20 @@ WriteStats IngestStore::write_all(std::span<const Decoded* const> messages,
     }
   }
   if (!ranges.empty()) {
-    data.clear();
+    std::vector<PgParam> columns(4, std::string("{"));
     for (const auto& [key, v] : ranges) {
-      for (const SequenceRange& s : v) {
-        const PgParam row[] = {key.first, key.second, std::to_string(s.first),
-                               std::to_string(s.last)};
-        append_copy_row(data, row);
+      for (const SequenceRange& r : v) {
+        const PgParam row[] = {key.first, key.second, std::to_string(r.first),
+                               std::to_string(r.last)};
+        for (std::size_t i = 0; i < 4; ++i) append_element(*columns[i], row[i]);
       }
     }
-    c.copy_in("COPY stage_ranges FROM STDIN", data, "sequence_ranges");
-    c.exec(kMergeRanges, "sequence_ranges");
+    for (PgParam& column : columns) *column += '}';
+    if (!merge_prepared_) {
+      c.prepare("merge_ranges", kMergeRanges, 4, "sequence_ranges");
+      merge_prepared_ = true;
+    }
+    c.exec_prepared("merge_ranges", columns, "sequence_ranges");
   }
   for (const RejectRow& r : rejects) insert_reject(c, r);
   if (hook_) hook_(BatchPoint::kAfterCopy);

@@ -4,10 +4,10 @@
 //  * IngestStore connects lazily (and again after a broken connection) and applies the
 //    migrations (migrations.h) at its first connection.
 //  * write_batch(messages) writes every message of the batch in ONE transaction, at bulk speed:
-//    per destination table, one COPY of all the batch's rows into a temporary staging table and
-//    one `INSERT ... SELECT ... ON CONFLICT` into the table (records: DO NOTHING on their key;
-//    latest values: an upsert, the batch's newest row per vehicle only); then the batch's
-//    sequence ranges, merged per (vehicle, store) in memory, COPYed and merged into
+//    per destination table one `INSERT ... SELECT ... FROM unnest($1::text[], ...) ON CONFLICT`
+//    with every column of the batch's rows as one array parameter (records: DO NOTHING on
+//    their key; latest values: an upsert, the batch's newest row per vehicle only); then the
+//    batch's sequence ranges, merged per (vehicle, store) in memory and merged into
 //    sequence_ranges by one statement. Per-(vehicle, store) advisory locks, taken first and in
 //    one fixed order, only when the batch has ranges to merge (two workers writing one vehicle
 //    serialise instead of deadlocking). It returns only after the commit succeeded (WAL
@@ -29,6 +29,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <functional>
+#include <map>
 #include <optional>
 #include <span>
 #include <string>
@@ -101,11 +102,14 @@ class IngestStore {
   WriteStats write_all(std::span<const Decoded* const> messages,
                        std::span<const RejectRow> rejects);
   void insert_reject(PgConnection& c, const RejectRow& r);
-  void prepare_staging(PgConnection& c);
+  // The name of t's prepared INSERT on connection c (prepared at its first use).
+  const std::string& insert_sql(PgConnection& c, const TableSpec& t);
 
   std::string conninfo_;
   std::optional<PgConnection> conn_;
-  bool staging_ready_ = false;
+  // Prepared statements of this connection: per table, and the range merge.
+  std::map<const TableSpec*, std::string> insert_sql_;
+  bool merge_prepared_ = false;
   std::function<void(BatchPoint)> hook_;
 };
 

@@ -429,7 +429,7 @@ int run_ingest(const IngestOptions& o) {
       // parent's exit handlers or destructors.
       ::dup2(sv[1], 3);
       ::close_range(4, ~0U, 0);
-      ::_exit(run_session(o, client_id + "-s" + std::to_string(i), 3));
+      ::_exit(run_session(o, client_id + "-s" + std::to_string(i), i == 1, 3));
     }
     ::close(sv[1]);
     if (pid < 0) {

@@ -29,8 +29,10 @@
 //    so at most K messages are in memory whatever the backlog.
 //  * Memory: one message's rows are bounded by decode_message (kMaxSamples, the broker's
 //    packet limit); after a message over 64 KiB, freed memory is given back (malloc_trim).
-//  * Test hook: FLEETGW_INGEST_CRASH_AT=before_copy|after_copy|after_commit SIGKILLs the worker
-//    at that point of its FLEETGW_INGEST_CRASH_BATCH-th batch holding records (default 1).
+//  * Test hook: FLEETGW_INGEST_CRASH_AT=before_copy (the batch's transaction open, no row sent)
+//    |after_copy (every row written, before COMMIT)|after_commit (before any acknowledgement)
+//    SIGKILLs the worker at that point of its FLEETGW_INGEST_CRASH_BATCH-th batch holding
+//    records (default 1).
 //  * On exit one summary line: messages, records, rows inserted, duplicate records ignored,
 //    rejects by reason, out-of-order states ignored, batches.
 #pragma once

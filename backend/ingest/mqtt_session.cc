@@ -80,12 +80,19 @@ mqtt::connect_options connect_options(const IngestOptions& o, const std::string&
 
 }  // namespace
 
-int run_session(const IngestOptions& o, const std::string& client_id, int fd) {
+int run_session(const IngestOptions& o, const std::string& client_id, bool first_session, int fd) {
   // The worker's death is a stop request (SIGTERM, blocked like every stop signal and taken
   // by sigwait below); a message in hand sees EOF on fd first.
   ::prctl(PR_SET_PDEATHSIG, SIGTERM);
   const std::string uri = normalise_uri(o.broker);
   const std::string filter = "$share/" + o.group + "/" + o.topic_prefix + "/#";
+  // Retained messages (each vehicle's latest status and state) are sent to the first session
+  // only, and only when its subscription is new: every session of every restart receiving
+  // them all again cost more messages than the fleet's own traffic in a backlog drain.
+  const mqtt::subscribe_options retained(false, false,
+                                         first_session
+                                             ? mqtt::subscribe_options::SEND_RETAINED_ON_NEW
+                                             : mqtt::subscribe_options::DONT_SEND_RETAINED);
   std::mutex write_mu;  // frames from the callback and the main thread never interleave
   std::mutex state_mu;
   std::condition_variable idle;
@@ -141,7 +148,7 @@ int run_session(const IngestOptions& o, const std::string& client_id, int fd) {
   client.set_connected_handler([&](const std::string&) {
     // (Re)subscribe on every connection: a no-op on a resumed session, needed after it expired.
     try {
-      client.subscribe(filter, 1);
+      client.subscribe(filter, 1, retained);
     } catch (const mqtt::exception& e) {
       spdlog::error("ingest: {} subscribe {} failed: {}", client_id, filter, e.what());
     }
@@ -155,7 +162,7 @@ int run_session(const IngestOptions& o, const std::string& client_id, int fd) {
     tok->wait();
     const bool resumed = tok->get_connect_response().is_session_present();
     // Subscribed before we say so: a shared subscription without members drops what arrives.
-    client.subscribe(filter, 1)->wait();
+    client.subscribe(filter, 1, retained)->wait();
     frame(std::string{'S', static_cast<char>(resumed ? 1 : 0)});
   } catch (const mqtt::exception& e) {
     std::cerr << "fleetgw ingest: cannot connect to " << uri << " as " << client_id << ": "
@@ -181,7 +188,7 @@ int run_session(const IngestOptions& o, const std::string& client_id, int fd) {
   idle.wait_for(lock, 60s, [&] { return !in_callback || parked; });
   // With a parked callback, Paho's receive thread never comes back, and the client's destructor
   // would wait for it: end the process here (the session's state is the broker's).
-  if (parked) ::_exit(3);
+  if (parked || in_callback) ::_exit(3);
   return 0;
 }
 

@@ -29,7 +29,9 @@
 
 namespace fleetgw::ingest {
 
-int run_session(const IngestOptions& o, const std::string& client_id, int fd);
+// `first_session`: this session alone asks for the retained messages (MQTT 5 retain handling
+// "on a new subscription"); the others never get them.
+int run_session(const IngestOptions& o, const std::string& client_id, bool first_session, int fd);
 
 // Threshold above which a message's buffers are given back to the system once it is done.
 constexpr std::size_t kLargeMessageBytes = 64 * 1024;

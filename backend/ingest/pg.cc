@@ -86,32 +86,20 @@ PgResult PgConnection::exec_params(std::string_view sql, std::span<const PgParam
                  conn_.get(), what);
 }
 
-void PgConnection::copy_in(std::string_view sql, std::string_view data, std::string_view what) {
+void PgConnection::prepare(const std::string& name, std::string_view sql, int params,
+                           std::string_view what) {
   const std::string s(sql);
-  PgResultPtr start(PQexec(conn_.get(), s.c_str()));
-  if (!start || PQresultStatus(start.get()) != PGRES_COPY_IN) {
-    checked(start.release(), conn_.get(), what);  // throws with the server's reason
-    throw PgError(std::string(what) + ": COPY did not start", "");
-  }
-  // Chunks of at most 1 MiB: libpq buffers what it cannot send at once.
-  constexpr std::size_t kChunk = 1 << 20;
-  for (std::size_t at = 0; at < data.size(); at += kChunk) {
-    const std::size_t n = std::min(kChunk, data.size() - at);
-    if (PQputCopyData(conn_.get(), data.data() + at, static_cast<int>(n)) != 1) break;
-  }
-  PQputCopyEnd(conn_.get(), nullptr);
-  // The COPY's result, then the end of the command (a null result).
-  std::optional<PgResult> result;
-  std::optional<PgError> error;
-  while (PGresult* r = PQgetResult(conn_.get())) {
-    try {
-      result.emplace(checked(r, conn_.get(), what));
-    } catch (const PgError& e) {
-      if (!error) error = e;
-    }
-  }
-  if (error) throw *error;
-  if (!result) checked(nullptr, conn_.get(), what);
+  checked(PQprepare(conn_.get(), name.c_str(), s.c_str(), params, nullptr), conn_.get(), what);
+}
+
+PgResult PgConnection::exec_prepared(const std::string& name, std::span<const PgParam> params,
+                                     std::string_view what) {
+  std::vector<const char*> values;
+  values.reserve(params.size());
+  for (const PgParam& p : params) values.push_back(p ? p->c_str() : nullptr);
+  return checked(PQexecPrepared(conn_.get(), name.c_str(), static_cast<int>(values.size()),
+                                values.data(), nullptr, nullptr, 0),
+                 conn_.get(), what);
 }
 
 PgTransaction::PgTransaction(PgConnection& c) : c_(c) {

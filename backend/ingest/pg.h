@@ -70,8 +70,11 @@ class PgConnection {
   PgResult exec(std::string_view sql, std::string_view what);
   PgResult exec_params(std::string_view sql, std::span<const PgParam> params,
                        std::string_view what);
-  // COPY ... FROM STDIN (text format) with `data` as the rows; throws PgError like exec().
-  void copy_in(std::string_view sql, std::string_view data, std::string_view what);
+  // A named server-side prepared statement (parsed and planned once per connection), and its
+  // execution with text parameters; throw PgError like exec().
+  void prepare(const std::string& name, std::string_view sql, int params, std::string_view what);
+  PgResult exec_prepared(const std::string& name, std::span<const PgParam> params,
+                         std::string_view what);
   bool ok() const { return PQstatus(conn_.get()) == CONNECTION_OK; }
   PGconn* raw() { return conn_.get(); }
 
