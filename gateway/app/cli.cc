@@ -336,6 +336,8 @@ int run_cli(int argc, char** argv) {
   zones_sign_cmd->add_option("--key-id", zones_sign.key_id,
                              "key id (default: the key file's stem)");
   zones_sign_cmd->add_option("--out", zones_sign.out, "signed bundle file to write")->required();
+  zones_sign_cmd->add_option("--vehicle", zones_sign.vehicle_id,
+                             "sign for this vehicle only (its own zones topic); default: fleet-wide");
   auto* zones_check_cmd = zones_cmd->add_subcommand(
       "check", "judge a signed zone bundle as a gateway would (keys from --config)");
   geofence::ZonesCheckOptions zones_check;
@@ -345,6 +347,8 @@ int run_cli(int argc, char** argv) {
       ->required();
   zones_check_cmd->add_option("--in-force", zones_in_force,
                               "the bundle in force (a gateway's stored file) to compare with");
+  zones_check_cmd->add_option("--vehicle", zones_check.vehicle_id,
+                              "judge as this vehicle's gateway (a bundle for another is refused)");
 
   // command
   auto* command_cmd = app.add_subcommand(

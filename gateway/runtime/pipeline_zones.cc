@@ -119,6 +119,7 @@ void Pipeline::start_zones(const config::Config& config) {
   zc.enforcer.own_limit_kmh = g.own_limit_kmh;
   zc.enforcer.assist_levels = enforcer_assist_levels(config.protocol);
   zc.trusted_keys = config.command.trusted_keys;
+  zc.vehicle_id = config.vehicle.id;  // a bundle signed for another vehicle is refused
   zc.bundle_file = g.bundle_file;
   zone_bundle_file_ = g.bundle_file;
   // The stored file is held to the same limit as the topic: what was accepted is restored.
@@ -177,7 +178,10 @@ void Pipeline::on_zone_bundle(const uplink::ZoneBundleMessage& m) {
   const auto verdict = m.oversized_bytes > 0
                            ? zones_->on_oversized(m.oversized_bytes, max_bundle_bytes_, wall)
                            : zones_->on_bundle(bytes_of(m.payload), wall, events, persist_error,
-                                               fix ? &*fix : nullptr);
+                                               fix ? &*fix : nullptr,
+                                               zone_topics_.size() > 1 && m.topic == zone_topics_[1]
+                                                   ? geofence::BundleTopic::kVehicle
+                                                   : geofence::BundleTopic::kFleet);
   for (const auto& e : events) record_zone_event(e);
   if (verdict.accepted()) {
     bundle_refusal_logged_.clear();

@@ -1,11 +1,18 @@
 // `fleetgw zones sign|check` through the shipped binary: a key from `fleetgw keygen`, zones
 // drawn as GeoJSON, a signed bundle checked against a configuration's trusted keys, and the
-// refusals an operator meets (tampered file, older version, invalid zone) with exit 1.
+// refusals an operator meets (tampered file, older version, invalid zone) with exit 1; the
+// largest accepted bundle in the worst shape judged under a memory limit (issue 24).
+#include <fcntl.h>
 #include <gtest/gtest.h>
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 #include <fstream>
 #include <sstream>
 
+#include "gateway/geofence/zone_bundle.h"
+#include "tests/geofence/zone_test_util.h"
 #include "tests/support/process.h"
 #include "tests/support/temp_dir.h"
 
@@ -89,6 +96,91 @@ TEST_F(ZonesCli, SignedWithAKeygenKeyAndCheckedWithTheConfigsTrustedKeys) {
             1)
       << out;
   EXPECT_NE(out.find("refused ("), std::string::npos) << out;
+}
+
+// A child's exit code and peak resident memory (the reaped child's rusage).
+struct Measured {
+  int exit_code = -1;
+  std::size_t peak_rss_bytes = 0;
+};
+
+// Runs argv (no shell) with stdout+stderr to `output` and, when `as_limit` > 0, its address
+// space limited to that many bytes (RLIMIT_AS, set in the forked child before exec).
+Measured run_limited(const std::vector<std::string>& args, const std::filesystem::path& output,
+                     rlim_t as_limit) {
+  std::vector<char*> argv;
+  for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+  argv.push_back(nullptr);
+  const std::string out = output.string();
+  const pid_t pid = ::fork();
+  if (pid == 0) {
+    // Only async-signal-safe calls between fork and exec.
+    const rlimit limit{as_limit, as_limit};
+    if (as_limit > 0 && ::setrlimit(RLIMIT_AS, &limit) != 0) ::_exit(126);
+    const int fd = ::open(out.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    if (fd < 0 || ::dup2(fd, 1) < 0 || ::dup2(fd, 2) < 0) ::_exit(126);
+    ::execv(argv[0], argv.data());
+    ::_exit(127);
+  }
+  Measured m;
+  if (pid < 0) return m;
+  int status = 0;
+  rusage usage{};
+  if (::wait4(pid, &status, 0, &usage) != pid) return m;
+  m.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+  m.peak_rss_bytes = static_cast<std::size_t>(usage.ru_maxrss) * 1024;  // Linux: kilobytes
+  return m;
+}
+
+// Issue 24: a validly signed 100,000-vertex zig-zag (every edge spanning the zone's whole
+// height) took a gateway to 1.6 GB resident and was OOM-killed under a 256 MB limit. The shipped
+// `fleetgw zones check` judges it exactly as a gateway does: under the issue's 256 MiB (of
+// address space: the binary maps ~24 MiB to judge a 4-vertex bundle, the fixed code judges
+// the zig-zag in under 48 MiB) it must be accepted, and its peak resident memory must stay
+// within zone_bundle.h's judging_bytes_bound() over that of the same binary judging a 4-vertex
+// bundle.
+TEST_F(ZonesCli, TheLargestZigZagBundleIsJudgedUnderAMemoryLimitWithinItsBound) {
+  const auto key = command::Ed25519PrivateKey::generate();
+  std::ofstream(dir / "fleetgw.toml")
+      << "[command.trusted_keys]\nops = \"" << key.public_key().base64() << "\"\n";
+  v1::ZoneBundle big;
+  big.set_version(1);
+  big.set_issued_at_us(1'790'000'000'000'000);
+  testing::add_zone(big, "zig-zag", v1::ZONE_KIND_SLOW, {testing::zig_zag(100'000, 3000)}, 12);
+  const std::string payload = sign_zone_bundle(big, key, "ops");
+  std::ofstream(dir / "big.pb", std::ios::binary) << payload;
+  v1::ZoneBundle tiny;
+  tiny.set_version(1);
+  tiny.set_issued_at_us(1'790'000'000'000'000);
+  testing::add_zone(tiny, "square", v1::ZONE_KIND_SLOW, {testing::rect(0, 0, 100, 100)}, 12);
+  std::ofstream(dir / "tiny.pb", std::ios::binary) << sign_zone_bundle(tiny, key, "ops");
+
+  auto check = [&](const char* bundle) {
+    return std::vector<std::string>{FLEETGW_BIN,  "zones",    "check",
+                                    path(bundle), "--config", path("fleetgw.toml")};
+  };
+#ifdef FLEETGW_ASAN
+  // ASan reserves terabytes of address space for its shadow: no RLIMIT_AS; its redzones,
+  // shadow and quarantine of freed blocks cost up to about twice the heap more.
+  const rlim_t limit = 0;
+  const std::size_t overhead = 3;
+#else
+  // Before the fix the zig-zag needed 1.6 GB: std::bad_alloc here, exit 1.
+  const rlim_t limit = rlim_t{256} << 20;
+  const std::size_t overhead = 1;
+#endif
+  const Measured baseline = run_limited(check("tiny.pb"), dir / "tiny.out", limit);
+  ASSERT_EQ(baseline.exit_code, 0) << fleetgw::testing::read_text_file(dir / "tiny.out");
+  const Measured judged = run_limited(check("big.pb"), dir / "big.out", limit);
+  const std::string out = fleetgw::testing::read_text_file(dir / "big.out");
+  ASSERT_EQ(judged.exit_code, 0) << out;
+  EXPECT_NE(out.find("accepted: version 1 in force: 1 zones, 100000 vertices"), std::string::npos)
+      << out;
+  const std::size_t bound = judging_bytes_bound(payload.size(), 100'000, 1);
+  EXPECT_LE(judged.peak_rss_bytes, baseline.peak_rss_bytes + overhead * bound)
+      << "peak RSS " << judged.peak_rss_bytes / 1024 << " kB judging " << payload.size()
+      << " bytes, " << baseline.peak_rss_bytes / 1024 << " kB for a 4-vertex bundle, bound "
+      << bound / 1024 << " kB";
 }
 
 TEST_F(ZonesCli, AnInvalidZoneFileIsRefusedSayingWhereAndNothingIsWritten) {

@@ -4,7 +4,8 @@
 // technician's view), from its bundle file and from its log. Then, with a real gpsd fed by
 // gpsfake, a bundle replaced at run time applies at the current fix at once (the
 // outside_operating_area alarm, also in the retained VehicleState), and a lock made on the bike
-// in a no-parking zone is reported on .../zone. Every wait is for a condition.
+// in a no-parking zone is reported on .../zone. A bundle on the vehicle's own topic must be
+// signed for that vehicle (`zones sign --vehicle`, issue 24). Every wait is for a condition.
 #include <gtest/gtest.h>
 #include <mqtt/async_client.h>
 #include <unistd.h>
@@ -110,6 +111,18 @@ TEST(ZonesOverMqtt, BundlesAreJudgedStoredAndKeptAndEveryRefusalIsNamed) {
   const std::string v1 = ops.bundle(1, {area(1)});
   const std::string v2 = ops.bundle(2, {area(2)});
   const std::string v3 = ops.bundle(3, {area(3)});
+  // Version 3 signed for one vehicle (`zones sign --vehicle`), from the GeoJSON the operator
+  // wrote for it (zone_operator.h: <dir>/zones-3.geojson).
+  const auto signed_for = [&](const std::string& for_vehicle) {
+    const auto out = dir.path() / ("zones-3-" + for_vehicle + ".pb");
+    fleetgw::testing::run_program(
+        {FLEETGW_BINARY, "zones", "sign", (dir.path() / "zones-3.geojson").string(), "--version",
+         "3", "--key", ops.key_file().string(), "--vehicle", for_vehicle, "--out", out.string()},
+        dir.path() / "sign.out");
+    return read_file(out);
+  };
+  const std::string v3_own = signed_for(vehicle);
+  const std::string v3_other = signed_for("zone-mqtt-9");
   std::string forged = ops.bundle(4, {area(4)});
   forged[forged.size() - 10] ^= 0x01;  // inside the signature (only key id "ops" follows it)
 
@@ -202,13 +215,34 @@ TEST(ZonesOverMqtt, BundlesAreJudgedStoredAndKeptAndEveryRefusalIsNamed) {
   EXPECT_NE(text.find("geofence version 2 in force: 1 zones"), std::string::npos) << text;
   EXPECT_NE(text.find("last refused on fleet/v1/zones"), std::string::npos) << text;
 
-  // Still serving: a newer bundle on the vehicle's own topic is accepted and stored.
+  // Replayed on this vehicle's own topic, a newer bundle signed for another vehicle, and a
+  // fleet-wide one (it names no vehicle): each refused as wrong_vehicle, version 2 staying.
+  const std::string own_topic = "fleet/v1/" + vehicle + "/zones";
+  const std::vector<std::pair<std::string, std::string>> replays = {
+      {v3_other, "signed for vehicle 'zone-mqtt-9', received on the vehicle's own topic of '" +
+                     vehicle + "'"},
+      {v3, "the bundle names no vehicle"},
+  };
+  for (const auto& [payload, detail] : replays) {
+    publish_retained(broker.uri(), own_topic, payload);
+    ASSERT_TRUE(received(++n)) << detail << gw.log();
+    s = status_of(dir, config);
+    EXPECT_EQ(geofence_field(s, "last_refusal_reason"), "wrong_vehicle") << s.dump(2);
+    EXPECT_EQ(geofence_field(s, "last_refusal_topic"), own_topic);
+    EXPECT_EQ(geofence_field(s, "version"), 2);
+    EXPECT_TRUE(gw.log_contains(detail)) << gw.log();
+    EXPECT_EQ(read_file(bundle_file), v2);
+  }
+
+  // Still serving: a newer bundle signed for this vehicle, on its own topic, is accepted and
+  // stored.
   ASSERT_TRUE(gw.running()) << gw.log();
-  publish_retained(broker.uri(), "fleet/v1/" + vehicle + "/zones", v3);
+  publish_retained(broker.uri(), own_topic, v3_own);
   ASSERT_TRUE(wait_until([&] { return geofence_field(status_of(dir, config), "version") == 3; },
                          30s, 100ms))
       << gw.log();
-  EXPECT_EQ(read_file(bundle_file), v3);
+  EXPECT_EQ(read_file(bundle_file), v3_own);
+  EXPECT_TRUE(gw.log_contains("for vehicle '" + vehicle + "'")) << gw.log();
   EXPECT_EQ(gw.stop(), 0) << gw.log();
 }
 
