@@ -337,7 +337,7 @@ int run_cli(int argc, char** argv) {
                              "key id (default: the key file's stem)");
   zones_sign_cmd->add_option("--out", zones_sign.out, "signed bundle file to write")->required();
   zones_sign_cmd->add_option("--vehicle", zones_sign.vehicle_id,
-                             "sign for this vehicle only (its own zones topic); default: fleet-wide");
+                             "sign for this vehicle only (default: fleet-wide)");
   auto* zones_check_cmd = zones_cmd->add_subcommand(
       "check", "judge a signed zone bundle as a gateway would (keys from --config)");
   geofence::ZonesCheckOptions zones_check;
