@@ -1,5 +1,6 @@
 // A payload's way in: authenticate (one parse), recognise a redelivery or a reused id, judge
-// freshness, then the checks that must hold before the first CAN write.
+// freshness, then the checks that must hold before the first CAN write. And the `busy` answer
+// for an authenticated command the uplink's full queue could not take.
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
@@ -19,6 +20,36 @@ Disposition CommandService::Impl::on_payload(std::span<const std::uint8_t> paylo
   if (auto* rej = std::get_if<Rejection>(&auth)) return reject(*rej, now, std::nullopt);
   auto& cmd = std::get<VerifiedCommand>(auth);
 
+  if (auto known_answer = answer_known(cmd, now)) return *known_answer;
+
+  const Micros wall_now = wall(now);
+  const bool synced = context.clock_synchronised(wall_now);
+  const auto seen = [this](std::string_view id, Micros at) {
+    try {
+      return context.store.command_seen(id, at.count());
+    } catch (const std::exception& e) {
+      // Unknown counts as seen: executing a possible replay is worse than refusing.
+      spdlog::error("command {}: seen-id lookup failed: {}", id, e.what());
+      return true;
+    }
+  };
+  if (auto rej = verifier.check(cmd, wall_now, synced, seen)) {
+    // A replay whose journal entry is gone (purged) gets no new journal row either.
+    const bool journal = rej->reason != RejectReason::kReplayed;
+    if (journal) remember(cmd, std::max(cmd.expires_at, wall_now + config.rejected_retention));
+    return reject(*rej, now, journal ? std::optional<Micros>(cmd.expires_at) : std::nullopt,
+                  !journal);
+  }
+  if (cmd.mc.kind != McActionKind::kNone) return on_mc_command(std::move(cmd), now);
+  if (auto rej = preflight(cmd, now)) {
+    remember(cmd, std::max(cmd.expires_at, wall_now + config.rejected_retention));
+    return reject(*rej, now, cmd.expires_at);
+  }
+  return start(std::move(cmd), now);
+}
+
+std::optional<Disposition> CommandService::Impl::answer_known(const VerifiedCommand& cmd,
+                                                              Micros now) {
   auto reused_id = [&] {
     // Not journaled again: the journal entry belongs to the first command with this id.
     return reject({RejectReason::kReplayed, "command id already used by a different command",
@@ -47,31 +78,26 @@ Disposition CommandService::Impl::on_payload(std::span<const std::uint8_t> paylo
     if (it != known.end() && it->second.first != cmd.command_sha256) return reused_id();
     return duplicate(*entry, cmd.command_sha256, now);
   }
+  return std::nullopt;
+}
 
-  const Micros wall_now = wall(now);
-  const bool synced = context.clock_synchronised(wall_now);
-  const auto seen = [this](std::string_view id, Micros at) {
-    try {
-      return context.store.command_seen(id, at.count());
-    } catch (const std::exception& e) {
-      // Unknown counts as seen: executing a possible replay is worse than refusing.
-      spdlog::error("command {}: seen-id lookup failed: {}", id, e.what());
-      return true;
-    }
-  };
-  if (auto rej = verifier.check(cmd, wall_now, synced, seen)) {
-    // A replay whose journal entry is gone (purged) gets no new journal row either.
-    const bool journal = rej->reason != RejectReason::kReplayed;
-    if (journal) remember(cmd, std::max(cmd.expires_at, wall_now + config.rejected_retention));
-    return reject(*rej, now, journal ? std::optional<Micros>(cmd.expires_at) : std::nullopt,
-                  !journal);
-  }
-  if (cmd.mc.kind != McActionKind::kNone) return on_mc_command(std::move(cmd), now);
-  if (auto rej = preflight(cmd, now)) {
-    remember(cmd, std::max(cmd.expires_at, wall_now + config.rejected_retention));
-    return reject(*rej, now, cmd.expires_at);
-  }
-  return start(std::move(cmd), now);
+// The uplink's queue was full. Nothing is judged beyond the signature (checked on Paho's
+// thread), nothing journaled or marked as seen: the operator may send the same command again.
+// Never rate limited: each one is an authenticated command, and its sender waits for an answer.
+Disposition CommandService::Impl::answer_busy(VerifiedCommand cmd, Micros now) {
+  ++stats.payloads;
+  if (auto known_answer = answer_known(cmd, now)) return *known_answer;
+  v1::CommandResult r;
+  r.set_command_id(cmd.command_id);
+  r.set_command_sha256(cmd.command_sha256);
+  r.set_result(v1::COMMAND_RESULT_CODE_REJECTED);
+  r.set_reason(
+      "busy: the gateway's command queue was full; not executed and not recorded as used, send "
+      "it again");
+  count(r);
+  spdlog::warn("command {}: rejected: busy (command queue full)", cmd.command_id);
+  store_result(std::move(r), now, std::nullopt, std::nullopt);
+  return Disposition::kBusy;
 }
 
 std::optional<Rejection> CommandService::Impl::preflight(const VerifiedCommand& cmd, Micros now) {

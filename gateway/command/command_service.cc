@@ -81,6 +81,8 @@ std::string_view disposition_name(Disposition d) {
       return "duplicate_answered";
     case Disposition::kDropped:
       return "dropped";
+    case Disposition::kBusy:
+      return "busy";
   }
   return "unknown";
 }
@@ -177,6 +179,34 @@ Disposition CommandService::on_payload(std::span<const std::uint8_t> payload, Mi
 Disposition CommandService::on_payload(std::string_view payload, Micros now) {
   return impl_->on_payload({reinterpret_cast<const std::uint8_t*>(payload.data()), payload.size()},
                            now);
+}
+
+Disposition CommandService::answer_busy(std::string_view command_id,
+                                        std::string_view command_sha256, Micros now) {
+  VerifiedCommand cmd;
+  cmd.command_id = std::string(command_id);
+  cmd.command_sha256 = std::string(command_sha256);
+  return impl_->answer_busy(std::move(cmd), now);
+}
+
+PayloadAuthenticator CommandService::authenticator() const {
+  // Its own verifier, built from the same configuration: immutable after construction, so the
+  // Paho thread shares no state with this service (which lives on the owner's thread).
+  auto verifier = std::make_shared<const CommandVerifier>(impl_->config.verifier);
+  return [verifier](std::span<const std::uint8_t> payload) {
+    PayloadAuthentication out;
+    VerifyResult r = verifier->authenticate(payload);
+    if (auto* cmd = std::get_if<VerifiedCommand>(&r)) {
+      out.authenticated = true;
+      out.command_id = std::move(cmd->command_id);
+      out.command_sha256 = std::move(cmd->command_sha256);
+    } else if (auto* rej = std::get_if<Rejection>(&r); rej->authenticated) {
+      out.authenticated = true;  // wrong_vehicle: signed by a trusted key, refused later
+      out.command_id = std::move(rej->command_id);
+      out.command_sha256 = std::move(rej->command_sha256);
+    }
+    return out;
+  };
 }
 
 void CommandService::on_message(const motinova::DecodedMessage& msg, Micros now) {

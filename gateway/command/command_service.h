@@ -20,9 +20,11 @@
 //    definite "we do not know" is safer than a guess. The lock's real state still reaches the
 //    backend as lock events.
 //  * Exactly one CommandResult per authenticated command id (rejections included: the id is
-//    journaled with the rejection). It is written with the journal's final state in ONE
-//    transaction, at outbox priority 0 (kind command_result -> uplink cmd_result) with the
-//    serialized fleetgw.v1.CommandResult as payload, so it survives outages and restarts; after
+//    journaled with the rejection). The one exception is `busy` (answer_busy(): the uplink's
+//    queue was full): it says "not taken, nothing happened", is not journaled, and the same
+//    command sent again gets its one real result. A result is written with the journal's final
+//    state in ONE transaction, at outbox priority 0 (kind command_result -> uplink cmd_result) with
+//    the serialized fleetgw.v1.CommandResult as payload, so it survives outages and restarts; after
 //    each stored result CommandContext::result_stored() runs (the pipeline publishes at once).
 //  * Every result carries command_sha256, the SHA-256 of the exact SignedCommand.command bytes
 //    it answers, and `stored`. A payload that fails authentication never touches the journal,
@@ -159,6 +161,7 @@ enum class Disposition : std::uint8_t {
   kDuplicateInProgress,  // same id still executing: ignored, the result follows
   kDuplicateAnswered,    // same id finished earlier: its stored result was queued again
   kDropped,              // not answered: result rate limit reached (counted and logged)
+  kBusy,                 // answered `busy` (answer_busy()): not judged, not journaled
 };
 std::string_view disposition_name(Disposition d);
 
@@ -179,6 +182,17 @@ struct CommandStats {
   std::map<std::string, std::uint64_t> rejections;  // by reason name
 };
 
+// The signature check the uplink runs on Paho's thread before a payload is queued
+// (docs/commands.md "Bursts and floods"): authenticated means a trusted key's valid signature
+// over the command bytes (checks 1-3 of verifier.h passed; a command for another vehicle is
+// authenticated too, and refused later as wrong_vehicle).
+struct PayloadAuthentication {
+  bool authenticated = false;
+  std::string command_id;      // when authenticated
+  std::string command_sha256;  // when authenticated: SHA-256 of the signed command bytes
+};
+using PayloadAuthenticator = std::function<PayloadAuthentication(std::span<const std::uint8_t>)>;
+
 class CommandService {
  public:
   // Called with every result produced or re-sent, after it was stored (stored() true) or handed
@@ -195,6 +209,17 @@ class CommandService {
   std::size_t recover(Micros now);
   Disposition on_payload(std::span<const std::uint8_t> payload, Micros now);
   Disposition on_payload(std::string_view payload, Micros now);
+  // An authenticated command the uplink's full queue could not take (Uplink::
+  // take_busy_commands()). A new id is answered `rejected`, reason "busy: ...", always (no rate
+  // limit), bound to `command_sha256`, and NOT journaled or marked as seen: the same command
+  // sent again is judged and run normally. An id this service already answered or is running is
+  // treated as the redelivery it is (the stored result again, or nothing while it runs), and a
+  // different command reusing such an id as `replayed`: never two different answers for one id.
+  Disposition answer_busy(std::string_view command_id, std::string_view command_sha256, Micros now);
+  // A stateless, thread-safe signature check over an immutable copy of the trusted keys (it
+  // shares nothing with this service and may outlive it): for the uplink's Paho thread. One
+  // SignedCommand and one Command parse and at most one Ed25519 verification per call.
+  PayloadAuthenticator authenticator() const;
   void on_message(const motinova::DecodedMessage& msg, Micros now);
   void tick(Micros now);
 

@@ -2,7 +2,8 @@
 // the functions of its parts, one idea per source file:
 //   command_service.cc    the public wrapper, configuration, start-up recovery and purging
 //   command_intake.cc     a payload's way in: authenticate once, redelivery or id reuse,
-//                         freshness checks, the pre-flight checks (offline, busy, interlocks)
+//                         freshness checks, the pre-flight checks (offline, busy, interlocks);
+//                         `busy` for what the uplink's full queue could not take
 //   command_execution.cc  the journal-first start and the lock-by-lock sequence on the bus
 //   command_results.cc    results: built, stored with the journal (or published unstored and
 //                         journaled later), rejections, re-sent answers, the rate limit
@@ -103,6 +104,10 @@ struct CommandService::Impl : std::enable_shared_from_this<CommandService::Impl>
 
   // command_intake.cc
   Disposition on_payload(std::span<const std::uint8_t> payload, Micros now);
+  // An id answered before (stored or unstored), running, or reused by different bytes: its
+  // answer. nullopt: a new id. Needs only cmd.command_id and cmd.command_sha256.
+  std::optional<Disposition> answer_known(const VerifiedCommand& cmd, Micros now);
+  Disposition answer_busy(VerifiedCommand cmd, Micros now);
   std::optional<Rejection> preflight(const VerifiedCommand& cmd, Micros now);
   std::vector<int> lock_indices(const VerifiedCommand& cmd) const;
   std::optional<Rejection> interlock(int k, node::LockTarget target, Micros now);

@@ -125,6 +125,14 @@ Pipeline::Pipeline(asio::io_context& io, const config::Config& config, BusTransp
     } catch (const std::exception& e) {
       throw PipelineError(std::string("invalid [mqtt] configuration: ") + e.what());
     }
+    // Junk cannot crowd out signed commands: Paho's thread checks each signature before it is
+    // queued (docs/commands.md "Bursts and floods").
+    uplink_->set_command_authenticator(
+        [auth = commands_->authenticator()](std::string_view payload) {
+          auto a = auth({reinterpret_cast<const std::uint8_t*>(payload.data()), payload.size()});
+          return uplink::CommandTriage{a.authenticated, std::move(a.command_id),
+                                       std::move(a.command_sha256)};
+        });
     // Paho's threads only raise a flag and, once, post a settle to the loop.
     uplink_->set_wakeup([this, token = std::weak_ptr<int>(alive_)] {
       if (uplink_woken_.exchange(true)) return;
@@ -264,6 +272,12 @@ void Pipeline::settle() {
           const auto d = commands_->on_payload(payload, bus_now());
           spdlog::info("command received: {}", command::disposition_name(d));
           core_.deliver_echoes();  // the LOCK/UNLOCK it sent, after the command's own work
+          more = true;
+        }
+        // What the full queue could not take: each answered `busy`, none silently lost.
+        for (const auto& busy : uplink_->take_busy_commands()) {
+          ++counters_.commands;
+          commands_->answer_busy(busy.command_id, busy.command_sha256, bus_now());
           more = true;
         }
         // Zone bundles: judged here, on the loop, like commands (Paho only queued them).

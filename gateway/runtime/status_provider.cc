@@ -177,6 +177,20 @@ nlohmann::json make_status_json(const StatusInputs& in) {
     }
   }
   j["broker"] = std::move(broker);
+  if (in.uplink) {
+    // Every command payload the uplink did not hand on, by class (docs/commands.md "Bursts and
+    // floods"); `busy` ones were answered.
+    const auto s = in.uplink->stats();
+    j["commands"] = {{"received", s.commands_received},
+                     {"unauthenticated", s.commands_unauthenticated},
+                     {"busy", s.commands_busy},
+                     {"dropped", s.commands_dropped},
+                     {"dropped_by_reason",
+                      {{"oversized", s.commands_dropped_oversized},
+                       {"undecodable", s.commands_dropped_undecodable},
+                       {"unauthenticated", s.commands_dropped_unauthenticated},
+                       {"queue_full", s.commands_dropped_queue_full}}}};
+  }
 
   uint64_t depth = 0;
   for (const auto& d : in.store.outbox_depth()) depth += d.entries;

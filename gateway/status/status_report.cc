@@ -262,6 +262,24 @@ std::string format_summary(const json& s, const std::vector<Attention>& findings
     line("broker", text);
   }
 
+  if (const json* c = member(s, "commands"); c && c->is_object()) {
+    std::string text =
+        fmt::format("{} received ({} unauthenticated), {} answered busy", count(*c, "received"),
+                    count(*c, "unauthenticated"), count(*c, "busy"));
+    const json* by = member(*c, "dropped_by_reason");
+    text += fmt::format("\n         {} dropped", count(*c, "dropped"));
+    if (by && by->is_object() && count(*c, "dropped") > 0) {
+      std::string classes;
+      for (const auto& [k, v] : by->items()) {
+        if (v.is_number() && v.get<double>() > 0) {
+          classes += fmt::format("{}{} {}", classes.empty() ? "" : ", ", k, v.dump());
+        }
+      }
+      if (!classes.empty()) text += " (" + classes + ")";
+    }
+    line("commands", text);
+  }
+
   const json& outbox = sec("outbox");
   const auto oldest = num(outbox, "oldest_unsent_age_s");
   line("outbox", fmt::format("{} records{}", count(outbox, "depth"),

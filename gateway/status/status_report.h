@@ -22,6 +22,11 @@
 //                "protocol": "5", "publish_refusals": 3, "refused_records": 1,
 //                "last_publish_refusal": "0x87 Not authorized (fleet/v1/bike-0001/ride)",
 //                "last_publish_refusal_code": 135, "last_publish_refusal_us": 0},  // optional
+//     "commands": {"received": 20, "unauthenticated": 3, "busy": 84, "dropped": 5,
+//                "dropped_by_reason": {"oversized": 1, "undecodable": 1, "unauthenticated": 3,
+//                                      "queue_full": 0}},   // optional section (broker enabled):
+//                // payloads on cmd handed to the command service (of them unauthenticated),
+//                // answered busy, and dropped unanswered by class (docs/commands.md)
 //     "outbox": {"depth": 12, "oldest_unsent_age_s": 120.5 | null},
 //     "disk":   {"used_bytes": 1048576, "budget_bytes": 268435456},   // effective budget
 //     "storage": {"failing": true, "last_error": "disk full (SQLITE_FULL)", "failed_writes": 7,

@@ -11,7 +11,6 @@
 #include <random>
 #include <utility>
 
-#include "fleetgw/v1/command.pb.h"
 #include "gateway/uplink/connect_diagnosis.h"
 #include "gateway/uplink/mqtt5.h"
 #include "gateway/uplink/mqtt_connection.h"
@@ -39,9 +38,7 @@ namespace {
 using std::chrono::duration_cast;
 using std::chrono::milliseconds;
 
-// Dropped commands at least this large are followed by a heap trim: glibc keeps freed memory of
-// a large message in the process otherwise (issue 11, item 8).
-constexpr std::size_t kTrimAfterBytes = 256 * 1024;
+using detail::kTrimAfterBytes;  // command_inbox.h
 // The trim waits until Paho has freed its own copies of the message.
 constexpr Micros kTrimDelay = std::chrono::milliseconds(200);
 // The client is replaced at most this often after oversized messages (recycle_client()).
@@ -127,27 +124,9 @@ void Uplink::Impl::on_message(const mqtt::message& msg) {
     on_zone_message(msg);
     return;
   }
-  // By reference: an oversized payload is never copied, only measured.
+  // By reference: an oversized payload is never copied, only measured (uplink_commands.cc).
   const auto& payload = msg.get_payload_ref();
-  if (payload.size() > config.max_command_bytes) {
-    events.push(detail::CommandDropped{"oversized command (" + std::to_string(payload.size()) +
-                                           " bytes > " + std::to_string(config.max_command_bytes) +
-                                           ")",
-                                       payload.size() >= kTrimAfterBytes});
-    return;
-  }
-  v1::SignedCommand cmd;
-  if (!cmd.ParseFromArray(payload.data(), static_cast<int>(payload.size())) ||
-      cmd.command().empty()) {
-    events.push(detail::CommandDropped{"undecodable command (" + std::to_string(payload.size()) +
-                                       " bytes, not a fleetgw.v1.SignedCommand)"});
-    return;
-  }
-  if (events.queued_commands() >= config.max_queued_commands) {
-    events.push(detail::CommandDropped{"command queue full"});
-    return;
-  }
-  events.push(detail::CommandArrived{payload.str()});
+  detail::triage_command({payload.data(), payload.size()}, config, commands.authenticator, events);
 }
 
 // A zone bundle is judged on the owner's thread (ZoneController); here it is only measured and
@@ -396,13 +375,8 @@ void Uplink::Impl::handle(Micros, detail::ZoneBundleDropped& e) {
   ++counters.zone_bundles_dropped;
   spdlog::warn("uplink: dropped message on {}: {}", e.topic, e.reason);
 }
-void Uplink::Impl::handle(Micros, detail::CommandArrived& e) {
-  ++counters.commands_received;
-  commands.push_back(std::move(e.payload));
-}
 void Uplink::Impl::handle(Micros now, detail::CommandDropped& e) {
-  ++counters.commands_dropped;
-  spdlog::warn("uplink: dropped message on {}: {}", topics.cmd, e.reason);
+  detail::record_drop(commands, counters, topics.cmd, now, e);
   if (e.large && recycle_due.count() == 0) {
     // At most one replacement per kRecycleInterval, so a flood cannot keep the link down.
     recycle_due = std::max(now + kTrimDelay, last_recycle + kRecycleInterval);
@@ -435,13 +409,11 @@ void Uplink::Impl::stop(Micros now, milliseconds timeout) {
   claimed.clear();
   forget_refused();
   batch = PendingBatch{};
-  std::size_t dropped_commands = commands.size();
-  for (const auto& ev : events.take()) {
-    dropped_commands += std::holds_alternative<detail::CommandArrived>(ev) ? 1 : 0;
+  const auto leftover = events.take();
+  for (const auto& ev : leftover) {
     if (std::holds_alternative<detail::ZoneBundleArrived>(ev)) events.zone_bundles_taken(1);
   }
-  events.commands_taken(dropped_commands);
-  commands.clear();
+  discard_command_events(leftover);
   events.zone_bundles_taken(zone_bundles.size());
   zone_bundles.clear();
 }
@@ -509,12 +481,6 @@ void Uplink::start(Micros now) {
 
 void Uplink::poll(Micros now) {
   impl_->poll(now);
-}
-
-std::vector<std::string> Uplink::take_commands() {
-  auto out = std::exchange(impl_->commands, {});
-  impl_->events.commands_taken(out.size());
-  return out;
 }
 
 std::vector<ZoneBundleMessage> Uplink::take_zone_bundles() {

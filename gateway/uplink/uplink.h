@@ -39,11 +39,28 @@
 //    retry.
 //  * Security: TLS verification (chain and host name) on by default (mqtt_connection.h); the
 //    password is never logged, URIs are logged without user information.
-//  * Commands: payloads on <prefix>/<vehicle_id>/cmd larger than max_command_bytes are dropped
-//    on Paho's thread before anything is copied or parsed (and the heap is trimmed after large
-//    ones); payloads not decodable as fleetgw.v1.SignedCommand are dropped too; at most
-//    max_queued_commands wait for take_commands(), more are dropped. All drops are logged and
-//    counted.
+//  * Commands (docs/commands.md "Bursts and floods"): on Paho's thread, a payload on
+//    <prefix>/<vehicle_id>/cmd larger than max_command_bytes is dropped before anything is copied
+//    or parsed (and the heap is trimmed after large ones), one not decodable as
+//    fleetgw.v1.SignedCommand is dropped too. The rest is judged by the owner's authenticator
+//    (set_command_authenticator(): a pure signature check, one Ed25519 verification) BEFORE it
+//    is queued, into separate lanes, so junk can never take an authenticated command's place:
+//      - authenticated: at most max_queued_commands payloads wait for take_commands(); every
+//        further one becomes a busy notice (id and digest only, at most kMaxBusyCommands = 1024
+//        waiting) for take_busy_commands(), which the owner answers `busy`. Only beyond that
+//        (more than max_queued_commands + 1024 authenticated commands arriving between two
+//        polls) is one dropped unanswered, as "queue_full".
+//      - unauthenticated (no trusted key's valid signature): at most
+//        kMaxQueuedUnauthenticated = 4 wait on Paho's side, and poll() hands at most
+//        kUnauthenticatedBurst = 10 at once and 30 per minute (a token bucket on the `now`
+//        timeline) to take_commands(), where the owner answers them rate limited; the rest is
+//        dropped as "unauthenticated". A junk flood thus costs the owner's thread at most 30
+//        payloads a minute, and Paho's thread one verification per message (the bound on the
+//        delay it adds to a genuine command queued behind it: docs/commands.md).
+//    Without an authenticator (tests, tools) every decodable payload takes the authenticated
+//    lane, without busy notices: beyond max_queued_commands it is dropped as "queue_full". Each
+//    drop is counted by class (UplinkStats) and logged, at most once per 10 s per class with
+//    the number suppressed since.
 //  * Zone bundles (config.zone_topics, docs/location.md): each topic is subscribed (QoS 1) on
 //    every connect, so the broker delivers its retained bundle each time. A payload larger than
 //    max_zone_bundle_bytes is never copied: it is handed over as its size only (the owner refuses
@@ -95,8 +112,8 @@ struct UplinkStats {
   std::uint64_t reconnects = 0;             // successful connections after the first
   std::uint64_t connect_failures = 0;       // failed connect attempts
   std::uint64_t connection_losses = 0;      // established connections that dropped
-  std::uint64_t commands_received = 0;      // commands queued for take_commands()
-  std::uint64_t commands_dropped = 0;       // oversized, undecodable or overflowing commands
+  std::uint64_t commands_received = 0;      // payloads handed to take_commands()
+  std::uint64_t commands_dropped = 0;       // unanswered: the sum of the four classes below
   std::uint64_t zone_bundles_received = 0;  // handed to take_zone_bundles() (oversized included)
   std::uint64_t zone_bundles_dropped = 0;   // the queue was full
   std::size_t in_flight_messages = 0;       // publishes awaiting their token
@@ -104,6 +121,14 @@ struct UplinkStats {
   std::size_t in_flight_high_water = 0;     // most publishes ever awaiting their token at once
   std::uint64_t outbox_depth = 0;           // from the OutboxSource
   std::int64_t oldest_unsent_created_us = 0;
+  // Command payloads (the "Commands" lanes above): of commands_received, the unauthenticated
+  // ones (answered rate limited); busy notices handed to take_busy_commands(); drops by class.
+  std::uint64_t commands_unauthenticated = 0;
+  std::uint64_t commands_busy = 0;
+  std::uint64_t commands_dropped_oversized = 0;        // over max_command_bytes
+  std::uint64_t commands_dropped_undecodable = 0;      // not a SignedCommand
+  std::uint64_t commands_dropped_unauthenticated = 0;  // over the unauthenticated budget
+  std::uint64_t commands_dropped_queue_full = 0;       // authenticated, over every bound
   std::int64_t last_publish_ok_us = 0;  // `now` of the poll that saw the last success; 0 never
   std::chrono::milliseconds last_backoff{0};  // the most recent reconnect delay chosen
   std::int64_t next_connect_at_us = 0;        // when kWaitingToReconnect: next attempt
@@ -122,6 +147,23 @@ struct UplinkStats {
   std::int64_t last_publish_refusal_us = 0;  // `now` when it came; 0 when empty
   std::size_t refused_records = 0;           // records held for the next retry
   std::int64_t refusal_retry_at_us = 0;      // when they are retried; 0 = nothing held
+};
+
+// The owner's verdict on a command payload (set_command_authenticator()).
+struct CommandTriage {
+  bool authenticated = false;  // a trusted key's signature verifies over its command bytes
+  std::string command_id;      // when authenticated
+  std::string command_sha256;  // when authenticated: SHA-256 of the signed command bytes (raw)
+};
+// Runs on Paho's thread: must be thread-safe, must not block, and must judge only the payload
+// (an immutable snapshot of the trusted keys; no journal, no clock).
+using CommandAuthenticator = std::function<CommandTriage(std::string_view payload)>;
+
+// An authenticated command the full queue could not take: the owner answers it `busy` (not
+// journaled, so the same command sent again runs normally).
+struct BusyCommand {
+  std::string command_id;
+  std::string command_sha256;
 };
 
 // A message of a zone-bundle topic, for the owner to judge.
@@ -144,6 +186,9 @@ class Uplink {
 
   // Set before start(). The wake-up hook is called on Paho threads: thread-safe, non-blocking.
   void set_wakeup(std::function<void()> wakeup);
+  // Set before start(): sorts command payloads into the authenticated and unauthenticated lanes
+  // on Paho's thread (see "Commands" above).
+  void set_command_authenticator(CommandAuthenticator authenticator);
   // Reported in Status messages; a change republishes the retained status at the next poll.
   void set_bus_state(fleetgw::v1::BusState state);
   // Completes every Status the uplink publishes (the retained one and the last will) with what
@@ -157,8 +202,12 @@ class Uplink {
   // Blocks until a Paho event is queued or `max_wait` passed; true if events are queued.
   bool wait_for_events(std::chrono::milliseconds max_wait);
   // Commands received since the last call (raw serialized fleetgw.v1.SignedCommand payloads, in
-  // arrival order), already checked for size and decodability. Call after poll().
+  // arrival order; authenticated and, within their budget, unauthenticated ones), already
+  // checked for size and decodability. Call after poll().
   std::vector<std::string> take_commands();
+  // Authenticated commands the full queue could not take since the last call, in arrival order:
+  // each must be answered `busy`. Call after poll(), after handling take_commands().
+  std::vector<BusyCommand> take_busy_commands();
   // Zone-bundle messages received since the last call, in arrival order. Call after poll().
   std::vector<ZoneBundleMessage> take_zone_bundles();
   // Publishes one record that is not in the outbox (QoS 1, sequence 0), e.g. a command result

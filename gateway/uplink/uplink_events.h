@@ -3,7 +3,8 @@
 // Contract: events are plain values, nothing refers to Paho objects. EventQueue is the only
 // state shared between those threads and the owner's thread: push() is thread-safe and calls
 // the wake-up hook after every event; take() moves all queued events out. The number of queued
-// commands is tracked in an atomic so the Paho thread can bound it without scanning the queue.
+// commands (per lane: authenticated, unauthenticated, busy notices) and zone bundles is tracked
+// in atomics so the Paho thread can bound each without scanning the queue.
 // Listeners tag tokens with our own integer id (never a pointer), so a late completion of a
 // publish already given up on is simply ignored. Reason codes are taken only when they are a
 // real MQTT 5 code (0..0xFE): Paho marks 3.1.1 tokens with MQTTPP_V3_CODE (0xFF), which MQTT 5
@@ -51,8 +52,24 @@ struct SubscribeDone {
 };
 struct CommandArrived {
   std::string payload;
+  // The owner's authenticator found a trusted key's valid signature (always true without an
+  // authenticator). Each lane has its own bound (uplink.h "Commands").
+  bool authenticated = true;
+};
+// An authenticated command the full queue could not take: only what its busy answer needs.
+struct CommandBusy {
+  std::string command_id;
+  std::string command_sha256;
+};
+// Why a command payload was dropped unanswered (UplinkStats counts each class).
+enum class CommandDropClass : std::uint8_t {
+  kOversized,
+  kUndecodable,
+  kUnauthenticated,
+  kQueueFull
 };
 struct CommandDropped {
+  CommandDropClass drop_class;
   std::string reason;
   bool large = false;  // a payload worth returning the heap to the system after
 };
@@ -73,14 +90,18 @@ struct ConnectDiagnosed {
   std::string reason;
 };
 using Event = std::variant<ConnectDone, ConnectionLost, PublishDone, SubscribeDone, CommandArrived,
-                           CommandDropped, ZoneBundleArrived, ZoneBundleDropped, ConnectDiagnosed>;
+                           CommandBusy, CommandDropped, ZoneBundleArrived, ZoneBundleDropped,
+                           ConnectDiagnosed>;
 
 class EventQueue {
  public:
   void push(Event e) {
     {
       std::lock_guard lock(mutex_);
-      if (std::holds_alternative<CommandArrived>(e)) ++queued_commands_;
+      if (const auto* c = std::get_if<CommandArrived>(&e)) {
+        ++(c->authenticated ? queued_commands_ : queued_unauthenticated_);
+      }
+      if (std::holds_alternative<CommandBusy>(e)) ++queued_busy_;
       if (std::holds_alternative<ZoneBundleArrived>(e)) ++queued_zone_bundles_;
       events_.push_back(std::move(e));
     }
@@ -95,10 +116,15 @@ class EventQueue {
     std::unique_lock lock(mutex_);
     return cv_.wait_for(lock, max_wait, [&] { return !events_.empty(); });
   }
-  // Commands queued or waiting for take_commands(); the owner releases them with
-  // commands_taken().
+  // Authenticated commands queued or waiting for take_commands(); the owner releases them with
+  // commands_taken(). The same for unauthenticated payloads and for busy notices
+  // (take_busy_commands()).
   std::size_t queued_commands() const { return queued_commands_.load(); }
   void commands_taken(std::size_t n) { queued_commands_ -= n; }
+  std::size_t queued_unauthenticated() const { return queued_unauthenticated_.load(); }
+  void unauthenticated_taken(std::size_t n) { queued_unauthenticated_ -= n; }
+  std::size_t queued_busy() const { return queued_busy_.load(); }
+  void busy_taken(std::size_t n) { queued_busy_ -= n; }
   // The same for zone bundles (take_zone_bundles()).
   std::size_t queued_zone_bundles() const { return queued_zone_bundles_.load(); }
   void zone_bundles_taken(std::size_t n) { queued_zone_bundles_ -= n; }
@@ -111,6 +137,8 @@ class EventQueue {
   std::condition_variable cv_;
   std::deque<Event> events_;
   std::atomic<std::size_t> queued_commands_{0};
+  std::atomic<std::size_t> queued_unauthenticated_{0};
+  std::atomic<std::size_t> queued_busy_{0};
   std::atomic<std::size_t> queued_zone_bundles_{0};
 };
 

@@ -21,6 +21,7 @@
 
 #include "fleetgw/v1/status.pb.h"
 #include "gateway/uplink/backoff.h"
+#include "gateway/uplink/command_inbox.h"
 #include "gateway/uplink/envelope_writer.h"
 #include "gateway/uplink/uplink.h"
 #include "gateway/uplink/uplink_events.h"
@@ -67,6 +68,8 @@ struct Uplink::Impl {
   void handle(Micros now, detail::PublishDone& e);
   void handle(Micros now, detail::SubscribeDone& e);
   void handle(Micros now, detail::CommandArrived& e);
+  void handle(Micros now, detail::CommandBusy& e);
+  void discard_command_events(const std::deque<detail::Event>& leftover);  // uplink_commands.cc
   void handle(Micros now, detail::CommandDropped& e);
   void handle(Micros now, detail::ZoneBundleArrived& e);
   void handle(Micros now, detail::ZoneBundleDropped& e);
@@ -144,7 +147,7 @@ struct Uplink::Impl {
   std::chrono::milliseconds batch_delay{0};  // telemetry_batch_max_delay, or the parked one
   bool draining = false;  // drain_for_stop(): telemetry batches leave without waiting
   std::function<void(v1::Status&)> status_decorator;
-  std::vector<std::string> commands;            // waiting for take_commands()
+  detail::CommandInbox commands;                // lanes and hand-over (uplink_commands.cc)
   std::vector<ZoneBundleMessage> zone_bundles;  // waiting for take_zone_bundles()
   std::uint64_t connect_attempt = 0;
   std::uint64_t publish_id = 0;

@@ -41,6 +41,13 @@ class LiveGateway {
     c.reconnect_min = 200ms;
     c.reconnect_max = 1000ms;
     link = std::make_unique<uplink::Uplink>(c, outbox);
+    // As the pipeline wires it: signatures checked on Paho's thread before queueing.
+    link->set_command_authenticator(
+        [auth = rig.service->authenticator()](std::string_view payload) {
+          auto a = auth({reinterpret_cast<const std::uint8_t*>(payload.data()), payload.size()});
+          return uplink::CommandTriage{a.authenticated, std::move(a.command_id),
+                                       std::move(a.command_sha256)};
+        });
     link->start(wall_now());
   }
   ~LiveGateway() { link->stop(wall_now(), 2s); }
@@ -55,6 +62,9 @@ class LiveGateway {
       } else {
         rig.service->on_payload(payload, now);
       }
+    }
+    for (const auto& b : link->take_busy_commands()) {
+      rig.service->answer_busy(b.command_id, b.command_sha256, now);
     }
     link->wait_for_events(2ms);
   }
