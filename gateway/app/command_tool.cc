@@ -86,6 +86,8 @@ nlohmann::json to_json(const v1::CommandResult& r, std::string_view vehicle, Mic
     if (m.has_speed_limit_kmh()) mc["speed_limit_kmh"] = m.speed_limit_kmh();
     if (m.has_factory_speed_limit_kmh())
       mc["factory_speed_limit_kmh"] = m.factory_speed_limit_kmh();
+    if (m.has_operator_cap_kmh()) mc["operator_cap_kmh"] = m.operator_cap_kmh();
+    if (!m.limit_in_force().empty()) mc["limit_in_force"] = m.limit_in_force();
     if (!m.assist_level().empty()) mc["assist_level"] = m.assist_level();
     if (m.has_headlight_on()) mc["headlight_on"] = m.headlight_on();
     if (m.has_trip_m()) mc["trip_m"] = m.trip_m();
@@ -188,7 +190,8 @@ int run_command_tool(const CommandToolOptions& o) {
     if (o.action != "lock" && o.action != "unlock") return usage("--action: lock or unlock");
     if (o.lock.empty() || o.lock.size() > 64) return usage("--lock: a lock kind or 'vehicle'");
   } else if (o.speed_limit_kmh) {
-    if (*o.speed_limit_kmh < 0 || *o.speed_limit_kmh > 255) return usage("--speed-limit: 0..255");
+    // 0 is not a limit (the gateway refuses it as a speed_limit without value).
+    if (*o.speed_limit_kmh < 1 || *o.speed_limit_kmh > 255) return usage("--speed-limit: 1..255");
     mc_action = "speed_limit";
     mc_value = std::to_string(*o.speed_limit_kmh);
   } else if (!o.assist.empty()) {

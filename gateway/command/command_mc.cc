@@ -1,17 +1,66 @@
 // MC actions (issue 13) inside the command service: the pre-flight refusal, the journal entry
 // before the first CAN frame, and the one result -- the same guarantees as a lock command. The
 // bus side is McActionRunner (mc_actions.cc). Also the gateway's own MC actions (geofences,
-// issue 14): the same pre-flight and confirmation, no journal, no result message.
+// issue 14): the same pre-flight and confirmation, no journal, no result message. A remote
+// speed limit is the operator's cap (issue 24): the MC is given the limit in force with it
+// (geofence::SpeedAuthority), and a success records the cap in the store's meta table
+// (kSpeedCapKey), so it outlives a restart and a slow zone never lifts it.
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
+#include <charconv>
 
 #include "gateway/command/command_service_impl.h"
 
 namespace fleetgw::command {
+namespace {
+
+// The operator's cap in km/h as decimal text; absent until the first successful command.
+constexpr std::string_view kSpeedCapKey = "command.speed_cap_kmh";
+
+// The stored cap, read once per process before the authority is first used (the store is
+// opened before the service; a read error leaves no cap and is logged).
+geofence::SpeedAuthority& restored_authority(McActionRunner& mc, storage::Store& store) {
+  auto& speed = mc.speed();
+  if (mc.cap_restored) return speed;
+  mc.cap_restored = true;
+  try {
+    const auto text = store.meta(kSpeedCapKey);
+    if (!text) return speed;
+    int kmh = 0;
+    const auto [end, ec] = std::from_chars(text->data(), text->data() + text->size(), kmh);
+    if (ec != std::errc() || end != text->data() + text->size() || kmh < 1 || kmh > 255) {
+      spdlog::error("command: stored speed cap '{}' is not 1..255 km/h; ignored", *text);
+      return speed;
+    }
+    speed.set_operator_cap(kmh);
+    spdlog::info("command: operator speed cap {} km/h restored", kmh);
+  } catch (const std::exception& e) {
+    spdlog::error("command: reading the stored speed cap failed: {}", e.what());
+  }
+  return speed;
+}
+
+// Records a confirmed cap; the reason when the store refused it (the cap holds until restart).
+std::optional<std::string> store_cap(storage::Store& store, int kmh, Micros now) {
+  storage::Batch b;
+  b.now_us = now.count();
+  b.meta.emplace_back(std::string(kSpeedCapKey), std::to_string(kmh));
+  return write_batch(store, b);
+}
+
+}  // namespace
+
+geofence::SpeedAuthority& CommandService::speed_authority() {
+  return restored_authority(impl_->mc, impl_->context.store);
+}
 
 Disposition CommandService::Impl::on_mc_command(VerifiedCommand cmd, Micros now) {
   const Micros wall_now = wall(now);
+  if (cmd.mc.kind == McActionKind::kSpeedLimit) {
+    restored_authority(mc, context.store);
+    cmd.mc.sets_operator_cap = true;
+  }
   if (auto rej = mc.preflight(cmd.mc, !running.empty(), now)) {
     rej->command_id = cmd.command_id;
     rej->command_sha256 = cmd.command_sha256;
@@ -40,6 +89,23 @@ void CommandService::Impl::finish_mc(McOutcome outcome, Micros now) {
   out.set_command_sha256(run.cmd.command_sha256);
   out.set_result(outcome.code);
   out.set_reason(std::move(outcome.reason));
+  if (run.cmd.mc.kind == McActionKind::kSpeedLimit) {
+    auto& speed = mc.speed();
+    std::string unstored;
+    if (outcome.code == v1::COMMAND_RESULT_CODE_SUCCEEDED) {
+      const int cap = static_cast<int>(run.cmd.mc.speed_limit_kmh);
+      speed.set_operator_cap(cap);
+      if (const auto error = store_cap(context.store, cap, now)) {
+        spdlog::error("command {}: speed cap {} km/h in force but not stored: {}",
+                      run.cmd.command_id, cap, *error);
+        unstored = " (cap not stored: lost at a restart)";
+      }
+    }
+    if (const auto cap = speed.operator_cap()) {
+      outcome.details.set_operator_cap_kmh(static_cast<std::uint32_t>(*cap));
+    }
+    outcome.details.set_limit_in_force(speed.explain() + unstored);
+  }
   *out.mutable_mc() = std::move(outcome.details);
   out.set_duration_ms(static_cast<std::uint64_t>(to_ms(now - run.received)));
   count(out);
@@ -60,6 +126,7 @@ std::optional<Rejection> CommandService::start_own_mc_action(const McRequest& re
     return busy;
   }
   if (auto rej = s.mc.preflight(request, !s.running.empty(), now)) return rej;
+  restored_authority(s.mc, s.context.store);
   s.mc.start(request, now, [done = std::move(done)](McOutcome outcome, Micros at) {
     done(outcome.code == v1::COMMAND_RESULT_CODE_SUCCEEDED, std::move(outcome.reason), at);
   });

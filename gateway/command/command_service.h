@@ -90,6 +90,9 @@ struct Config;
 namespace fleetgw::domain {
 class DomainTrackers;
 }
+namespace fleetgw::geofence {
+class SpeedAuthority;
+}
 namespace fleetgw::storage {
 class Store;
 }
@@ -238,6 +241,10 @@ class CommandService {
   using OwnMcDone = std::function<void(bool succeeded, std::string reason, Micros now)>;
   std::optional<Rejection> start_own_mc_action(const McRequest& request, Micros now,
                                                OwnMcDone done);
+  // Issue 24: the bike's one speed-limit authority (gateway/geofence/speed_authority.h), the
+  // operator's cap restored from the store; the zone enforcer shares it. Lives as long as the
+  // service.
+  geofence::SpeedAuthority& speed_authority();
   // Results the store refused that still wait for their journal write.
   std::size_t unjournaled() const;
   const CommandStats& stats() const;

@@ -58,7 +58,9 @@ struct McActionRunner::Job {
   Micros write_sent{0};
   int writes = 0;
   int rereads = 0;  // verification reads repeated after a stale-looking report (see on_settings)
-  // Speed limit: the write, built from the first report.
+  // Speed limit: what is written (the limit in force with the request), and the write, built
+  // from the first report.
+  std::int64_t write_kmh = 0;
   std::optional<Settings> before;
   std::int64_t target_offset = 0;
   // Assist / headlight: both halves of 0x3002.
@@ -156,10 +158,14 @@ std::optional<Rejection> McActionRunner::preflight(const McRequest& req, bool lo
   if (busy()) return refuse(RejectReason::kMcBusy, "another MC action is executing");
   switch (req.kind) {
     case McActionKind::kSpeedLimit:
+      // 0 would switch the motor's help off through the back door: assist_level does that.
+      if (req.speed_limit_kmh == 0) {
+        return refuse(RejectReason::kOutOfRange, "0 km/h is not a speed limit (1..255)");
+      }
       // Checked again on the fresh report; a known factory limit refuses without a read.
       if (const auto s = latest_settings()) {
         const std::int64_t want = req.speed_limit_kmh;
-        const std::int64_t lo = std::max<std::int64_t>(0, s->factory_kmh - config_.max_offset_kmh);
+        const std::int64_t lo = std::max<std::int64_t>(1, s->factory_kmh - config_.max_offset_kmh);
         if (want < lo || want > s->factory_kmh) {
           return refuse(RejectReason::kOutOfRange,
                         fmt::format("{} km/h is outside the MC's range {}..{} km/h",
@@ -209,10 +215,16 @@ void McActionRunner::start(const McRequest& req, Micros now, Done done) {
   j.started = now;
   j.details.set_action(std::string(mc_action_name(req.kind)));
   switch (req.kind) {
-    case McActionKind::kSpeedLimit:
+    case McActionKind::kSpeedLimit: {
+      // A remote command asks for a cap; the MC is given the limit in force with it.
+      const auto in_force = req.sets_operator_cap
+                                ? speed_.in_force_with_cap(static_cast<int>(req.speed_limit_kmh))
+                                : std::nullopt;
+      j.write_kmh = in_force.value_or(static_cast<int>(req.speed_limit_kmh));
       j.phase = Job::Phase::kReadBefore;
       read_settings(now);
       return;
+    }
     case McActionKind::kAssistLevel:
     case McActionKind::kHeadlight:
     case McActionKind::kClearTrip: {
@@ -308,16 +320,23 @@ void McActionRunner::on_settings(const node::RequestResult& res) {
       static_cast<std::uint32_t>(std::max<std::int64_t>(0, s->limit_kmh())));
   const std::int64_t want = j.request.speed_limit_kmh;
   if (j.phase == Job::Phase::kReadBefore) {
-    const std::int64_t lo = std::max<std::int64_t>(0, s->factory_kmh - config_.max_offset_kmh);
-    if (want < lo || want > s->factory_kmh) {
-      finish(v1::COMMAND_RESULT_CODE_REJECTED,
-             fmt::format("out_of_range: {} km/h is outside the MC's range {}..{} km/h", want, lo,
-                         s->factory_kmh),
-             now);
-      return;
+    const std::int64_t lo = std::max<std::int64_t>(1, s->factory_kmh - config_.max_offset_kmh);
+    for (const std::int64_t kmh : {want, j.write_kmh}) {
+      if (kmh < lo || kmh > s->factory_kmh) {
+        finish(v1::COMMAND_RESULT_CODE_REJECTED,
+               fmt::format("out_of_range: {} km/h{} is outside the MC's range {}..{} km/h", kmh,
+                           kmh == want ? "" : " (the limit in force)", lo, s->factory_kmh),
+               now);
+        return;
+      }
     }
     j.before = s;
-    j.target_offset = want - s->factory_kmh;
+    j.target_offset = j.write_kmh - s->factory_kmh;
+    // Already in force: written only when it changes.
+    if (s->offset_kmh == j.target_offset) {
+      finish(v1::COMMAND_RESULT_CODE_SUCCEEDED, {}, now);
+      return;
+    }
     write(now);
     return;
   }

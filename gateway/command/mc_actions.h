@@ -14,11 +14,16 @@
 //    already known, and for power off the motion interlock (moving / motion unknown) and any
 //    lock in motion. A refused action puts nothing on the bus.
 //  * Speed limit (spec 3.5.2, 3.4.3, 3.2.8): read the settings (0x761 0x3300 -> 0x5408), refuse
-//    a limit outside [factory - 50, factory] (`out_of_range`, code REJECTED, nothing written),
-//    write 0x3408 with the wheel adjustment and mode copied from the report and the new offset
-//    (limit - factory), then read the settings again: the offset read back must be the one
-//    written. Whether 0x5408 byte 2 is the factory limit (best guess) or the limit in force is
-//    uncertain [G]: `settings_limit_is_factory`.
+//    a limit outside [max(1, factory - 50), factory] (`out_of_range`, code REJECTED, nothing
+//    written; 0 is refused at once), write 0x3408 with the wheel adjustment and mode copied from
+//    the report and the new offset (limit - factory), then read the settings again: the offset
+//    read back must be the one written. What is written is the limit in force (issue 24): for a
+//    remote command (McRequest::sets_operator_cap) the SpeedAuthority's minimum with the
+//    requested cap -- inside a 12 km/h zone a request of 25 writes 12, never 25 -- and when the
+//    MC already reports it, nothing is written (`succeeded`, writes_sent 0). The runner holds
+//    the bike's one SpeedAuthority (speed()); recording the cap is the command service's. Whether
+//    0x5408 byte 2 is the factory limit (best guess) or the limit in force is uncertain [G]:
+//    `settings_limit_is_factory`.
 //  * Assist level and headlight (0x761 0x3002, one frame for both): the other half is copied
 //    from the latest running data; confirmed when a running-data frame after the write shows
 //    both values. Clear trip (0x761 0x3605 CLEAR): confirmed when a running-data frame after
@@ -45,6 +50,7 @@
 #include "fleetgw/v1/command.pb.h"
 #include "gateway/command/motion_interlock.h"
 #include "gateway/command/verifier.h"
+#include "gateway/geofence/speed_authority.h"
 #include "gateway/node/iot_node.h"
 #include "motinova/codec.h"
 #include "motinova/options.h"
@@ -89,6 +95,12 @@ class McActionRunner {
   void tick(Micros now);
   bool busy() const { return job_ != nullptr; }
   const McActionConfig& config() const { return config_; }
+  // The bike's speed-limit authority (speed_authority.h): every speed-limit write is decided
+  // by it; the zone enforcer shares it through CommandService::speed_authority().
+  geofence::SpeedAuthority& speed() { return speed_; }
+  const geofence::SpeedAuthority& speed() const { return speed_; }
+  // Set once the operator's cap was restored from the store (CommandService, at first use).
+  bool cap_restored = false;
 
  private:
   struct Job;
@@ -113,7 +125,8 @@ class McActionRunner {
   McActionConfig config_;
   node::IotNode& node_;
   MotionInterlock& motion_;
-  std::shared_ptr<Job> job_;  // shared so node callbacks can tell it is gone
+  geofence::SpeedAuthority speed_{std::nullopt};  // own limit: set by the runtime's [geofence]
+  std::shared_ptr<Job> job_;                      // shared so node callbacks can tell it is gone
 };
 
 }  // namespace fleetgw::command

@@ -55,7 +55,10 @@ std::optional<v1::Command> make_mc_command(std::string_view vehicle, std::string
   if (action == "speed_limit") {
     unsigned kmh = 0;
     const auto [end, ec] = std::from_chars(value.data(), value.data() + value.size(), kmh);
-    if (ec != std::errc() || end != value.data() + value.size() || kmh > 255) return std::nullopt;
+    // 0 is not a limit (and would travel as "no value": the gateway refuses both).
+    if (ec != std::errc() || end != value.data() + value.size() || kmh == 0 || kmh > 255) {
+      return std::nullopt;
+    }
     c.mutable_speed_limit()->set_kmh(kmh);
   } else if (action == "assist_level") {
     if (value.empty()) return std::nullopt;

@@ -48,7 +48,7 @@ std::string random_command_id();
 std::optional<v1::Command> make_command(std::string_view vehicle, std::string_view lock,
                                         std::string_view action, Micros issued_at,
                                         Micros expires_at, std::string command_id);
-// A Command carrying one MC action (issue 13): `action` "speed_limit" (value: km/h, 0..255),
+// A Command carrying one MC action (issue 13): `action` "speed_limit" (value: km/h, 1..255),
 // "assist_level" (value: a level name), "headlight" (value: "on" or "off"), "clear_trip" or
 // "power_off" (value ignored); nullopt for an unknown action or a bad value.
 std::optional<v1::Command> make_mc_command(std::string_view vehicle, std::string_view action,

@@ -2,8 +2,13 @@
 
 #include "gateway/command/signing.h"
 
+#include <google/protobuf/io/coded_stream.h>
+#include <google/protobuf/wire_format_lite.h>
+
 #include <ctime>
+#include <optional>
 #include <stdexcept>
+#include <vector>
 
 #include "fleetgw/v1/command.pb.h"
 #include "gateway/command/sha256.h"
@@ -11,6 +16,44 @@
 
 namespace fleetgw::command {
 namespace {
+
+// The mc_action fields present in serialized Command bytes, in wire order, repeats included:
+// protobuf keeps only the last member of a oneof, so a Command carrying two actions would run
+// the last one. nullopt when the bytes cannot be walked (they parsed already; defensive).
+std::optional<std::vector<int>> mc_action_fields(std::string_view bytes) {
+  namespace pbio = google::protobuf::io;
+  using google::protobuf::internal::WireFormatLite;
+  pbio::CodedInputStream in(reinterpret_cast<const std::uint8_t*>(bytes.data()),
+                            static_cast<int>(bytes.size()));
+  std::vector<int> fields;
+  for (;;) {
+    const std::uint32_t tag = in.ReadTag();
+    if (tag == 0) break;
+    const int number = WireFormatLite::GetTagFieldNumber(tag);
+    if (number >= v1::Command::kSpeedLimitFieldNumber &&
+        number <= v1::Command::kPowerOffFieldNumber) {
+      // A handful at most are reported: the count is what matters.
+      if (fields.size() < 8) fields.push_back(number);
+    }
+    if (!WireFormatLite::SkipField(&in, tag)) return std::nullopt;
+  }
+  return fields;
+}
+
+std::string_view mc_field_name(int number) {
+  switch (number) {
+    case v1::Command::kSpeedLimitFieldNumber:
+      return "speed_limit";
+    case v1::Command::kAssistLevelFieldNumber:
+      return "assist_level";
+    case v1::Command::kHeadlightFieldNumber:
+      return "headlight";
+    case v1::Command::kClearTripFieldNumber:
+      return "clear_trip";
+    default:
+      return "power_off";
+  }
+}
 
 Rejection reject(RejectReason reason, std::string detail, std::string command_id = {},
                  bool authenticated = false, std::string command_sha256 = {}) {
@@ -186,6 +229,15 @@ VerifyResult CommandVerifier::authenticate(std::span<const std::uint8_t> payload
   if (cmd.expires_at_us() <= cmd.issued_at_us()) return bad("expires_at_us <= issued_at_us");
   McRequest mc;
   if (cmd.mc_action_case() != v1::Command::MC_ACTION_NOT_SET) {
+    // One action per command: the parse kept only the last of several.
+    const auto fields = mc_action_fields(signed_cmd.command());
+    if (!fields) return bad("command bytes cannot be walked");
+    if (fields->size() > 1) {
+      std::string names;
+      for (const int f : *fields)
+        names += (names.empty() ? "" : ", ") + std::string(mc_field_name(f));
+      return bad("carries more than one MC action (" + names + "); one per command");
+    }
     // Never both: a gateway that predates mc_action would execute the lock part alone.
     if (cmd.action() != v1::COMMAND_ACTION_UNSPECIFIED) {
       return bad("an MC action must not carry a lock action");
@@ -198,6 +250,10 @@ VerifyResult CommandVerifier::authenticate(std::span<const std::uint8_t> payload
         mc.kind = McActionKind::kSpeedLimit;
         // The MC carries limits in one byte (0x5408); the MC's own range is checked later.
         if (cmd.speed_limit().kmh() > 255) return bad("speed_limit.kmh above 255");
+        // Absent and 0 are the same bytes in proto3; neither is a limit (assist off is the
+        // assist_level action).
+        if (cmd.speed_limit().kmh() == 0)
+          return bad("speed_limit without kmh (1..255; 0 is not a limit)");
         mc.speed_limit_kmh = cmd.speed_limit().kmh();
         break;
       case v1::Command::kAssistLevel:

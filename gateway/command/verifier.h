@@ -17,7 +17,10 @@
 //      9. replayed             the command id was already seen (and has not expired)
 //     10. lock_not_fitted      the lock kind is not fitted to this bike (lock commands only)
 //    A command carries either a lock action and target or one MC action (Command.mc_action,
-//    issue 13); a mix of both, or an MC action with a missing/absurd value, is malformed.
+//    issue 13); a mix of both, or an MC action with a missing/absurd value, is malformed. So is
+//    a Command whose bytes carry more than one mc_action field (protobuf would keep the last
+//    one silently: the bytes are scanned, issue 24) and a speed_limit without kmh -- which is
+//    also what kmh 0 is on the wire (proto3 does not send a zero): 0 is never a limit.
 //    The clock check comes before the time checks because they are meaningless on an
 //    unsynchronised clock (it would report "issued in the future" instead of the real cause).
 //  * authenticate() runs checks 1-4 only: what the command service needs to recognise a
@@ -124,9 +127,13 @@ std::string_view mc_action_name(McActionKind kind);
 
 struct McRequest {
   McActionKind kind = McActionKind::kNone;
-  std::uint32_t speed_limit_kmh = 0;  // kSpeedLimit
-  std::string assist_level;           // kAssistLevel: configured name, untrusted until resolved
-  bool headlight_on = false;          // kHeadlight
+  std::uint32_t speed_limit_kmh = 0;  // kSpeedLimit: 1..255 (0 is refused)
+  // kSpeedLimit of a remote command: speed_limit_kmh is the operator's cap, and what is written
+  // is the limit in force with it (geofence::SpeedAuthority, issue 24). False for the gateway's
+  // own writes, whose value is already that limit.
+  bool sets_operator_cap = false;
+  std::string assist_level;   // kAssistLevel: configured name, untrusted until resolved
+  bool headlight_on = false;  // kHeadlight
 };
 
 // A command that passed authentication (and, from verify(), every check).

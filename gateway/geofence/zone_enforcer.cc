@@ -12,40 +12,29 @@ std::size_t ZoneEnforcer::level_index(const std::string& name) const {
 }
 
 std::optional<McWrite> ZoneEnforcer::next(const Demands& demands, const McView& mc, Micros now) {
+  // The authority follows the demand even while the MC is busy: an operator's command computes
+  // what it writes from it.
+  speed().set_zone_demand(demands.speed_limit_kmh);
   if (outstanding_ || mc.busy) return std::nullopt;
   // Assist first: a no-ride fade is what keeps a rider from riding on, a limit only slows.
   auto write = next_assist(demands, mc, now);
-  if (!write) write = next_speed(demands, mc, now);
+  if (!write) write = next_speed(mc, now);
   outstanding_ = write;
   return write;
 }
 
-std::optional<McWrite> ZoneEnforcer::next_speed(const Demands& demands, const McView& mc,
-                                                Micros now) {
+std::optional<McWrite> ZoneEnforcer::next_speed(const McView& mc, Micros now) {
   if (now < speed_retry_at_) return std::nullopt;
-  std::optional<int> target;
-  if (demands.speed_limit_kmh) {
-    if (!restore_limit_) restore_limit_ = mc.speed_limit_kmh.value_or(config_.own_limit_kmh);
-    target = std::min(*demands.speed_limit_kmh, *restore_limit_);
-  } else if (restore_limit_) {
-    target = *restore_limit_;  // the zones are gone: what was there before, once
-  }
+  const SpeedAuthority& authority = speed();
+  // Nothing has ever asked for a limit: the MC's own setting is left alone.
+  if (!authority.manages()) return std::nullopt;
+  const auto target = authority.in_force();
   if (!target) return std::nullopt;
-  // Nothing of ours in force and the target is the limit assumed in force (a ramp's first
-  // step, or a restore after a write that never happened): nothing to write.
-  if (!applied_limit_ && !mc.speed_limit_kmh && target == restore_limit_) {
-    if (!demands.speed_limit_kmh) restore_limit_.reset();
-    return std::nullopt;
-  }
-  if (mc.speed_limit_kmh == target || (applied_limit_ == target && !mc.speed_limit_kmh)) {
-    // Already in force: nothing to write; a finished restore forgets the remembered limit.
-    applied_limit_ = target;
-    if (!demands.speed_limit_kmh) {
-      restore_limit_.reset();
-      applied_limit_.reset();
-    }
-    return std::nullopt;
-  }
+  // The MC's report is the truth; before one, the last confirmed write or the own limit.
+  const std::optional<int> current =
+      mc.speed_limit_kmh ? mc.speed_limit_kmh
+                         : (applied_limit_ ? applied_limit_ : authority.own_limit());
+  if (current == target) return std::nullopt;
   return McWrite{McWrite::Kind::kSpeedLimit, *target, {}};
 }
 
@@ -89,11 +78,6 @@ void ZoneEnforcer::on_result(bool succeeded, Micros now) {
       return;
     }
     applied_limit_ = w.speed_limit_kmh;
-    if (restore_limit_ && w.speed_limit_kmh == *restore_limit_) {
-      // Written back what was there before the zones: nothing of ours is left in force.
-      restore_limit_.reset();
-      applied_limit_.reset();
-    }
     return;
   }
   if (!succeeded) {

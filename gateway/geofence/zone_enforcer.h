@@ -9,11 +9,13 @@
 //    free, intermediate ramp steps are skipped, never queued), or a failed write of that kind
 //    waits `retry_after`. At most one write is outstanding: next() returns nullopt until
 //    on_result() has been called for the previous one.
-//  * Speed limit: on the first zone limit, the limit in force (mc.speed_limit_kmh, from the MC's
-//    settings report; `own_limit_kmh` when unknown) is remembered; the target is the zone
-//    limit, never above that remembered limit (an operator's lower cap is not raised). When the
-//    demands no longer carry a limit, the remembered limit is written back once, and the
-//    enforcer forgets it. A limit the MC already reports is not written again.
+//  * Speed limit: the target is the SpeedAuthority's limit in force (speed_authority.h): the
+//    minimum of the operator's cap, this zone demand (handed to the authority at every next())
+//    and the bike's own limit -- so a zone never lifts an operator's lower cap, and leaving a
+//    zone restores exactly what is in force without it. It is written only while the authority
+//    manages() the limit and only when it differs from the limit the MC reports
+//    (mc.speed_limit_kmh; when unknown, the last limit confirmed by a write, else the own
+//    limit).
 //  * Assist: the cap (percent) allows the levels up to floor(cap / 100 * (n - 1)) of
 //    `assist_levels` (ascending, the first one "off"). A current level above that (or not in
 //    the list, e.g. "walk") is lowered to the highest allowed one; the level before the first
@@ -27,6 +29,7 @@
 #include <string>
 #include <vector>
 
+#include "gateway/geofence/speed_authority.h"
 #include "gateway/geofence/zone_engine.h"
 
 namespace fleetgw::geofence {
@@ -49,27 +52,33 @@ struct EnforcerConfig {
   std::vector<std::string> assist_levels{"off", "eco", "norm", "sport", "turbo"};
   int own_limit_kmh = 25;
   Micros retry_after = 5s;
+  // The bike's one authority, shared with the operator's speed-limit commands (the command
+  // service's; it must outlive the enforcer). nullptr: the enforcer keeps one of its own with
+  // `own_limit_kmh` (no operator cap).
+  SpeedAuthority* speed = nullptr;
 };
 
 class ZoneEnforcer {
  public:
-  explicit ZoneEnforcer(EnforcerConfig config = {}) : config_(std::move(config)) {}
+  explicit ZoneEnforcer(EnforcerConfig config = {})
+      : config_(std::move(config)), own_speed_(config_.own_limit_kmh) {}
 
   std::optional<McWrite> next(const Demands& demands, const McView& mc, Micros now);
   void on_result(bool succeeded, Micros now);
 
-  // The limit the enforcer has written and not yet restored (nullopt: none).
+  // The last limit a write of the enforcer set (nullopt: none confirmed yet).
   std::optional<int> applied_limit() const { return applied_limit_; }
+  SpeedAuthority& speed() { return config_.speed != nullptr ? *config_.speed : own_speed_; }
 
  private:
-  std::optional<McWrite> next_speed(const Demands& demands, const McView& mc, Micros now);
+  std::optional<McWrite> next_speed(const McView& mc, Micros now);
   std::optional<McWrite> next_assist(const Demands& demands, const McView& mc, Micros now);
   std::size_t level_index(const std::string& name) const;
 
   EnforcerConfig config_;
   std::optional<McWrite> outstanding_;
   // Speed limit.
-  std::optional<int> restore_limit_;  // set while a zone limit is applied
+  SpeedAuthority own_speed_;  // used when config_.speed is nullptr
   std::optional<int> applied_limit_;
   Micros speed_retry_at_{0};
   // Assist.

@@ -72,6 +72,8 @@ std::vector<std::string> zone_bundle_topics(const config::Config& config) {
 }
 
 void Pipeline::record_zone_event(const geofence::ZoneEvent& e) {
+  // The speed authority names the slow zone behind a limit in an operator's result.
+  commands_->speed_authority().on_zone_event(e, common::untrusted_excerpt(e.zone_name, 64));
   // The name comes from a signed bundle but is still received text: one escaped log line.
   spdlog::info("geofence: {} {} zone '{}' ('{}') at {}, bundle version {}",
                geofence::transition_name(e.transition), geofence::zone_kind_name(e.kind), e.zone_id,
@@ -117,6 +119,11 @@ void Pipeline::start_zones(const config::Config& config) {
   zc.engine.unrestricted_kmh = g.own_limit_kmh;
   zc.engine.refuse_ride_ending_locks = g.refuse_ride_ending_locks;
   zc.enforcer.own_limit_kmh = g.own_limit_kmh;
+  // One authority for the speed limit (issue 24): the zones' demand and the operator's cap
+  // (from speed-limit commands) meet in the command service's, which outlives zones_.
+  auto& speed = commands_->speed_authority();
+  speed.set_own_limit(g.own_limit_kmh);
+  zc.enforcer.speed = &speed;
   zc.enforcer.assist_levels = enforcer_assist_levels(config.protocol);
   zc.trusted_keys = config.command.trusted_keys;
   zc.vehicle_id = config.vehicle.id;  // a bundle signed for another vehicle is refused
@@ -240,8 +247,8 @@ void Pipeline::tick_zones() {
   const Micros wall = system_now();
   geofence::McView mc;
   mc.assist_level = core_.live().assist;
-  // The limit in force as the MC last reported it (an operator's cap included), so leaving the
-  // zones writes that back rather than the bike's own limit.
+  // The limit in force as the MC last reported it: the enforcer writes the authority's limit
+  // only when it differs.
   if (const auto limit = core_.live().speed_limit_kmh)
     mc.speed_limit_kmh = static_cast<int>(std::lround(*limit));
   mc.busy = zone_write_running_ || commands_->busy();

@@ -1,5 +1,5 @@
-// ZoneEnforcer: the engine's demands as MC writes, one at a time, restoring what was there; and
-// the zone event payload as it goes on the wire.
+// ZoneEnforcer: the engine's demands as MC writes, one at a time, the speed limit always the
+// SpeedAuthority's limit in force (issue 24); and the zone event payload as it goes on the wire.
 #include "gateway/geofence/zone_enforcer.h"
 
 #include <gtest/gtest.h>
@@ -28,12 +28,14 @@ McWrite assist(std::string level) {
   return {McWrite::Kind::kAssistLevel, 0, std::move(level)};
 }
 
-TEST(ZoneEnforcer, ARampIsWrittenStepByStepThenTheOldLimitRestoredOnce) {
-  ZoneEnforcer e;
-  McView mc{.speed_limit_kmh = 22, .assist_level = "eco"};  // an operator's 22 km/h cap
-  EXPECT_FALSE(e.next(limit(std::nullopt), mc, kT));        // no zone: nothing
+TEST(ZoneEnforcer, ARampIsWrittenStepByStepAndLeavingRestoresTheOperatorsCapExactly) {
+  SpeedAuthority authority(25);
+  authority.set_operator_cap(22);  // an operator's 22 km/h cap, already on the MC
+  ZoneEnforcer e(EnforcerConfig{.speed = &authority});
+  McView mc{.speed_limit_kmh = 22, .assist_level = "eco"};
+  EXPECT_FALSE(e.next(limit(std::nullopt), mc, kT));  // no zone: 22 is in force already
   // The ramp from 25 never raises the operator's 22.
-  EXPECT_FALSE(e.next(limit(25), mc, kT));
+  for (int kmh = 25; kmh >= 22; --kmh) EXPECT_FALSE(e.next(limit(kmh), mc, kT)) << kmh;
   for (int kmh = 21; kmh >= 15; --kmh) {
     const auto w = e.next(limit(kmh), mc, kT);
     ASSERT_TRUE(w) << kmh;
@@ -44,14 +46,16 @@ TEST(ZoneEnforcer, ARampIsWrittenStepByStepThenTheOldLimitRestoredOnce) {
     EXPECT_FALSE(e.next(limit(kmh), mc, kT));
   }
   EXPECT_EQ(e.applied_limit(), 15);
-  // The zone is left: 22 again (not 25), once.
-  const auto w = e.next(limit(std::nullopt), mc, kT);
-  ASSERT_TRUE(w);
-  EXPECT_EQ(*w, speed(22));
-  e.on_result(true, kT);
-  mc.speed_limit_kmh = 22;
+  // The zone's restore ramp goes up to 25: the limit in force stops at 22, then stays.
+  for (int kmh = 16; kmh <= 25; ++kmh) {
+    if (const auto w = e.next(limit(kmh), mc, kT)) {
+      EXPECT_LE(w->speed_limit_kmh, 22);
+      e.on_result(true, kT);
+      mc.speed_limit_kmh = w->speed_limit_kmh;
+    }
+  }
+  EXPECT_EQ(mc.speed_limit_kmh, 22);
   EXPECT_FALSE(e.next(limit(std::nullopt), mc, kT));
-  EXPECT_FALSE(e.applied_limit());
 }
 
 TEST(ZoneEnforcer, WithTheMcsLimitUnknownTheRampStartsBelowTheBikesOwnLimit) {
@@ -64,7 +68,32 @@ TEST(ZoneEnforcer, WithTheMcsLimitUnknownTheRampStartsBelowTheBikesOwnLimit) {
   EXPECT_EQ(e.next(limit(std::nullopt), mc, kT), speed(25));
   e.on_result(true, kT);
   EXPECT_FALSE(e.next(limit(std::nullopt), mc, kT));
-  EXPECT_FALSE(e.applied_limit());
+  EXPECT_EQ(e.applied_limit(), 25);
+}
+
+TEST(ZoneEnforcer, WithoutACapOrAZoneTheMcsLimitIsLeftAlone) {
+  // A limit the gateway never decided (set before issue 24, or by the bike's maker) is not
+  // overwritten at start-up.
+  ZoneEnforcer e(EnforcerConfig{.own_limit_kmh = 25});
+  McView mc{.speed_limit_kmh = 18, .assist_level = "eco"};
+  EXPECT_FALSE(e.next(limit(std::nullopt), mc, kT));
+  EXPECT_FALSE(e.speed().manages());
+}
+
+TEST(ZoneEnforcer, AnOperatorCapInsideAZoneIsNeverWrittenAboveTheZone) {
+  SpeedAuthority authority(25);
+  ZoneEnforcer e(EnforcerConfig{.speed = &authority});
+  McView mc{.speed_limit_kmh = 12, .assist_level = "eco"};
+  EXPECT_FALSE(e.next(limit(12), mc, kT));
+  authority.set_operator_cap(25);  // "limit 25" inside the 12 km/h zone
+  EXPECT_FALSE(e.next(limit(12), mc, kT));
+  authority.set_operator_cap(10);  // lower than the zone: the cap decides
+  EXPECT_EQ(e.next(limit(12), mc, kT), speed(10));
+  e.on_result(true, kT);
+  mc.speed_limit_kmh = 10;
+  EXPECT_FALSE(e.next(limit(12), mc, kT));
+  authority.set_operator_cap(20);
+  EXPECT_EQ(e.next(limit(12), mc, kT), speed(12));  // back to the zone's, not the cap's 20
 }
 
 TEST(ZoneEnforcer, ABusyMcSkipsRampStepsAndAFailureWaitsBeforeRetrying) {
