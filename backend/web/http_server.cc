@@ -341,6 +341,26 @@ void WebServer::Impl::routes() {
         return;
     }
   });
+  // The audit trail, newest first: admins only (it names who did what from where).
+  s.Get("/api/audit", [this](const httplib::Request& req, httplib::Response& res) {
+    if (!authorise(req, res, Role::Admin, "audit")) return;
+    auto c = pool.lease();
+    const PgResult r = c->exec(
+        "SELECT at_us, operator, address, action, target, result, detail FROM console_audit "
+        "ORDER BY id DESC LIMIT 500",
+        "audit trail");
+    json rows = json::array();
+    for (int i = 0; i < r.rows(); ++i) {
+      rows.push_back({{"at_us", r.int64(i, 0).value_or(0)},
+                      {"operator", r.null(i, 1) ? json(nullptr) : json(r.text(i, 1))},
+                      {"address", r.text(i, 2)},
+                      {"action", r.text(i, 3)},
+                      {"target", r.text(i, 4)},
+                      {"result", r.text(i, 5)},
+                      {"detail", r.text(i, 6)}});
+    }
+    reply(res, 200, {{"audit", rows}});
+  });
   s.Get("/api/events",
         [this](const httplib::Request& req, httplib::Response& res) { events(req, res); });
   // Anything else under /api/ is a JSON 404, not the static file handler's.

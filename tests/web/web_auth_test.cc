@@ -171,6 +171,25 @@ TEST_F(WebAuth, LoginAcceptsOnlyJsonSoACrossSiteFormCannotPostIt) {
   EXPECT_EQ(res->status, 415);
 }
 
+TEST_F(WebAuth, OnlyAnAdminReadsTheAuditTrail) {
+  ASSERT_EQ(stack_->add_operator("ada", "admin", "admin-password"), 0);
+  const LoginResult o = stack_->login("olga", "operator-password");
+  ASSERT_EQ(o.status, 200);
+  auto refused = stack_->client().Get("/api/audit", {{"Cookie", o.cookie}});
+  ASSERT_TRUE(refused);
+  EXPECT_EQ(refused->status, 403);
+  const LoginResult a = stack_->login("ada", "admin-password");
+  ASSERT_EQ(a.status, 200);
+  auto res = stack_->client().Get("/api/audit", {{"Cookie", a.cookie}});
+  ASSERT_TRUE(res);
+  ASSERT_EQ(res->status, 200);
+  const json audit = json::parse(res->body)["audit"];
+  ASSERT_FALSE(audit.empty());
+  EXPECT_EQ(audit[0]["action"], "login");  // newest first: ada's own login
+  EXPECT_EQ(audit[0]["operator"], "ada");
+  EXPECT_EQ(audit[0]["address"], "127.0.0.1");
+}
+
 TEST_F(WebAuth, AddOperatorRefusesAShortPasswordAndABadRole) {
   EXPECT_EQ(stack_->add_operator("shorty", "viewer", "short"), 2);
   EXPECT_NE(stack_->add_operator("badrole", "root", "long-enough-password"), 0);
