@@ -88,7 +88,9 @@ for k in $(seq 0 $((N_SIMS - 1))); do
 done
 SIM_OK=1
 for k in "${!SIM_PIDS[@]}"; do
-  wait "${SIM_PIDS[$k]}" || { SIM_OK=0; echo "fleet-sim $k failed (exit $?):"; tail -5 "$WORK/sim-$k.log"; }
+  rc=0
+  wait "${SIM_PIDS[$k]}" || rc=$?
+  [[ $rc == 0 ]] || { SIM_OK=0; echo "fleet-sim $k: exit $rc"; tail -1 "$WORK/sim-$k.log"; }
 done
 children_cpu_s >"$WORK/sim-cpu-1"
 SIM_CPU=$(echo "$(cat "$WORK/sim-cpu-1") - $(cat "$WORK/sim-cpu-0")" | bc -l)

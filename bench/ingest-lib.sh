@@ -93,7 +93,9 @@ start_postgres() {
 # mosquitto: MQTT 5, no connection limit, session queues deep enough for a backlog, no log line
 # per connection (50,000 of them at a fleet's start); BROKER_BIND (default 127.0.0.1) is where
 # it listens (0.0.0.0 for workers in other network namespaces).
-BROKER_SETTINGS='allow_anonymous true\nmax_connections -1\nmax_queued_messages 1000000\nset_tcp_nodelay true\nconnection_messages false\n'
+# max_inflight_messages: the receive maximum a broker grants its clients, an edge's bridge among
+# them (at mosquitto's default of 20 in flight a bridge is bound by its round trip).
+BROKER_SETTINGS='allow_anonymous true\nmax_connections -1\nmax_queued_messages 1000000\nmax_inflight_messages 1000\nset_tcp_nodelay true\nconnection_messages false\n'
 start_broker() {
   local port
   port=$(free_port)

@@ -50,8 +50,9 @@ void add_fleet_sim_options(CLI::App& app, FleetSimOptions& o) {
       ->check(CLI::Range(1.0, 100000.0))
       ->capture_default_str();
   app.add_option("--source-addresses", o.source_addresses,
-                 "connect from 127.0.0.2 .. 127.0.0.(1+K) (-1: one per 10,000 vehicles when the "
-                 "broker is on 127.x, else 0: the kernel's choice)")
+                 "connect vehicle i from 127.0.0.(2 + (first-index + i) % K) (-1: one address per "
+                 "5,000 vehicles of first-index + vehicles when the broker is on 127.x, else 0: "
+                 "the kernel's choice)")
       ->check(CLI::Range(-1, 250))
       ->capture_default_str();
   app.add_option("--keepalive-s", o.keepalive_s, "MQTT keep-alive (the gateway's mqtt.keepalive_s)")
@@ -189,9 +190,10 @@ int run(const FleetSimOptions& o) {
   }
   const int shards = o.processes > 0 ? o.processes : std::max(1, (o.vehicles + 4999) / 5000);
   plan.shards = std::min(shards, o.vehicles);
-  plan.source_addresses = o.source_addresses >= 0           ? o.source_addresses
-                          : plan.host.rfind("127.", 0) == 0 ? (o.vehicles + 9999) / 10000
-                                                            : 0;
+  plan.source_addresses = o.source_addresses >= 0 ? o.source_addresses
+                          : plan.host.rfind("127.", 0) == 0
+                              ? std::min(250, (o.first_index + o.vehicles + 4999) / 5000)
+                              : 0;
   plan.riding = static_cast<int>(std::lround(o.vehicles * o.riding_share));
   // Three descriptors per session (its socket, and the socket pair libmosquitto makes in
   // mosquitto_new to interrupt its own loop): raise the soft limit to the hard one, check it fits.

@@ -11,8 +11,8 @@
 //    one event loop (epoll) driving its sessions through libmosquitto's external-loop API: no
 //    thread per session. Sessions connect at a steady `connect_rate` per second over the whole
 //    fleet (vehicle i at i / connect_rate s); a vehicle powers on (its model's clock starts) at
-//    that moment. With `source_addresses` K > 0, vehicle i connects from 127.0.0.(2 + i % K), so
-//    a loopback fleet is not limited by one source address's ephemeral ports.
+//    that moment. With `source_addresses` K > 0, vehicle i connects from 127.0.0.(2 + (first_index
+//    + i) % K), so a loopback fleet is not limited by one source address's ephemeral ports.
 //  * Keep-alive is honoured under load: every session's PINGREQ is sent within one second of
 //    falling due (libmosquitto's loop_misc for every session at least once a second).
 //  * A vehicle is its bike's outbox: a QoS 1 message stays queued until its PUBACK; after a
@@ -52,7 +52,7 @@ struct FleetSimOptions {
   std::uint32_t seed = 1;
   int processes = 0;           // 0: one per 5,000 vehicles
   double connect_rate = 1000;  // new sessions per second, whole fleet
-  int source_addresses = -1;   // -1: one per 10,000 vehicles against a 127.x broker, else none
+  int source_addresses = -1;   // -1: one per 5,000 vehicles against a 127.x broker, else none
   int keepalive_s = 30;        // the gateway's mqtt.keepalive_s
   double stop_timeout_s = 10;
   std::string report;  // empty: stdout

@@ -250,8 +250,11 @@ void Shard::start_session(Client& c, std::int64_t now) {
   if (c.link == Link::kOff) {
     std::string bind;
     if (plan_.source_addresses > 0) {
-      const std::size_t fleet_index =
-          c.index * static_cast<std::size_t>(plan_.shards) + static_cast<std::size_t>(plan_.shard);
+      // By the vehicle's index in the whole fleet (--first-index included), so fleet-sims that
+      // split one fleet spread over the same addresses evenly instead of all starting at .2.
+      const std::size_t fleet_index = static_cast<std::size_t>(plan_.options.first_index) +
+                                      c.index * static_cast<std::size_t>(plan_.shards) +
+                                      static_cast<std::size_t>(plan_.shard);
       bind = "127.0.0." +
              std::to_string(2 + fleet_index % static_cast<std::size_t>(plan_.source_addresses));
     }
