@@ -80,7 +80,16 @@ std::string table_cell(std::string_view text) {
 
 std::string csv_field(std::string_view text) {
   std::string valid = valid_utf8(text);
+  // OWASP's CSV-injection rule: a spreadsheet runs a cell that starts with = + - @ TAB or CR as
+  // a formula (`=cmd|'/Ccalc'!A0` in a BMS serial starts a program). Such text gets a leading ',
+  // which makes it text; so does text that already starts with ', so that removing one leading '
+  // from every text cell that has one gives the stored string back (no ambiguity).
   bool quote = false;
+  if (!valid.empty() &&
+      std::string_view("=+-@\t\r'").find(valid.front()) != std::string_view::npos) {
+    valid.insert(valid.begin(), '\'');
+    quote = true;  // as OWASP asks: the cell quoted, so no reader splits or trims it
+  }
   for (const char c : valid) {
     const auto u = static_cast<unsigned char>(c);
     if (c == ',' || c == '"' || u < 0x20 || u == 0x7F) quote = true;

@@ -16,9 +16,13 @@
 //    line "(no rows)" alone.
 //  * csv: RFC 4180. A header line of the column keys, CRLF after every record; a field is
 //    quoted ("...", an inner quote doubled) when it contains a comma, a quote, CR, LF or any
-//    other control character; the content is kept exactly (only invalid UTF-8 is replaced by
-//    U+FFFD), so a CSV reader gets the stored string back, newlines included. Null is an empty
-//    field; floating point with the column's decimals; booleans true/false.
+//    other control character. Text is neutralised against CSV injection (OWASP), here in
+//    csv_field() and nowhere else: a string cell that starts with =, +, -, @, TAB or CR (which
+//    a spreadsheet would run as a formula) or with ' gets one leading ' and is quoted. Otherwise
+//    the content is kept exactly (only invalid UTF-8 is replaced by U+FFFD): a CSV reader gets
+//    the stored string back, newlines included, by removing one leading ' from a text cell that
+//    starts with one. Numbers are never altered (-3.5 stays -3.5): the rule is for strings.
+//    Null is an empty field; floating point with the column's decimals; booleans true/false.
 //  * json: one JSON array, one object per row (column key -> value) on its own line; floating
 //    point rounded to the column's decimals; invalid UTF-8 replaced by U+FFFD.
 //  * parse_output_format() accepts exactly "table", "json" and "csv".
@@ -59,7 +63,8 @@ void write_csv_record(const std::vector<Column>& columns, const std::vector<nloh
 void write_json(const Table& t, std::ostream& out);
 void write_as(OutputFormat format, const Table& t, std::ostream& out);
 
-// One CSV field (RFC 4180 quoting as above), without the separator.
+// One CSV field of text (RFC 4180 quoting and the formula neutralisation above), without the
+// separator. Every CSV writer of the product goes through it.
 std::string csv_field(std::string_view text);
 // One table cell's text: escape_controls of valid UTF-8.
 std::string table_cell(std::string_view text);

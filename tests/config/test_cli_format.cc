@@ -162,6 +162,43 @@ TEST(Csv, HostileStringsReadBackExactly) {
   EXPECT_EQ(records[2], (std::vector<std::string>{"ok", "-2", "1.00", "true"}));
 }
 
+// OWASP's CSV injection rule: a text cell that starts with =, +, -, @, TAB or CR would be run as
+// a formula by a spreadsheet (`=cmd|'/Ccalc'!A0` from a BMS serial on the bus). It is written
+// with a leading ' and quoted; a text cell that starts with ' gets one more, so removing one
+// leading ' from every text cell that starts with one gives the stored text back. Numbers stay
+// numbers: -3.5 A is not text.
+TEST(Csv, FormulaCellsFromTheBusAreNeutralised) {
+  EXPECT_EQ(csv_field("=cmd|'/Ccalc'!A0"), "\"'=cmd|'/Ccalc'!A0\"");
+  EXPECT_EQ(csv_field("+1+1"), "\"'+1+1\"");
+  EXPECT_EQ(csv_field("-2+3"), "\"'-2+3\"");
+  EXPECT_EQ(csv_field("@SUM(A1)"), "\"'@SUM(A1)\"");
+  EXPECT_EQ(csv_field("\t=1"), "\"'\t=1\"");
+  EXPECT_EQ(csv_field("\r=1"), "\"'\r=1\"");
+  EXPECT_EQ(csv_field("'quoted"), "\"''quoted\"");
+  EXPECT_EQ(csv_field("a=b"), "a=b");  // only the first character counts
+  EXPECT_EQ(csv_field("BMS-0042"), "BMS-0042");
+
+  Table t;
+  t.columns = {{"serial", "SERIAL"}, {"current_a", "A", -1}, {"n", "N"}, {"doc", "DOC"}};
+  t.rows = {{"=HYPERLINK(\"http://x\",\"y\")", -3.5, -2, json::array({-1})},
+            {"-3.5", 0.0, 0, json("@x")}};
+  std::ostringstream out;
+  write_csv(t, out);
+  const auto records = read_csv(out.str());
+  ASSERT_EQ(records.size(), 3u) << out.str();
+  EXPECT_EQ(records[1],
+            (std::vector<std::string>{"'=HYPERLINK(\"http://x\",\"y\")", "-3.5", "-2", "[-1]"}));
+  // A string that looks like a negative number is still text from the store: neutralised.
+  EXPECT_EQ(records[2], (std::vector<std::string>{"'-3.5", "0.0", "0", "'@x"}));
+  // Every cell a spreadsheet would evaluate begins with the quote.
+  for (const auto& record : records) {
+    for (const auto& cell : record) {
+      EXPECT_TRUE(cell.empty() || std::string_view("=+@\t\r").find(cell[0]) == std::string::npos)
+          << cell;
+    }
+  }
+}
+
 std::size_t code_points(const std::string& s) {
   return static_cast<std::size_t>(std::count_if(
       s.begin(), s.end(), [](char c) { return (static_cast<unsigned char>(c) & 0xC0) != 0x80; }));
