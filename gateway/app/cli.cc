@@ -6,6 +6,7 @@
 #include <unistd.h>
 
 #include <iostream>
+#include <optional>
 #include <sstream>
 
 #include "gateway/app/check_config.h"
@@ -18,6 +19,7 @@
 #include "gateway/app/sibling_program.h"
 #include "gateway/app/table_format.h"
 #include "gateway/app/watch_command.h"
+#include "gateway/common/untrusted_text.h"
 #include "gateway/config/config.h"
 #include "gateway/decode/decode_command.h"
 #include "gateway/geofence/zone_tool.h"
@@ -189,6 +191,29 @@ int run_status(status::StatusCommandOptions options, const std::string& format, 
     write_csv(flatten(nlohmann::json::parse(doc.str(), nullptr, false)), out);
   }
   return rc;
+}
+
+// The command path of argv checked against the command tree before CLI11 parses it: CLI11
+// takes a mistyped command for an extra argument and reports the missing subcommand instead ("A
+// subcommand is required"), and with --help after it prints the top-level help and exits 0, so
+// a script's typo would pass for success. Returns the error text for the first word that names
+// no command where one is required (argv is untrusted: shown escaped), or nothing. An option
+// ends the check: CLI11 handles options (the command groups take none of their own).
+std::optional<std::string> unknown_command(const CLI::App& app, int argc, char** argv) {
+  const CLI::App* level = &app;
+  std::string path = "fleetgw";
+  std::string words;
+  for (int i = 1; i < argc && level->get_require_subcommand_min() > 0; ++i) {
+    const std::string word = argv[i];
+    if (word.starts_with('-')) return std::nullopt;
+    const auto found =
+        level->get_subcommands([&word](const CLI::App* s) { return s->check_name(word); });
+    words += (words.empty() ? "" : " ") + common::escape_controls(word);
+    if (found.empty()) return "unknown command '" + words + "'; see " + path + " --help";
+    level = found.front();
+    path += " " + level->get_name();
+  }
+  return std::nullopt;
 }
 
 }  // namespace
@@ -395,6 +420,10 @@ int run_cli(int argc, char** argv) {
   // completion (hidden): the bash completion script, from every definition above
   auto* completion_cmd = add_completion_command(app);
 
+  if (const auto unknown = unknown_command(app, argc, argv)) {
+    std::cerr << "fleetgw: " << *unknown << '\n';
+    return 2;
+  }
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

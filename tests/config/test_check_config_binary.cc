@@ -1,7 +1,7 @@
 // `fleetgw check-config` and `fleetgw run` against the real binary: one validation path. Every
 // configuration `run` refuses, check-config refuses too, with the same file:line:key messages,
 // and both report every problem at once (issue 11, item 6). Also the CLI's exit codes for bad
-// option values and `fleetgw status --config`.
+// option values, an unknown command, and `fleetgw status --config`.
 #include <gtest/gtest.h>
 
 #include "tests/config/cli_test_util.h"
@@ -200,6 +200,43 @@ TEST(Cli, BadOptionValuesExitWithTwo) {
   EXPECT_EQ(run({kBin, "check-config"}, dir.path()).code, 2);
   EXPECT_EQ(run({kBin, "status", "--socket", "a", "--config", "b"}, dir.path()).code, 2);
   EXPECT_EQ(run({kBin, "--help"}, dir.path()).code, 0);
+}
+
+// A mistyped command is named, with where to look, and exits 2 -- also with --help after it
+// (a script's typo must never look like success), at the top level and inside the groups.
+TEST(Cli, UnknownCommandIsNamedAndExitsTwo) {
+  TempDir dir;
+  const std::string text = "fleetgw: unknown command 'nosuch'; see fleetgw --help";
+  for (const std::vector<std::string>& args :
+       {std::vector<std::string>{kBin, "nosuch"}, {kBin, "nosuch", "--help"},
+        {kBin, "nosuch", "run"}}) {
+    const Result r = run(args, dir.path());
+    EXPECT_EQ(r.code, 2) << args.size() << ": " << r.out << r.err;
+    EXPECT_EQ(r.out, "") << "no help text for a typo";
+    EXPECT_NE(r.err.find(text), std::string::npos) << r.err;
+    EXPECT_EQ(r.err.find("A subcommand is required"), std::string::npos) << r.err;
+  }
+  const Result db = run({kBin, "db", "rids", "--help"}, dir.path());
+  EXPECT_EQ(db.code, 2) << db.out;
+  EXPECT_NE(db.err.find("unknown command 'db rids'; see fleetgw db --help"), std::string::npos)
+      << db.err;
+  const Result zones = run({kBin, "zones", "sing"}, dir.path());
+  EXPECT_EQ(zones.code, 2);
+  EXPECT_NE(zones.err.find("unknown command 'zones sing'; see fleetgw zones --help"),
+            std::string::npos)
+      << zones.err;
+  // The hostile name is shown escaped: a command line cannot write to the terminal.
+  const Result esc = run({kBin, "x\x1b[2J"}, dir.path());
+  EXPECT_EQ(esc.code, 2);
+  EXPECT_EQ(esc.err.find('\x1b'), std::string::npos) << esc.err;
+  EXPECT_NE(esc.err.find("unknown command 'x\\x1b[2J'"), std::string::npos) << esc.err;
+  // Real commands, their help and a missing command are unchanged.
+  EXPECT_EQ(run({kBin, "db", "--help"}, dir.path()).code, 0);
+  EXPECT_EQ(run({kBin, "db", "rides", "--help"}, dir.path()).code, 0);
+  EXPECT_EQ(run({kBin, "--version"}, dir.path()).code, 0);
+  const Result none = run({kBin}, dir.path());
+  EXPECT_EQ(none.code, 2);
+  EXPECT_NE(none.err.find("A subcommand is required"), std::string::npos) << none.err;
 }
 
 TEST(Cli, StatusConfigAsksTheConfiguredSocket) {
