@@ -27,11 +27,14 @@ cd "$(dirname "$0")/.."
 ROOT=$(pwd)
 BUILD_DIR=""
 OUT=""
+BUILD_PROGRESS_ONLY=0
 while [ $# -gt 0 ]; do
   case "$1" in
     --build-dir) BUILD_DIR=$(cd "$2" && pwd); shift 2 ;;
     --out) OUT=$2; shift 2 ;;
     -h|--help) sed -n '2,20p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    # (internal, for tests/config/demo-setup-test.sh: the progress filter alone, on stdin)
+    --build-progress) BUILD_PROGRESS_ONLY=1; shift ;;
     *) echo "demo: unknown argument '$1' (see --help)" >&2; exit 2 ;;
   esac
 done
@@ -42,6 +45,32 @@ ZONES_GEOJSON=$ROOT/config/demo-zones.geojson
 
 SECONDS=0
 section() { echo "== $1"; }
+# A build's output on stdin -> one line per 10 % of its progress (make's "[ 42%]", ninja's
+# "[17/98]") with the time since the build started. Read by bash line by line as the build
+# prints: awk is no use here, Debian's mawk reads a pipe in large blocks, so it saw every line
+# only at the end and printed 0m00s on each.
+build_progress() {
+  local start=$SECONDS next=0 line p t
+  local make_re='^\[ *([0-9]+)%\]' ninja_re='^\[([0-9]+)/([0-9]+)\]'
+  while IFS= read -r line; do
+    if [[ $line =~ $make_re ]]; then
+      p=$((10#${BASH_REMATCH[1]}))
+    elif [[ $line =~ $ninja_re ]] && [ "${BASH_REMATCH[2]}" -gt 0 ]; then
+      p=$((100 * BASH_REMATCH[1] / BASH_REMATCH[2]))
+    else
+      continue
+    fi
+    if [ "$p" -ge "$next" ]; then
+      t=$((SECONDS - start))
+      printf '   build: %3d %%  (%dm%02ds)\n' "$p" $((t / 60)) $((t % 60))
+      next=$((p - p % 10 + 10))
+    fi
+  done
+}
+if [ "$BUILD_PROGRESS_ONLY" = 1 ]; then
+  build_progress
+  exit 0
+fi
 
 if [ -z "$BUILD_DIR" ]; then
   BUILD_DIR=$ROOT/build
@@ -50,8 +79,10 @@ if [ -z "$BUILD_DIR" ]; then
     section "first run: Debian packages, then the build of fleetgw (about 8 minutes on 2 cores;"
     echo "   later runs rebuild only what changed, in seconds); then the demo itself, about a minute"
   fi
-  section "Debian packages (scripts/install-deps.sh)"
-  ./scripts/install-deps.sh
+  # The demo's own set: the build and the demo's programs, not the tests' (VM, chromium, lintian,
+  # clang, the cross tools: scripts/test.sh installs those).
+  section "Debian packages (scripts/install-deps.sh --demo)"
+  ./scripts/install-deps.sh --demo
   # Ninja for a new tree (scripts/test.sh explains why); an existing tree keeps its generator.
   if [ -z "${CMAKE_GENERATOR:-}" ] && command -v ninja >/dev/null; then export CMAKE_GENERATOR=Ninja; fi
   # The product tree of scripts/test.sh, configured the same way (Release, compiled in unity
@@ -63,20 +94,7 @@ if [ -z "$BUILD_DIR" ]; then
   # The build tool's own lines scroll by for minutes; show one line per 10 % instead.
   set +e
   cmake --build "$BUILD_DIR" --target fleetgw fleetgw-watch -j "$(nproc)" 2>&1 | tee "$BUILD_LOG" |
-    awk '
-      # make: "[ 42%] ..."; ninja: "[17/98] ...".
-      match($0, /^\[ *[0-9]+%\]/) || match($0, /^\[[0-9]+\/[0-9]+\]/) {
-        s = substr($0, RSTART + 1, RLENGTH - 2)
-        split(s, part, "/")
-        p = (s ~ /%/) ? s + 0 : int(100 * part[1] / part[2])
-        if (p >= next_shown) {
-          cmd = "date +%s"; cmd | getline now; close(cmd)
-          if (!t0) t0 = now
-          printf "   build: %3d %%  (%dm%02ds)\n", p, (now - t0) / 60, (now - t0) % 60
-          fflush()
-          next_shown = p - p % 10 + 10
-        }
-      }'
+    build_progress
   rc=${PIPESTATUS[0]}
   set -e
   if [ "$rc" != 0 ]; then
