@@ -27,9 +27,10 @@
 //    on stop(). The last will is an offline Status marked last_will that carries only what is
 //    known at connect (no outbox figures, created_at_us 0).
 //  * MQTT 5 (config.protocol, the default; 3.1.1 is the fallback): a publish the broker refuses
-//    with a PUBACK reason code >= 0x80 is not delivered: its records stay in the outbox, the
-//    drain pauses and they are sent again after a back-off (reconnect_min .. reconnect_max,
-//    doubling while the refusals go on); UplinkStats and every Status say why (code and name),
+//    with a PUBACK reason code >= 0x80 is not delivered: its records stay in the outbox, its
+//    kind waits (the other kinds keep flowing; order within a kind is kept) and they are sent
+//    again after that kind's back-off (reconnect_min .. reconnect_max, doubling while the
+//    refusals go on); UplinkStats and every Status name every refused kind (code and name),
 //    and the log says it once per distinct reason and topic. Every message carries the content
 //    type and schema user property of mqtt5.h; the session asks for config.session_expiry and
 //    the last will for config.will_delay. Under 3.1.1 a broker cannot refuse a publish: an ACL
@@ -140,11 +141,11 @@ struct UplinkStats {
   std::uint64_t tls_failures = 0;          // failed attempts whose reason is a TLS failure
   // MQTT 5: publishes the broker refused (PUBACK reason code >= 0x80) since start.
   std::uint64_t publish_refusals = 0;
-  // Why the latest refused publish was refused, e.g. "0x87 Not authorized
-  // (fleet/v1/bike-0042/ride)"; empty once a refused record got through (or none ever was).
+  // The refusals in force, one per refused kind, "; "-separated, e.g. "0x87 Not authorized
+  // (fleet/v1/bike-0042/alarm)"; a kind drops out once a publish of it is accepted (empty: none).
   std::string last_publish_refusal;
-  int last_publish_refusal_code = 0;         // its reason code; 0 when empty
-  std::int64_t last_publish_refusal_us = 0;  // `now` when it came; 0 when empty
+  int last_publish_refusal_code = 0;         // the latest one's reason code; 0 when empty
+  std::int64_t last_publish_refusal_us = 0;  // `now` when the latest came; 0 when empty
   std::size_t refused_records = 0;           // records held for the next retry
   std::int64_t refusal_retry_at_us = 0;      // when they are retried; 0 = nothing held
 };
