@@ -124,9 +124,14 @@ set(CPACK_DEBIAN_FLEETGW_DESCRIPTION
 Runs on the e-bike's IoT node: decodes the MOTINOVA CAN bus, records rides,\n\
 faults, pack statistics, telemetry and lock events in SQLite, and syncs them to\n\
 an MQTT broker.")
-# adduser: the postinst creates the system user. The others serve the optional CAN helper, the
-# GNSS receiver ([gnss], through gpsd) and the technician.
-set(CPACK_DEBIAN_FLEETGW_PACKAGE_DEPENDS "adduser")
+# adduser: the postinst creates the system user. The recommended and suggested packages serve
+# the optional CAN helper, the GNSS receiver ([gnss], through gpsd) and the technician.
+# libgps: loaded at run time by the gpsd client (gateway/gnss/gpsd_client.cc), so
+# dpkg-shlibdeps does not see it; its package is named after the soname the build recorded
+# (libgps.so.28 -> libgps28, Debian's library package naming).
+string(REGEX REPLACE "^libgps\\.so\\.([0-9]+)$" "libgps\\1" FLEETGW_LIBGPS_PACKAGE
+                     "${FLEETGW_LIBGPS_SONAME}")
+set(CPACK_DEBIAN_FLEETGW_PACKAGE_DEPENDS "adduser, ${FLEETGW_LIBGPS_PACKAGE}")
 set(CPACK_DEBIAN_FLEETGW_PACKAGE_RECOMMENDS "iproute2, gpsd")
 set(CPACK_DEBIAN_FLEETGW_PACKAGE_SUGGESTS "can-utils, mosquitto-clients")
 set(CPACK_DEBIAN_FLEETGW_PACKAGE_CONTROL_EXTRA

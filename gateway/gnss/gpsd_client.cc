@@ -1,5 +1,6 @@
 #include "gateway/gnss/gpsd_client.h"
 
+#include <dlfcn.h>
 #include <gps.h>
 
 #include <cerrno>
@@ -8,32 +9,90 @@
 
 namespace fleetgw::gnss {
 
+// libgps, loaded when the first client connects. Linked normally, it would bring libdbus,
+// libsystemd, libgcrypt and five more libraries into every fleetgw process, ~1.4 MB resident,
+// although [gnss] is off by default. The header (gps_data_t, the WATCH_ flags) is the one of
+// the library whose soname the build recorded (FLEETGW_LIBGPS_SONAME), so the layouts agree.
+struct GpsdClient::Library {
+  void* handle = nullptr;
+  decltype(&::gps_open) open = nullptr;
+  decltype(&::gps_close) close = nullptr;
+  decltype(&::gps_stream) stream = nullptr;
+  decltype(&::gps_waiting) waiting = nullptr;
+  decltype(&::gps_read) read = nullptr;
+  decltype(&::gps_errstr) errstr = nullptr;
+
+  Library() = default;
+  Library(const Library&) = delete;  // one dlclose() per dlopen()
+  Library& operator=(const Library&) = delete;
+  ~Library() {
+    if (handle != nullptr) dlclose(handle);
+  }
+};
+
+namespace {
+
+template <typename F>
+bool resolve(void* handle, const char* name, F& out) {
+  out = reinterpret_cast<F>(dlsym(handle, name));
+  return out != nullptr;
+}
+
+}  // namespace
+
+std::string GpsdClient::load_library() {
+  if (library_) return {};
+  auto lib = std::make_unique<Library>();
+  // NODELETE: a dlclose() never unmaps code that libgps's dependencies may still run at exit.
+  lib->handle = dlopen(library_name_.c_str(), RTLD_NOW | RTLD_LOCAL | RTLD_NODELETE);
+  if (lib->handle == nullptr) {
+    const char* why = dlerror();
+    return "cannot load " + library_name_ +
+           ", needed for [gnss]: " + (why != nullptr ? why : "unknown error");
+  }
+  const char* missing = nullptr;
+  if (!resolve(lib->handle, "gps_open", lib->open)) missing = "gps_open";
+  if (!resolve(lib->handle, "gps_close", lib->close)) missing = "gps_close";
+  if (!resolve(lib->handle, "gps_stream", lib->stream)) missing = "gps_stream";
+  if (!resolve(lib->handle, "gps_waiting", lib->waiting)) missing = "gps_waiting";
+  if (!resolve(lib->handle, "gps_read", lib->read)) missing = "gps_read";
+  if (!resolve(lib->handle, "gps_errstr", lib->errstr)) missing = "gps_errstr";
+  if (missing != nullptr) return library_name_ + " has no " + missing;
+  library_ = std::move(lib);
+  return {};
+}
+
 struct GpsdClient::Data {
   gps_data_t gps{};
+  const Library* library = nullptr;
 };
 
 void GpsdClient::DataDeleter::operator()(Data* d) const {
-  gps_stream(&d->gps, WATCH_DISABLE, nullptr);
-  gps_close(&d->gps);
+  d->library->stream(&d->gps, WATCH_DISABLE, nullptr);
+  d->library->close(&d->gps);
   std::default_delete<Data>()(d);
 }
 
-GpsdClient::GpsdClient(std::string host, std::string port)
-    : host_(std::move(host)), port_(std::move(port)) {}
+GpsdClient::GpsdClient(std::string host, std::string port, std::string library_name)
+    : host_(std::move(host)), port_(std::move(port)), library_name_(std::move(library_name)) {}
 
-GpsdClient::~GpsdClient() = default;
+GpsdClient::~GpsdClient() {
+  close();  // before the library it calls into
+}
 
 std::string GpsdClient::connect() {
   close();
+  if (auto error = load_library(); !error.empty()) return error;
   auto data = std::make_unique<Data>();
+  data->library = library_.get();
   errno = 0;
-  if (gps_open(host_.c_str(), port_.c_str(), &data->gps) != 0) {
+  if (library_->open(host_.c_str(), port_.c_str(), &data->gps) != 0) {
     const int err = errno;
-    return "connect to " + endpoint() + ": " + gps_errstr(err);
+    return "connect to " + endpoint() + ": " + library_->errstr(err);
   }
   // From here on gps_close() must run: hand the connection to the deleter first.
   data_.reset(data.release());
-  if (gps_stream(&data_->gps, WATCH_ENABLE | WATCH_JSON, nullptr) != 0) {
+  if (library_->stream(&data_->gps, WATCH_ENABLE | WATCH_JSON, nullptr) != 0) {
     close();
     return "watch request to " + endpoint() + " failed";
   }
@@ -61,9 +120,9 @@ GpsdClient::ReadStatus GpsdClient::read_available(Micros now, std::vector<GnssRe
   if (!data_) return ReadStatus::kClosed;
   gps_data_t& g = data_->gps;
   // gps_waiting(…, 0) does not block: buffered bytes or a readable socket.
-  while (gps_waiting(&g, 0)) {
+  while (library_->waiting(&g, 0)) {
     g.set = 0;
-    if (gps_read(&g, nullptr, 0) < 0) {
+    if (library_->read(&g, nullptr, 0) < 0) {
       close();
       return ReadStatus::kClosed;
     }

@@ -1,6 +1,8 @@
 // GpsdClient: a connection to gpsd through libgps (Debian's libgps-dev), read without blocking.
 //
 // Contract:
+//  * The first connect() loads libgps (dlopen: a process with [gnss] off never maps it or the
+//    libraries it needs); a missing library is an error text like any other.
 //  * connect() opens the TCP connection and enables JSON watching; it returns an error text
 //    instead of throwing (gpsd missing is an expected field condition, not a bug). The connect
 //    itself blocks: point it at a local gpsd (the deployed setup), not at a remote host.
@@ -29,7 +31,8 @@ struct GnssReport {
 
 class GpsdClient {
  public:
-  GpsdClient(std::string host, std::string port);
+  // `library_name`: the libgps to load at the first connect() (tests name a missing one).
+  GpsdClient(std::string host, std::string port, std::string library_name = FLEETGW_LIBGPS_SONAME);
   ~GpsdClient();
   GpsdClient(const GpsdClient&) = delete;
   GpsdClient& operator=(const GpsdClient&) = delete;
@@ -45,14 +48,18 @@ class GpsdClient {
   ReadStatus read_available(Micros now, std::vector<GnssReport>& out);
 
  private:
-  struct Data;  // libgps's gps_data_t, kept out of this header
+  struct Library;  // libgps's functions, loaded by the first connect()
+  struct Data;     // libgps's gps_data_t, kept out of this header
   struct DataDeleter {
     void operator()(Data* d) const;
   };
+  std::string load_library();  // empty on success, else why
   std::string host_;
   std::string port_;
+  std::string library_name_;
+  std::unique_ptr<Library> library_;  // before data_: destroyed after it
   std::unique_ptr<Data, DataDeleter> data_;
-  std::optional<double> hdop_;  // SKY reports arrive apart from the TPV fixes
+  std::optional<double> hdop_;                // SKY reports arrive apart from the TPV fixes
   int satellites_ = 0;
 };
 

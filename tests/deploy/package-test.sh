@@ -68,6 +68,9 @@ echo "Depends: $depends"
 for lib in libc6 libstdc++6 libpaho-mqttpp3 adduser; do
   grep -q "$lib" <<<"$depends" && ok "depends on $lib" || fail "Depends lacks $lib"
 done
+# libgps is loaded at run time ([gnss]), so dpkg-shlibdeps cannot see it: declared by hand.
+grep -Eq "(^|, )libgps[0-9]+" <<<"$depends" && ok "depends on libgps (loaded at run time)" ||
+  fail "Depends lacks libgps"
 # A bike never installs PostgreSQL's client library.
 grep -q libpq <<<"$depends" && fail "depends on libpq" || ok "no libpq dependency"
 # protobuf and SQLite are linked statically (FLEETGW_STATIC_DEPS, the default: resident memory).
