@@ -21,7 +21,7 @@ namespace fleetgw::command::testing {
 class BurstClient {
  public:
   BurstClient(const std::string& broker_uri, std::string vehicle)
-      : client_(broker_uri, "burst-" + vehicle, mqtt::create_options(MQTTVERSION_3_1_1)),
+      : client_(broker_uri, "burst-" + vehicle, mqtt::create_options(MQTTVERSION_3_1_1, 10000)),
         vehicle_(std::move(vehicle)) {
     client_.set_message_callback([this](mqtt::const_message_ptr m) {
       v1::Envelope env;
