@@ -101,6 +101,7 @@ std::string GpsdClient::connect() {
 
 void GpsdClient::close() {
   data_.reset();
+  horizontal_error_m_.reset();
 }
 
 int GpsdClient::fd() const {
@@ -112,6 +113,23 @@ namespace {
 bool plausible(double lat, double lon) {
   return std::isfinite(lat) && std::isfinite(lon) && std::fabs(lat) <= 90.0 &&
          std::fabs(lon) <= 180.0;
+}
+
+// How long a TPV's horizontal error stands for the TPVs after it that carry none.
+constexpr Micros kHorizontalErrorMaxAge = std::chrono::seconds(2);
+
+// A TPV's horizontal error in metres: gpsd's eph, else the hypotenuse of its per-axis estimates
+// (epx, epy: both needed). Untrusted: negative or non-finite values, or more than the Earth's
+// circumference, count as "not reported".
+std::optional<double> horizontal_error_m(const gps_fix_t& fix) {
+  constexpr double kMaxM = 40'075'000.0;
+  auto usable = [](double m) { return std::isfinite(m) && m >= 0 && m <= kMaxM; };
+  if (usable(fix.eph)) return fix.eph;
+  if (usable(fix.epx) && usable(fix.epy)) {
+    const double m = std::hypot(fix.epx, fix.epy);
+    if (usable(m)) return m;
+  }
+  return std::nullopt;
 }
 
 }  // namespace
@@ -139,6 +157,15 @@ GpsdClient::ReadStatus GpsdClient::read_available(Micros now, std::vector<GnssRe
       if (p.three_d && std::isfinite(g.fix.altMSL)) p.alt_m = g.fix.altMSL;
       p.hdop = hdop_;
       p.satellites = satellites_;
+      // gpsd puts eph in some of a cycle's TPV reports only (the GGA's, not the RMC's): a
+      // report without one takes the latest one, if gpsd sent it within the last 2 s.
+      if (const auto error = horizontal_error_m(g.fix)) {
+        horizontal_error_m_ = error;
+        horizontal_error_at_ = now;
+      } else if (horizontal_error_m_ && now - horizontal_error_at_ > kHorizontalErrorMaxAge) {
+        horizontal_error_m_.reset();
+      }
+      p.horizontal_error_m = horizontal_error_m_;
       if (g.set & TIME_SET) {
         p.fixed_at =
             Micros(static_cast<int64_t>(g.fix.time.tv_sec) * 1'000'000 + g.fix.time.tv_nsec / 1000);

@@ -11,7 +11,10 @@
 //    them, in order. It never waits for more.
 //  * A report is a fix (mode 2D/3D with latitude and longitude: a Position stamped with the
 //    `now` given) or a "no fix" (mode reported, but below 2D). Everything received from gpsd is
-//    untrusted: non-finite or out-of-range coordinates are dropped as "no fix".
+//    untrusted: non-finite or out-of-range coordinates are dropped as "no fix". A fix carries
+//    the horizontal error of the latest TPV that had one (eph, else epx and epy) if it came
+//    within 2 s (gpsd sends it with some of a cycle's TPVs only), and the hdop and satellites of
+//    the latest SKY report, if one came (position.h: never one derived from the other).
 //  * A read error or EOF closes the connection (connected() turns false) and is reported once
 //    through the return value; the owner reconnects on its own schedule.
 #pragma once
@@ -60,6 +63,8 @@ class GpsdClient {
   std::unique_ptr<Library> library_;  // before data_: destroyed after it
   std::unique_ptr<Data, DataDeleter> data_;
   std::optional<double> hdop_;                // SKY reports arrive apart from the TPV fixes
+  std::optional<double> horizontal_error_m_;  // the latest TPV eph, at horizontal_error_at_
+  Micros horizontal_error_at_{0};
   int satellites_ = 0;
 };
 

@@ -232,6 +232,8 @@ nlohmann::json make_status_json(const StatusInputs& in) {
       g["lat"] = p->lat_deg;
       g["lon"] = p->lon_deg;
       g["hdop"] = p->hdop ? json(*p->hdop) : json(nullptr);
+      g["horizontal_error_m"] =
+          p->horizontal_error_m ? json(*p->horizontal_error_m) : json(nullptr);
       g["satellites"] = p->satellites;
     }
     if (const auto& last = state.last_fix()) {

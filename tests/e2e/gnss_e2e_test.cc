@@ -1,7 +1,8 @@
 // GNSS through the real `fleetgw run` (simulated bike) and a real gpsd fed by gpsfake (issue
-// 14): the position reaches the telemetry samples; gpsd unreachable at start, gpsd gone mid-run
-// and its return drive the IoT node's GNSS fault bit (0x0004) and "position unknown". The
-// store is read with SQLite itself; every wait is for a condition with a deadline.
+// 14): the position reaches the telemetry samples, with its horizontal error from gpsd's TPV
+// reports (issue 24); gpsd unreachable at start, gpsd gone mid-run and its return drive the IoT
+// node's GNSS fault bit (0x0004) and "position unknown". The store is read with SQLite itself;
+// every wait is for a condition with a deadline.
 #include <gtest/gtest.h>
 #include <sqlite3.h>
 
@@ -157,6 +158,22 @@ TEST(GnssEndToEnd, PositionReachesTelemetryAndTheFaultBitFollowsGpsd) {
     }
   }
   EXPECT_GE(with_position, 1);
+  // The accuracy of a receiver sending only GGA and RMC: gpsd sends TPV reports alone, whose eph
+  // (17.1 m: the GGA's HDOP 0.9 times gpsd's range error) is the horizontal error. No SKY report
+  // came, so no hdop and no satellite count -- never one made up from the eph.
+  for (const auto& s : telemetry(db)) {
+    if (!s.msg.has_position()) continue;
+    const auto& p = s.msg.position();
+    EXPECT_TRUE(p.has_horizontal_error_dm())
+        << "seq " << s.seq << " fixed at " << p.fixed_at_us() << " lat " << p.lat_e7();
+    EXPECT_EQ(p.horizontal_error_dm(), 171u) << "seq " << s.seq;
+    if (p.has_hdop_centi()) {
+      EXPECT_EQ(p.hdop_centi(), 90u) << "only the receiver's own HDOP";
+    }
+    if (p.has_satellites()) {
+      EXPECT_EQ(p.satellites(), 8u) << "only the receiver's own count";
+    }
+  }
   // The fault clears once the fix holds for the fault debounce.
   ASSERT_TRUE(wait_until(
       [&] {
