@@ -46,7 +46,7 @@ for _ in $(seq 100); do
   sleep 0.05
 done
 
-"$FLEETGW" keygen "$WORK/ops" >"$WORK/keygen.out"
+"$FLEETGW" keygen "$WORK/ops" >"$WORK/keygen.out" 2>"$WORK/keygen.err"
 cat >"$WORK/fleetgw.toml" <<TOML
 [vehicle]
 id = "$VEHICLE"
