@@ -28,7 +28,7 @@
 #include <variant>
 #include <vector>
 
-#include "backend/ingest/pg.h"
+#include "backend/common/pg.h"
 
 namespace fleetgw::ingest {
 

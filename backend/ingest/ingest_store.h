@@ -36,8 +36,8 @@
 #include <string_view>
 #include <vector>
 
+#include "backend/common/pg.h"
 #include "backend/ingest/envelope_rows.h"
-#include "backend/ingest/pg.h"
 
 namespace fleetgw::ingest {
 

@@ -14,7 +14,7 @@
 #include <span>
 #include <string_view>
 
-#include "backend/ingest/pg.h"
+#include "backend/common/pg.h"
 
 namespace fleetgw::ingest {
 

@@ -110,8 +110,8 @@ std::int64_t Auth::throttle_wait(PgConnection& c, const std::string& key, int fr
       c.query("SELECT failures, last_failure_us FROM console_login_throttle WHERE key = $1", p,
               "read login throttle");
   if (r.rows() == 0) return 0;
-  const std::int64_t failures = r.int64(0, 0).value_or(0);
-  const std::int64_t last = r.int64(0, 1).value_or(0);
+  const std::int64_t failures = r.int64_or_null(0, 0).value_or(0);
+  const std::int64_t last = r.int64_or_null(0, 1).value_or(0);
   const std::int64_t forget_us =
       std::chrono::duration_cast<std::chrono::microseconds>(limits_.forget_after).count();
   if (now - last > forget_us || failures < free_failures) return 0;
@@ -156,8 +156,8 @@ LoginOutcome Auth::login(std::string_view name, std::string_view password,
         "SELECT password_hash, role FROM console_operators WHERE name = $1 AND NOT disabled", p,
         "read operator");
     if (r.rows() == 1) {
-      hash = r.text(0, 0);
-      role = parse_role(r.text(0, 1));
+      hash = r.str(0, 0);
+      role = parse_role(r.str(0, 1));
     }
   }
   // The hash is verified without holding a database connection: it takes ~0.1 s of CPU.
@@ -205,15 +205,15 @@ std::optional<Session> Auth::session(std::string_view session_id) {
       "s.expires_at_us > $2::bigint AND s.last_seen_us > $3::bigint AND NOT o.disabled",
       p, "read session");
   if (r.rows() != 1) return std::nullopt;
-  const std::optional<Role> role = parse_role(r.text(0, 1));
+  const std::optional<Role> role = parse_role(r.str(0, 1));
   if (!role) return std::nullopt;
   // The idle clock is written at most once a minute, not on every request.
-  if (t - r.int64(0, 3).value_or(0) > 60'000'000) {
+  if (t - r.int64_or_null(0, 3).value_or(0) > 60'000'000) {
     const PgParam u[] = {id_hash, us(t)};
     c->query("UPDATE console_sessions SET last_seen_us = $2 WHERE id_sha256 = $1", u,
              "touch session");
   }
-  return Session{r.text(0, 0), *role, r.text(0, 2)};
+  return Session{r.str(0, 0), *role, r.str(0, 2)};
 }
 
 void Auth::logout(std::string_view session_id) {

@@ -6,7 +6,7 @@
 #include <memory>
 #include <optional>
 
-#include "backend/web/pg.h"
+#include "backend/common/pg.h"
 
 namespace fleetgw::web {
 namespace {
@@ -64,8 +64,8 @@ void ChangeFeed::run(const std::stop_token& stop) {
     try {
       if (!conn || !conn->ok()) conn = std::make_unique<PgConnection>(conninfo_);
       const PgResult r = conn->exec(kPollSql, "change poll");
-      const std::string f = r.null(0, 0) ? "-" : r.text(0, 0);
-      const std::string a = r.text(0, 1);
+      const std::string f = r.is_null(0, 0) ? "-" : r.str(0, 0);
+      const std::string a = r.str(0, 1);
       const std::lock_guard lock(mu_);
       // An alarm or an acknowledgement changes the fleet's colours too.
       if (f != fleet_mark || a != alarm_mark) ++cursor_.fleet;

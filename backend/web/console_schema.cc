@@ -76,7 +76,7 @@ int migrate_console_schema(PgConnection& conn) {
       "console_schema_migrations");
   const PgResult have =
       conn.exec("SELECT coalesce(max(version), 0) FROM console_schema_migrations", "version");
-  const std::int64_t current = have.int64(0, 0).value_or(0);
+  const std::int64_t current = have.int64_or_null(0, 0).value_or(0);
   const int newest = kVersions[std::size(kVersions) - 1].number;
   if (current > newest) {
     throw PgError("console schema version " + std::to_string(current) +

@@ -8,7 +8,7 @@
 // (PgError). Released versions are never edited: changes are new versions.
 #pragma once
 
-#include "backend/web/pg.h"
+#include "backend/common/pg.h"
 
 namespace fleetgw::web {
 

@@ -61,22 +61,22 @@ FROM alarms a LEFT JOIN console_alarm_acks k ON k.vehicle_id = a.vehicle_id
 )sql";
 
 json opt_int(const PgResult& r, int row, int col) {
-  const auto v = r.int64(row, col);
+  const auto v = r.int64_or_null(row, col);
   return v ? json(*v) : json(nullptr);
 }
 
 json opt_text(const PgResult& r, int row, int col) {
-  return r.null(row, col) ? json(nullptr) : json(r.text(row, col));
+  return r.is_null(row, col) ? json(nullptr) : json(r.str(row, col));
 }
 
 json degrees(const PgResult& r, int row, int col) {
-  const auto v = r.int64(row, col);
+  const auto v = r.int64_or_null(row, col);
   return v ? json(static_cast<double>(*v) / 1e7) : json(nullptr);
 }
 
 // PostgreSQL's own JSON output (json_agg): parsed so it is re-serialised by us, escaped alike.
 json pg_json(const PgResult& r, int row, int col) {
-  json j = json::parse(r.text(row, col), nullptr, /*allow_exceptions=*/false);
+  json j = json::parse(r.str(row, col), nullptr, /*allow_exceptions=*/false);
   return j.is_discarded() ? json(nullptr) : j;
 }
 
@@ -88,29 +88,29 @@ std::string mode_name(std::string_view m) {
 
 json fleet_row(const PgResult& r, int i) {
   json v;
-  v["id"] = r.text(i, 0);
+  v["id"] = r.str(i, 0);
   v["lat"] = degrees(r, i, 1);
   v["lon"] = degrees(r, i, 2);
-  v["mode"] = r.null(i, 3) ? "unknown" : mode_name(r.text(i, 3));
+  v["mode"] = r.is_null(i, 3) ? "unknown" : mode_name(r.str(i, 3));
   // The retained status is the authority on the connection (its last will says offline);
   // a vehicle that never published one falls back to its state's flag.
-  const bool online = r.null(i, 5) ? r.boolean(i, 4) : r.text(i, 5) == "ONLINE_STATE_ONLINE";
+  const bool online = r.is_null(i, 5) ? r.boolean(i, 4) : r.str(i, 5) == "ONLINE_STATE_ONLINE";
   v["online"] = online;
   v["connection"] = opt_text(r, i, 6);
   v["soc_pct"] = opt_int(r, i, 7);
   v["range_m"] = opt_int(r, i, 8);
-  const auto dkmh = r.int64(i, 9);
+  const auto dkmh = r.int64_or_null(i, 9);
   v["speed_kmh"] = dkmh ? json(static_cast<double>(*dkmh) / 10.0) : json(nullptr);
   v["speed_at_us"] = opt_int(r, i, 10);
   v["last_seen_us"] = opt_int(r, i, 11);
   v["updated_at_us"] = opt_int(r, i, 12);
   v["locks"] = pg_json(r, i, 13);
   v["alarms"] = {{"kinds", pg_json(r, i, 14)},
-                 {"active", r.int64(i, 15).value_or(0)},
-                 {"unacked", r.int64(i, 16).value_or(0)}};
-  const auto soc = r.int64(i, 7);
+                 {"active", r.int64_or_null(i, 15).value_or(0)},
+                 {"unacked", r.int64_or_null(i, 16).value_or(0)}};
+  const auto soc = r.int64_or_null(i, 7);
   std::string state = "parked";
-  if (r.int64(i, 15).value_or(0) > 0) {
+  if (r.int64_or_null(i, 15).value_or(0) > 0) {
     state = "alarm";
   } else if (!online) {
     state = "offline";
@@ -125,17 +125,17 @@ json fleet_row(const PgResult& r, int i) {
 
 json alarm_row(const PgResult& r, int i) {
   json a;
-  a["id"] = alarm_id({r.text(i, 0), r.text(i, 1), r.int64(i, 2).value_or(0)});
-  a["vehicle_id"] = r.text(i, 0);
-  a["kind"] = r.text(i, 3);
-  a["transition"] = r.text(i, 4);
+  a["id"] = alarm_id({r.str(i, 0), r.str(i, 1), r.int64_or_null(i, 2).value_or(0)});
+  a["vehicle_id"] = r.str(i, 0);
+  a["kind"] = r.str(i, 3);
+  a["transition"] = r.str(i, 4);
   a["at_us"] = opt_int(r, i, 5);
   a["created_at_us"] = opt_int(r, i, 6);
   a["received_at_us"] = opt_int(r, i, 7);
   a["speed_dkmh"] = opt_int(r, i, 8);
   a["soc_pct"] = opt_int(r, i, 9);
-  a["lock_kind"] = r.text(i, 10);
-  a["detail"] = r.text(i, 11);
+  a["lock_kind"] = r.str(i, 10);
+  a["detail"] = r.str(i, 11);
   a["acked_by"] = opt_text(r, i, 12);
   a["acked_at_us"] = opt_int(r, i, 13);
   a["active"] = r.boolean(i, 14);
@@ -225,8 +225,8 @@ std::optional<json> vehicle(PgConnection& c, std::string_view vehicle_id) {
       "array_to_json(attention), created_at_us, received_at_us FROM status WHERE vehicle_id = $1",
       p, "vehicle status");
   if (st.rows() == 1) {
-    v["status"] = {{"connection", st.text(0, 0)},        {"bus_state", st.text(0, 1)},
-                   {"firmware_version", st.text(0, 2)},  {"outbox_depth", opt_int(st, 0, 3)},
+    v["status"] = {{"connection", st.str(0, 0)},         {"bus_state", st.str(0, 1)},
+                   {"firmware_version", st.str(0, 2)},   {"outbox_depth", opt_int(st, 0, 3)},
                    {"last_will", st.boolean(0, 4)},      {"attention", pg_json(st, 0, 5)},
                    {"created_at_us", opt_int(st, 0, 6)}, {"received_at_us", opt_int(st, 0, 7)}};
   } else {
@@ -241,7 +241,7 @@ std::optional<json> vehicle(PgConnection& c, std::string_view vehicle_id) {
       p, "vehicle rides");
   v["rides"] = json::array();
   for (int i = 0; i < rides.rows(); ++i) {
-    json ride = {{"ride_id", rides.text(i, 0)},
+    json ride = {{"ride_id", rides.str(i, 0)},
                  {"started_at_us", opt_int(rides, i, 1)},
                  {"ended_at_us", opt_int(rides, i, 2)},
                  {"distance_odo_m", opt_int(rides, i, 3)},
@@ -254,8 +254,8 @@ std::optional<json> vehicle(PgConnection& c, std::string_view vehicle_id) {
                  {"partial", rides.boolean(i, 10)},
                  {"start", {degrees(rides, i, 11), degrees(rides, i, 12)}},
                  {"end", {degrees(rides, i, 13), degrees(rides, i, 14)}}};
-    const auto from = rides.int64(i, 1);
-    const auto to = rides.int64(i, 2);
+    const auto from = rides.int64_or_null(i, 1);
+    const auto to = rides.int64_or_null(i, 2);
     ride["track"] = from && to ? ride_track(c, id, *from, *to) : json::array();
     v["rides"].push_back(std::move(ride));
   }
@@ -267,12 +267,12 @@ std::optional<json> vehicle(PgConnection& c, std::string_view vehicle_id) {
       p, "vehicle faults");
   v["faults"] = json::array();
   for (int i = 0; i < faults.rows(); ++i) {
-    v["faults"].push_back({{"node", faults.text(i, 0)},
+    v["faults"].push_back({{"node", faults.str(i, 0)},
                            {"bit", opt_int(faults, i, 1)},
                            {"code", opt_int(faults, i, 2)},
-                           {"name", faults.text(i, 3)},
-                           {"severity", faults.text(i, 4)},
-                           {"kind", faults.text(i, 5)},
+                           {"name", faults.str(i, 3)},
+                           {"severity", faults.str(i, 4)},
+                           {"kind", faults.str(i, 5)},
                            {"first_seen_us", opt_int(faults, i, 6)},
                            {"last_seen_us", opt_int(faults, i, 7)},
                            {"occurrences", opt_int(faults, i, 8)}});
@@ -295,10 +295,10 @@ std::optional<json> vehicle(PgConnection& c, std::string_view vehicle_id) {
       p, "vehicle commands");
   v["commands"] = json::array();
   for (int i = 0; i < cmds.rows(); ++i) {
-    v["commands"].push_back({{"command_id", cmds.text(i, 0)},
-                             {"key_id", cmds.text(i, 1)},
-                             {"action", cmds.text(i, 2)},
-                             {"target", cmds.text(i, 3)},
+    v["commands"].push_back({{"command_id", cmds.str(i, 0)},
+                             {"key_id", cmds.str(i, 1)},
+                             {"action", cmds.str(i, 2)},
+                             {"target", cmds.str(i, 3)},
                              {"issued_at_us", opt_int(cmds, i, 4)},
                              {"received_at_us", opt_int(cmds, i, 5)},
                              {"result", opt_text(cmds, i, 6)},

@@ -29,7 +29,7 @@
 #include <string>
 #include <string_view>
 
-#include "backend/web/pg.h"
+#include "backend/common/pg.h"
 
 namespace fleetgw::web {
 

@@ -8,10 +8,10 @@
 #include <filesystem>
 #include <stdexcept>
 
+#include "backend/common/pg.h"
 #include "backend/web/auth.h"
 #include "backend/web/change_feed.h"
 #include "backend/web/fleet_api.h"
-#include "backend/web/pg.h"
 #include "backend/web/secrets.h"
 
 namespace fleetgw::web {
@@ -351,13 +351,13 @@ void WebServer::Impl::routes() {
         "audit trail");
     json rows = json::array();
     for (int i = 0; i < r.rows(); ++i) {
-      rows.push_back({{"at_us", r.int64(i, 0).value_or(0)},
-                      {"operator", r.null(i, 1) ? json(nullptr) : json(r.text(i, 1))},
-                      {"address", r.text(i, 2)},
-                      {"action", r.text(i, 3)},
-                      {"target", r.text(i, 4)},
-                      {"result", r.text(i, 5)},
-                      {"detail", r.text(i, 6)}});
+      rows.push_back({{"at_us", r.int64_or_null(i, 0).value_or(0)},
+                      {"operator", r.is_null(i, 1) ? json(nullptr) : json(r.str(i, 1))},
+                      {"address", r.str(i, 2)},
+                      {"action", r.str(i, 3)},
+                      {"target", r.str(i, 4)},
+                      {"result", r.str(i, 5)},
+                      {"detail", r.str(i, 6)}});
     }
     reply(res, 200, {{"audit", rows}});
   });

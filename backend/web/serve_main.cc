@@ -12,10 +12,10 @@
 #include <string>
 #include <thread>
 
+#include "backend/common/pg.h"
 #include "backend/web/auth.h"
 #include "backend/web/console_schema.h"
 #include "backend/web/http_server.h"
-#include "backend/web/pg.h"
 #include "backend/web/serve_command.h"
 
 namespace {
@@ -36,7 +36,7 @@ std::string default_static_dir() {
 }
 
 int administer(const ServeOptions& o) {
-  fleetgw::web::PgPool pool(o.pg, 1);
+  fleetgw::PgPool pool(o.pg, 1);
   {
     auto c = pool.lease();
     fleetgw::web::migrate_console_schema(*c);
@@ -99,7 +99,7 @@ int main(int argc, char** argv) {
     sigaddset(&stop_signals, SIGTERM);
     pthread_sigmask(SIG_BLOCK, &stop_signals, nullptr);
     {
-      fleetgw::web::PgConnection c(o.pg);
+      fleetgw::PgConnection c(o.pg);
       const int applied = fleetgw::web::migrate_console_schema(c);
       if (applied > 0) spdlog::info("serve: applied {} console schema migration(s)", applied);
     }

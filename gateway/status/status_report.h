@@ -21,6 +21,7 @@
 //                "tls_failures": 2,                      // the last three: optional
 //                "protocol": "5", "publish_refusals": 3, "refused_records": 1,
 //                "last_publish_refusal": "0x87 Not authorized (fleet/v1/bike-0001/ride)",
+//                // ^ one "<code> <name> (<topic>)" per refused kind, "; "-separated
 //                "last_publish_refusal_code": 135, "last_publish_refusal_us": 0},  // optional
 //     "commands": {"received": 20, "unauthenticated": 3, "busy": 84, "dropped": 5,
 //                "dropped_by_reason": {"oversized": 1, "undecodable": 1, "unauthenticated": 3,
@@ -35,8 +36,9 @@
 //                 "dropped_records": 0},                  // optional section
 //     "gnss":   {"enabled": true, "gpsd": "localhost:2947", "connected": true, "fix": true,
 //                "reason": "" | "no fix" | "gpsd unreachable" | "fix stale", "fixes": 120,
-//                "lat": 52.52, "lon": 13.405, "hdop": 0.9 | null, "satellites": 8,
-//                "last_fix_age_s": 0.4},                 // optional section ([gnss] enabled)
+//                "lat": 52.52, "lon": 13.405, "hdop": 0.9 | null,
+//                "horizontal_error_m": 17.1 | null,     // gpsd's eph (docs/location.md)
+//                "satellites": 8, "last_fix_age_s": 0.4},  // optional section ([gnss] enabled)
 //     "geofence": {"enabled": true, "version": 3 | null, "zones": 4, "vertices": 80,
 //                "key_id": "ops", "issued_at_us": 0, "bundle_file": "/var/lib/fleetgw/zones.pb",
 //                "topics": ["fleet/v1/zones"], "bundles_received": 5, "bundles_accepted": 2,

@@ -21,7 +21,7 @@
 #include <string>
 #include <vector>
 
-#include "backend/ingest/pg.h"
+#include "backend/common/pg.h"
 #include "fleetgw/v1/envelope.pb.h"
 #include "tests/ingest/pg_fixture.h"
 #include "tests/support/mosquitto_fixture.h"
@@ -31,7 +31,7 @@
 
 namespace {
 
-using fleetgw::ingest::PgConnection;
+using fleetgw::PgConnection;
 using fleetgw::testing::ChildProcess;
 using fleetgw::testing::MosquittoBroker;
 using fleetgw::testing::PostgresCluster;
@@ -147,7 +147,7 @@ class IngestBatch : public ::testing::Test {
     try {
       PgConnection c(pg_->conninfo());
       return c.exec(sql, "test query").int64(0, 0);
-    } catch (const fleetgw::ingest::PgError&) {
+    } catch (const fleetgw::PgError&) {
       return -1;
     }
   }

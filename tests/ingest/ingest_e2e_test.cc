@@ -16,7 +16,7 @@
 #include <string>
 #include <vector>
 
-#include "backend/ingest/pg.h"
+#include "backend/common/pg.h"
 #include "fleetgw/v1/envelope.pb.h"
 #include "tests/ingest/pg_fixture.h"
 #include "tests/support/mosquitto_fixture.h"
@@ -27,7 +27,7 @@
 
 namespace {
 
-using fleetgw::ingest::PgConnection;
+using fleetgw::PgConnection;
 using fleetgw::testing::ChildProcess;
 using fleetgw::testing::GatewayProcess;
 using fleetgw::testing::MosquittoBroker;
@@ -94,7 +94,7 @@ class IngestE2E : public ::testing::Test {
   }
   std::int64_t pg_count(const std::string& sql, const std::vector<std::string>& args) {
     PgConnection c(pg_->conninfo());
-    std::vector<fleetgw::ingest::PgParam> p(args.begin(), args.end());
+    std::vector<fleetgw::PgParam> p(args.begin(), args.end());
     return c.exec_params(sql, p, "test query").int64(0, 0);
   }
 
@@ -220,7 +220,7 @@ TEST_F(IngestE2E, DatabaseOutageHoldsMessagesUntilItEnds) {
         try {
           return pg_count("SELECT count(*) FROM fault_events WHERE vehicle_id = 'outage-bike'") ==
                  5;
-        } catch (const fleetgw::ingest::PgError&) {
+        } catch (const fleetgw::PgError&) {
           return false;
         }
       },

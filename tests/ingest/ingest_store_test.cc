@@ -17,9 +17,9 @@
 
 namespace {
 
+using fleetgw::PgConnection;
 using fleetgw::ingest::Decoded;
 using fleetgw::ingest::IngestStore;
-using fleetgw::ingest::PgConnection;
 using fleetgw::testing::PostgresCluster;
 namespace v1 = fleetgw::v1;
 
@@ -198,7 +198,7 @@ TEST_F(IngestStoreTest, NewerDatabaseIsRefused) {
   PgConnection(cluster_->conninfo())
       .exec("INSERT INTO schema_migrations (version, name) VALUES (999, 'future')", "future");
   IngestStore b(cluster_->conninfo(), 100);
-  EXPECT_THROW(b.connect(), fleetgw::ingest::PgError);
+  EXPECT_THROW(b.connect(), fleetgw::PgError);
 }
 
 TEST_F(IngestStoreTest, RedeliveryIsIgnoredAndCounted) {

@@ -41,7 +41,8 @@ class WebApi : public ::testing::Test {
       stack_->insert_sample("riding-bike", i + 1, t - 60'000'000 + i * 1'000'000, 150 + i,
                             48.12 + i * 0.001, 11.52);
     }
-    const web::PgParam ride[] = {std::to_string(t - 60'000'000), std::to_string(t - 56'000'000)};
+    const fleetgw::PgParam ride[] = {std::to_string(t - 60'000'000),
+                                     std::to_string(t - 56'000'000)};
     stack_->db().query(
         "INSERT INTO rides (vehicle_id, store_id, sequence, created_at_us, gateway_fw_version, "
         "ride_id, started_at_us, ended_at_us, distance_odo_m, max_speed_dkmh, soc_start_pct, "

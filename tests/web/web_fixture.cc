@@ -30,7 +30,7 @@ ServeStack::ServeStack(std::vector<std::string> extra_args, bool tls)
     throw std::runtime_error("fleetgw-ingest --gaps failed: " +
                              read_text_file(dir_ / "ingest-schema.log"));
   }
-  db_ = std::make_unique<web::PgConnection>(conninfo_);
+  db_ = std::make_unique<fleetgw::PgConnection>(conninfo_);
   port_ = free_loopback_port();
   std::vector<std::string> argv = {
       FLEETGW_SERVE_BINARY, "--pg", conninfo_, "--listen", "127.0.0.1:" + std::to_string(port_),
@@ -100,17 +100,18 @@ LoginResult ServeStack::login(const std::string& name, const std::string& passwo
 
 void ServeStack::insert_vehicle(const VehicleRow& v) {
   const auto e7 = [](double deg) { return std::to_string(static_cast<long long>(deg * 1e7)); };
-  const web::PgParam s[] = {
+  const fleetgw::PgParam s[] = {
       v.id,      std::to_string(now_us()),
-      v.mode,    v.soc_pct ? web::PgParam(std::to_string(*v.soc_pct)) : std::nullopt,
+      v.mode,    v.soc_pct ? fleetgw::PgParam(std::to_string(*v.soc_pct)) : std::nullopt,
       e7(v.lat), e7(v.lon)};
   db_->query(
       "INSERT INTO vehicle_state (vehicle_id, updated_at_us, online, mode, soc_pct, range_m, "
       "lat_e7, lon_e7) VALUES ($1, $2, true, $3, $4, 20000, $5, $6)",
       s, "vehicle_state row");
   if (v.status_online) {
-    const web::PgParam st[] = {v.id, std::to_string(now_us()),
-                               *v.status_online ? "ONLINE_STATE_ONLINE" : "ONLINE_STATE_OFFLINE"};
+    const fleetgw::PgParam st[] = {
+        v.id, std::to_string(now_us()),
+        *v.status_online ? "ONLINE_STATE_ONLINE" : "ONLINE_STATE_OFFLINE"};
     db_->query(
         "INSERT INTO status (vehicle_id, created_at_us, online, connection, outbox_depth, "
         "bus_state, firmware_version, last_will, attention) VALUES ($1, $2, $3, "
@@ -122,7 +123,7 @@ void ServeStack::insert_vehicle(const VehicleRow& v) {
 void ServeStack::insert_alarm(const std::string& vehicle, std::int64_t sequence,
                               const std::string& kind, const std::string& transition,
                               std::int64_t at_us, const std::string& detail) {
-  const web::PgParam p[] = {
+  const fleetgw::PgParam p[] = {
       vehicle, std::to_string(sequence), std::to_string(at_us), kind, transition, detail};
   db_->query(
       "INSERT INTO alarms (vehicle_id, store_id, sequence, created_at_us, gateway_fw_version, "
@@ -133,12 +134,12 @@ void ServeStack::insert_alarm(const std::string& vehicle, std::int64_t sequence,
 
 void ServeStack::insert_sample(const std::string& vehicle, std::int64_t sequence,
                                std::int64_t at_us, int speed_dkmh, double lat, double lon) {
-  const web::PgParam p[] = {vehicle,
-                            std::to_string(sequence),
-                            std::to_string(at_us),
-                            std::to_string(speed_dkmh),
-                            std::to_string(static_cast<long long>(lat * 1e7)),
-                            std::to_string(static_cast<long long>(lon * 1e7))};
+  const fleetgw::PgParam p[] = {vehicle,
+                                std::to_string(sequence),
+                                std::to_string(at_us),
+                                std::to_string(speed_dkmh),
+                                std::to_string(static_cast<long long>(lat * 1e7)),
+                                std::to_string(static_cast<long long>(lon * 1e7))};
   db_->query(
       "INSERT INTO telemetry_samples (vehicle_id, store_id, sequence, created_at_us, "
       "sampled_at_us, speed_dkmh, lat_e7, lon_e7) VALUES ($1, 'store-1', $2, $3, $3, $4, $5, "
@@ -148,8 +149,8 @@ void ServeStack::insert_sample(const std::string& vehicle, std::int64_t sequence
 
 void ServeStack::insert_lock(const std::string& vehicle, std::int64_t sequence,
                              const std::string& state_name) {
-  const web::PgParam p[] = {vehicle, std::to_string(sequence), std::to_string(now_us()),
-                            state_name};
+  const fleetgw::PgParam p[] = {vehicle, std::to_string(sequence), std::to_string(now_us()),
+                                state_name};
   db_->query(
       "INSERT INTO lock_events (vehicle_id, store_id, sequence, created_at_us, "
       "gateway_fw_version, node, lock_kind, previous_state, state, previous_state_name, "
@@ -161,12 +162,12 @@ void ServeStack::insert_lock(const std::string& vehicle, std::int64_t sequence,
 
 std::vector<std::vector<std::string>> ServeStack::rows(const std::string& sql,
                                                        const std::vector<std::string>& params) {
-  std::vector<web::PgParam> p(params.begin(), params.end());
-  const web::PgResult r = db_->query(sql, p, "test query");
+  std::vector<fleetgw::PgParam> p(params.begin(), params.end());
+  const fleetgw::PgResult r = db_->query(sql, p, "test query");
   std::vector<std::vector<std::string>> out;
   for (int i = 0; i < r.rows(); ++i) {
     std::vector<std::string> row;
-    for (int c = 0; c < r.cols(); ++c) row.push_back(r.text(i, c));
+    for (int c = 0; c < r.cols(); ++c) row.push_back(r.str(i, c));
     out.push_back(std::move(row));
   }
   return out;

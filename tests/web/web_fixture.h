@@ -18,7 +18,7 @@
 #include <string>
 #include <vector>
 
-#include "backend/web/pg.h"
+#include "backend/common/pg.h"
 #include "tests/ingest/pg_fixture.h"
 #include "tests/support/process.h"
 #include "tests/support/temp_dir.h"
@@ -54,7 +54,7 @@ class ServeStack {
   }
   std::uint16_t port() const { return port_; }
   const std::string& conninfo() const { return conninfo_; }
-  web::PgConnection& db() { return *db_; }
+  fleetgw::PgConnection& db() { return *db_; }
   std::string log() const { return serve_ ? serve_->log() : ""; }
   const std::filesystem::path& dir() const { return dir_.path(); }
 
@@ -81,7 +81,7 @@ class ServeStack {
   TempDir dir_;
   std::unique_ptr<PostgresCluster> cluster_;
   std::string conninfo_;
-  std::unique_ptr<web::PgConnection> db_;
+  std::unique_ptr<fleetgw::PgConnection> db_;
   std::uint16_t port_ = 0;
   std::unique_ptr<ChildProcess> serve_;
   bool tls_ = false;

@@ -1,5 +1,5 @@
-// libpq wrappers (pg.h).
-#include "backend/ingest/pg.h"
+// libpq wrappers and pool (pg.h).
+#include "backend/common/pg.h"
 
 #include <spdlog/spdlog.h>
 
@@ -8,7 +8,7 @@
 #include <optional>
 #include <vector>
 
-namespace fleetgw::ingest {
+namespace fleetgw {
 namespace {
 
 std::string trimmed(const char* s) {
@@ -57,7 +57,7 @@ PgConnection::PgConnection(const std::string& conninfo) : conn_(PQconnectdb(conn
   if (!conn_) throw PgError("PostgreSQL: out of memory", "");
   if (PQstatus(conn_.get()) != CONNECTION_OK) {
     // libpq's message names host, port and the server's reason, never the password.
-    throw PgError("PostgreSQL connection failed: " + trimmed(PQerrorMessage(conn_.get())), "");
+    throw PgError("cannot connect to PostgreSQL: " + trimmed(PQerrorMessage(conn_.get())), "08000");
   }
   // Server notices (e.g. "relation already exists, skipping") are not errors: debug level,
   // instead of libpq's default of printing them on stderr.
@@ -117,4 +117,45 @@ void PgTransaction::commit() {
   done_ = true;
 }
 
-}  // namespace fleetgw::ingest
+PgPool::PgPool(std::string conninfo, std::size_t size, std::chrono::milliseconds wait)
+    : conninfo_(std::move(conninfo)), size_(size == 0 ? 1 : size), wait_(wait) {}
+
+PgPool::Lease PgPool::lease() {
+  std::unique_lock lock(mu_);
+  if (!cv_.wait_for(lock, wait_, [&] { return !idle_.empty() || open_ < size_; })) {
+    throw PgError("busy: every database connection is in use", "53300");
+  }
+  if (!idle_.empty()) {
+    std::unique_ptr<PgConnection> c = std::move(idle_.back());
+    idle_.pop_back();
+    return Lease(*this, std::move(c));
+  }
+  ++open_;
+  lock.unlock();
+  // Connecting happens outside the lock: it can take a while and other threads may return
+  // connections meanwhile.
+  try {
+    return Lease(*this, std::make_unique<PgConnection>(conninfo_));
+  } catch (...) {
+    const std::lock_guard relock(mu_);
+    --open_;
+    cv_.notify_one();
+    throw;
+  }
+}
+
+void PgPool::give_back(std::unique_ptr<PgConnection> c) {
+  const std::lock_guard lock(mu_);
+  if (c && c->ok()) {
+    idle_.push_back(std::move(c));
+  } else {
+    --open_;  // broken: the next lease opens a new one
+  }
+  cv_.notify_one();
+}
+
+PgPool::Lease::~Lease() {
+  if (c_) pool_->give_back(std::move(c_));
+}
+
+}  // namespace fleetgw
