@@ -11,14 +11,18 @@
 # slow zone (10 km/h, applied along a ramp and lifted on exit, back to the operator's 15); the
 # bike stops, the operator locks it, the ride ends with its GNSS track and reaches the broker;
 # at night the locked bike is ridden away: a theft alarm. Every step prints one plain line as
-# it happens; the end is `fleetgw db summary` and the commands to look further.
+# it happens; then `fleetgw db summary`. Then the fleet's side: a `fleetgw ingest` worker,
+# subscribed before the bike starts, has written everything the bike published into a private
+# PostgreSQL cluster; `fleetgw serve` (the operator console) is started on it with an operator
+# account `demo`, and its API is asked what an operator sees (the bike, its position, its theft
+# alarm). On a terminal the console stays up until Enter; otherwise (tests, CI) the demo ends.
 #
 # The script reacts to what the bike does, not to fixed sleeps: it polls `fleetgw status` (speed,
 # open ride) and the store (`fleetgw db ... --format json`, read-only) for each condition.
 #
 # Usage: scripts/demo.sh [--build-dir DIR] [--out DIR]
 #   --build-dir DIR  use the fleetgw and fleetgw-watch already built in DIR: no packages, no
-#                    build (the integration test demo.story runs it this way)
+#                    build, no waiting for Enter at the end (the test demo.story runs it so)
 #   --out DIR        the demo's files (store, logs, configuration, key); default build/demo
 #   SPEED=x          simulator acceleration (default 40)
 # Exit status: 0 when every step of the story happened, 1 otherwise.
@@ -26,11 +30,12 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 ROOT=$(pwd)
 BUILD_DIR=""
+GIVEN_BUILD_DIR=0
 OUT=""
 BUILD_PROGRESS_ONLY=0
 while [ $# -gt 0 ]; do
   case "$1" in
-    --build-dir) BUILD_DIR=$(cd "$2" && pwd); shift 2 ;;
+    --build-dir) BUILD_DIR=$(cd "$2" && pwd); GIVEN_BUILD_DIR=1; shift 2 ;;
     --out) OUT=$2; shift 2 ;;
     -h|--help) sed -n '2,20p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
     # (internal, for tests/config/demo-setup-test.sh: the progress filter alone, on stdin)
@@ -118,6 +123,24 @@ fi
 find "$OUT" -mindepth 1 -delete
 touch "$OUT/.fleetgw-demo"
 
+# --- the fleet's database: a private PostgreSQL cluster on a Unix socket in $OUT, started in the
+# background while the broker and the gateway start (initdb takes seconds). PostgreSQL refuses
+# to run as root, so as root the cluster belongs to `postgres` (docs/backend.md).
+PGBIN=$(ls -d /usr/lib/postgresql/*/bin 2>/dev/null | sort -V | tail -n 1)
+as_pg() { if [ "$(id -u)" = 0 ]; then runuser -u postgres -- "$@"; else "$@"; fi; }
+PG_PORT=$(python3 -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1",0)); print(s.getsockname()[1])')
+PG="host=$OUT/pgsock port=$PG_PORT user=fleet dbname=postgres"
+start_pg() {
+  [ -x "$PGBIN/initdb" ] || { echo "no PostgreSQL (scripts/install-deps.sh --demo installs it)"; return 1; }
+  mkdir -p "$OUT/pg" "$OUT/pgsock"
+  [ "$(id -u)" = 0 ] && chown postgres "$OUT/pg" "$OUT/pgsock"
+  as_pg "$PGBIN/initdb" -D "$OUT/pg" -A trust -U fleet -E UTF8 --locale=C &&
+    as_pg "$PGBIN/pg_ctl" -D "$OUT/pg" -l "$OUT/pgsock/pg.log" -w \
+      -o "-k $OUT/pgsock -p $PG_PORT -c listen_addresses=''" start
+}
+start_pg > "$OUT/postgres.log" 2>&1 &
+PG_STARTER=$!
+
 # --- set-up: private broker, configuration, operator key, subscriber --------------------------
 PORT=$(python3 -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1",0)); print(s.getsockname()[1])')
 cat > "$OUT/mosquitto.conf" <<CONF
@@ -127,9 +150,17 @@ persistence false
 set_tcp_nodelay true
 log_dest stderr
 CONF
-BROKER="" SUBSCRIBER="" SERVICE="" GPSD_PID=""
+BROKER="" SUBSCRIBER="" SERVICE="" GPSD_PID="" INGEST="" SERVE=""
 cleanup() {
+  # The ingest first, given up to 5 s to commit its last batch before the broker and the
+  # database go away.
+  for pid in $SERVE $INGEST; do kill "$pid" 2>/dev/null || true; done
+  for _ in $(seq 50); do { [ -n "$INGEST" ] && kill -0 "$INGEST" 2>/dev/null; } || break; sleep 0.1; done
   for pid in $SERVICE $GPSD_PID $SUBSCRIBER $BROKER; do kill "$pid" 2>/dev/null || true; done
+  wait "$PG_STARTER" 2>/dev/null || true
+  if [ -e "$OUT/pg/postmaster.pid" ]; then
+    as_pg "$PGBIN/pg_ctl" -D "$OUT/pg" -m fast -w stop >/dev/null 2>&1 || true
+  fi
 }
 trap cleanup EXIT
 MOSQUITTO=$(command -v mosquitto || echo /usr/sbin/mosquitto)
@@ -299,7 +330,27 @@ zone_event() {  # zone_event enter|exit: the slow zone's newest such event in th
 }
 limit_is() { read_status; [ "${S_LIMIT%.*}" = "$1" ]; }  # the MC's limit in force, whole km/h
 
+# The fleet's side: one ingest worker subscribed before the bike publishes anything, so
+# everything of the story lands in PostgreSQL too (docs/backend.md).
+INGEST_READY=0
+if wait "$PG_STARTER"; then
+  "$FLEETGW" ingest --broker "$BROKER_URI" --group demo --client-id demo-ingest --pg "$PG" \
+    > "$OUT/ingest.log" 2>&1 &
+  INGEST=$!
+  for _ in $(seq 200); do  # until it has subscribed (at most 20 s)
+    grep -q "subscribed" "$OUT/ingest.log" && { INGEST_READY=1; break; }
+    kill -0 $INGEST 2>/dev/null || break
+    sleep 0.1
+  done
+fi
+PG_STARTER=""
+
 section "the story (simulator at ${SPEED}x real time; store, logs and config in $OUT)"
+if [ $INGEST_READY = 1 ]; then
+  say "backend: PostgreSQL up, fleetgw ingest subscribed to the broker"
+else
+  missed "backend: no PostgreSQL or no subscribed fleetgw ingest (see $OUT/postgres.log, $OUT/ingest.log)"
+fi
 "$FLEETGW" run --config "$CONFIG" --bus-duration $BUS_SECONDS --duration $((240 * SCALE)) \
   > "$OUT/fleetgw.log" 2>&1 &
 SERVICE=$!
@@ -446,6 +497,57 @@ say "gateway: stopped at the end of the scenario ($BUS_SECONDS s of bus time)"
 
 section "summary (fleetgw db summary)"
 "$FLEETGW" db summary --config "$CONFIG" | tee "$OUT/summary.txt"
+
+# --- the fleet's side: what an operator sees of the story in the console (docs/console.md) ---
+# (No simulated fleet beside the bike: fleetgw fleet-sim places its vehicles around Berlin, far
+# from the demo's Ljubljana, so the map shows the demo bike alone.)
+section "the fleet in the console (fleetgw serve over the PostgreSQL that fleetgw ingest filled)"
+T0=$SECONDS
+WEB_PORT=$(python3 -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1",0)); print(s.getsockname()[1])')
+WEB=http://127.0.0.1:$WEB_PORT
+WEB_PASSWORD=$(python3 -c 'import secrets; print(secrets.token_urlsafe(12))')
+api() { curl -sf -m 5 -b "$OUT/console.cookies" "$WEB$1" 2>/dev/null || true; }
+C_LAT="" C_LON="" C_ALARMS="" C_ALARM_KINDS="" C_VEHICLES="" C_ALARM_ROWS=""
+console_knows_the_bike() {  # the bike's position and its theft alarm (raised and cleared) stored
+  { read -r C_VEHICLES; read -r C_LAT; read -r C_LON; read -r C_ALARMS; read -r C_ALARM_KINDS; } < <(
+    api /api/fleet | python3 -c '
+import json, sys
+try: fleet = json.load(sys.stdin).get("vehicles", [])
+except ValueError: fleet = []
+bike = next((v for v in fleet if v.get("id") == "demo-bike-01"), {})
+f = lambda x: "" if x is None else "%.5f" % x
+print(len(fleet)); print(f(bike.get("lat"))); print(f(bike.get("lon")))
+alarms = bike.get("alarms") or {}
+print(alarms.get("active", "")); print(",".join(alarms.get("kinds") or []))') || true
+  C_ALARM_ROWS=$(api '/api/alarms?limit=100' | python3 -c '
+import json, sys
+try: rows = json.load(sys.stdin).get("alarms", [])
+except ValueError: rows = []
+theft = [r for r in rows if r.get("vehicle_id") == "demo-bike-01" and "UNAUTHORISED" in str(r.get("kind"))]
+print(" then ".join(str(r.get("transition")).rsplit("_", 1)[-1].lower() for r in reversed(theft)))') || true
+  [ -n "$C_LAT" ] && [ -n "$C_LON" ] && [[ $C_ALARM_ROWS == *raised*cleared* ]]
+}
+if [ $INGEST_READY = 1 ] &&
+  printf '%s\n' "$WEB_PASSWORD" | "$FLEETGW" serve --pg "$PG" --add-operator demo --role operator \
+    > "$OUT/serve-operator.log" 2>&1; then
+  "$FLEETGW" serve --pg "$PG" --listen "127.0.0.1:$WEB_PORT" > "$OUT/serve.log" 2>&1 &
+  SERVE=$!
+  if wait_for 20 curl -sf -m 2 -o /dev/null "$WEB/api/health" &&
+    curl -sf -m 5 -c "$OUT/console.cookies" -H 'Content-Type: application/json' \
+      -d "{\"name\":\"demo\",\"password\":\"$WEB_PASSWORD\"}" "$WEB/api/login" > /dev/null; then
+    say "console: up at $WEB, operator demo logged in through the API"
+    if wait_for 20 console_knows_the_bike; then
+      say "console: the demo bike demo-bike-01 at $C_LAT,$C_LON (/api/fleet); vehicles in the fleet: $C_VEHICLES"
+      say "console: its theft alarm in the alarm feed (/api/alarms): unauthorised_movement $C_ALARM_ROWS, ${C_ALARMS:-0} still active"
+    else
+      missed "console: /api/fleet and /api/alarms do not show the demo bike's position and theft alarm within 20 s (lat=$C_LAT lon=$C_LON alarm=$C_ALARM_ROWS; see $OUT/ingest.log)"
+    fi
+  else
+    missed "console: fleetgw serve did not answer or refused the login (see $OUT/serve.log)"
+  fi
+else
+  missed "console: no database to serve, or the operator account was refused (see $OUT/serve-operator.log)"
+fi
 F=${FLEETGW#"$ROOT"/} C=${CONFIG#"$ROOT"/}
 cat <<NEXT
 
@@ -460,11 +562,20 @@ cat <<NEXT
   what reached the broker:     less ${OUT#"$ROOT"/}/subscriber.log
   the gateway's health:        $F status --config $C   (while the demo runs)
   the story in real time:      SPEED=1 ./scripts/demo.sh   (42 minutes)
+  the fleet's database:        psql "$PG"   (while the demo runs)
+  the operator console:        $WEB   user demo, password $WEB_PASSWORD
 NEXT
 echo
 if [ $FAILED = 0 ]; then
   echo "demo: the whole story happened, in $((SECONDS - T0)) s"
 else
   echo "demo: some steps did not happen (MISSED above)"
+fi
+# On a terminal the console stays up to be looked at; tests and CI (--build-dir, no terminal)
+# end here. Ctrl-C works too: the EXIT trap stops everything either way.
+if [ -t 0 ] && [ "$GIVEN_BUILD_DIR" = 0 ] && [ -n "$SERVE" ] && kill -0 "$SERVE" 2>/dev/null; then
+  echo
+  echo "the console runs at $WEB (user demo, password $WEB_PASSWORD); Enter stops the demo"
+  read -r _ || true
 fi
 exit $FAILED

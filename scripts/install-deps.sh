@@ -30,7 +30,8 @@ GCC_BUILD_PACKAGES=(
 # The sanitizer and fuzzing trees of scripts/test.sh.
 CLANG_PACKAGES=(clang libclang-rt-14-dev lld)
 BUILD_PACKAGES=("${GCC_BUILD_PACKAGES[@]}" "${CLANG_PACKAGES[@]}")
-DEMO_PACKAGES=(mosquitto mosquitto-clients gpsd python3)
+# postgresql, libjs-leaflet, curl: the demo's console stage (fleetgw ingest, fleetgw serve, its API)
+DEMO_PACKAGES=(mosquitto mosquitto-clients gpsd python3 postgresql libjs-leaflet curl)
 list=0
 set_name=all
 case "${1:-}" in

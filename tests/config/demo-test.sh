@@ -3,7 +3,9 @@
 # with a real mosquitto, and checks that the story was told: each step's line as it happened and
 # the summary sentence naming the ride, the fault, the succeeded unlock, the interlock refusal
 # and the theft alarm; the route through gpsd, the slow zone applied and lifted (back to the
-# operator's cap, not the bike's own limit) and the ride's GNSS track.
+# operator's cap, not the bike's own limit) and the ride's GNSS track; then the fleet's side:
+# the ingest subscribed before the bike published, and the console (fleetgw serve) shows the
+# demo bike at its position in Ljubljana with its theft alarm, through its API after a login.
 #   demo-test.sh BUILD_DIR OUT_DIR       exit 0 pass, 1 fail, 77 skipped (no mosquitto)
 set -uo pipefail
 build=${1:?usage: demo-test.sh BUILD_DIR OUT_DIR}
@@ -64,6 +66,16 @@ check "summary: which faults" ' 1 iot:gps, 1 mc:over_heat_protect; 2 cleared' "$
 check "summary: the commands" \
   '; 4 commands: 3 succeeded, 1 refused \(interlock_moving\); ' "$summary"
 check "summary: the alarm" '; 1 alarm \(theft\)$' "$summary"
+check "the ingest subscribed before the bike started" \
+  '^  \[ *[0-9]+ s\] backend: PostgreSQL up, fleetgw ingest subscribed to the broker$' "$log"
+check "console: up, the operator logged in" \
+  '^  \[ *[0-9]+ s\] console: up at http://127\.0\.0\.1:[0-9]+, operator demo logged in' "$log"
+check "console: the demo bike at its position" \
+  'console: the demo bike demo-bike-01 at 46\.0[0-9]+,14\.5[0-9]+ \(/api/fleet\); vehicles in the fleet: 1$' "$log"
+check "console: the theft alarm in the alarm feed" \
+  'console: its theft alarm in the alarm feed \(/api/alarms\): unauthorised_movement raised then cleared' "$log"
+check "console: URL and credentials printed" \
+  'the operator console: +http://127\.0\.0\.1:[0-9]+ +user demo, password [A-Za-z0-9_-]{8,}$' "$log"
 if [ "$took" -gt 110 ]; then
   echo "FAIL: the demo took $took s (the story should take about a minute)"
   failures=$((failures + 1))
