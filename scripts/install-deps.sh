@@ -8,8 +8,9 @@
 #   --build: only what compiling the x86 trees needs, with gcc and clang (scripts/test.sh installs
 #   the rest -- brokers, gpsd, the VM, lintian, chromium, the cross packages -- while they build).
 #   --demo: what scripts/demo.sh needs and nothing the tests alone need: the gcc build of
-#   fleetgw, mosquitto (the demo's broker, mosquitto_pub), gpsd (the bike's GNSS) and python3
-#   (the demo's JSON questions); no clang, VM, lintian, chromium, PostgreSQL or cross tools.
+#   fleetgw, mosquitto (the demo's broker, mosquitto_pub), gpsd (the bike's GNSS), python3
+#   (the demo's JSON questions), postgresql, libjs-leaflet and curl (its console stage); no
+#   clang, VM, lintian, chromium or cross tools.
 #   --list: print the set's packages, one a line, and install nothing.
 set -euo pipefail
 

@@ -40,10 +40,11 @@ fi
 
 # The demo's packages: what it runs and builds, none of the tests' alone.
 demo_set=$("$DEPS" --demo --list) || fail "install-deps.sh --demo --list failed"
-for p in build-essential cmake libgps-dev mosquitto mosquitto-clients gpsd python3; do
+for p in build-essential cmake libgps-dev mosquitto mosquitto-clients gpsd python3 \
+  postgresql libjs-leaflet curl; do  # the last three: the demo's console stage
   grep -qx "$p" <<<"$demo_set" && ok "demo set has $p" || fail "demo set lacks $p"
 done
-for p in chromium qemu-system-x86 lintian clang busybox-static postgresql nodejs; do
+for p in chromium qemu-system-x86 lintian clang busybox-static nodejs; do
   grep -qx "$p" <<<"$demo_set" && fail "demo set has the tests' $p" || ok "demo set without $p"
 done
 grep -Eq '^[^#]*install-deps\.sh --demo' "$DEMO" && ok "demo.sh installs the demo set" ||
