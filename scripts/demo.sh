@@ -123,20 +123,22 @@ fi
 find "$OUT" -mindepth 1 -delete
 touch "$OUT/.fleetgw-demo"
 
-# --- the fleet's database: a private PostgreSQL cluster on a Unix socket in $OUT, started in the
+# --- the fleet's database: a private PostgreSQL cluster on a Unix socket, started in the
 # background while the broker and the gateway start (initdb takes seconds). PostgreSQL refuses
-# to run as root, so as root the cluster belongs to `postgres` (docs/backend.md).
+# to run as root, so as root the cluster belongs to `postgres` (docs/backend.md); it lives in
+# its own directory under /tmp, which `postgres` can reach (a clone under /root is not), and is
+# removed at the end.
 PGBIN=$(ls -d /usr/lib/postgresql/*/bin 2>/dev/null | sort -V | tail -n 1)
 as_pg() { if [ "$(id -u)" = 0 ]; then runuser -u postgres -- "$@"; else "$@"; fi; }
 PG_PORT=$(python3 -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1",0)); print(s.getsockname()[1])')
-PG="host=$OUT/pgsock port=$PG_PORT user=fleet dbname=postgres"
+PGDIR=$(mktemp -d /tmp/fleetgw-demo-pg.XXXXXX)
+PG="host=$PGDIR port=$PG_PORT user=fleet dbname=postgres"
 start_pg() {
   [ -x "$PGBIN/initdb" ] || { echo "no PostgreSQL (scripts/install-deps.sh --demo installs it)"; return 1; }
-  mkdir -p "$OUT/pg" "$OUT/pgsock"
-  [ "$(id -u)" = 0 ] && chown postgres "$OUT/pg" "$OUT/pgsock"
-  as_pg "$PGBIN/initdb" -D "$OUT/pg" -A trust -U fleet -E UTF8 --locale=C &&
-    as_pg "$PGBIN/pg_ctl" -D "$OUT/pg" -l "$OUT/pgsock/pg.log" -w \
-      -o "-k $OUT/pgsock -p $PG_PORT -c listen_addresses=''" start
+  if [ "$(id -u)" = 0 ]; then chown postgres "$PGDIR"; fi
+  as_pg "$PGBIN/initdb" -D "$PGDIR/data" -A trust -U fleet -E UTF8 --locale=C &&
+    as_pg "$PGBIN/pg_ctl" -D "$PGDIR/data" -l "$PGDIR/postgres.log" -w \
+      -o "-k $PGDIR -p $PG_PORT -c listen_addresses=''" start
 }
 start_pg > "$OUT/postgres.log" 2>&1 &
 PG_STARTER=$!
@@ -158,9 +160,11 @@ cleanup() {
   for _ in $(seq 50); do { [ -n "$INGEST" ] && kill -0 "$INGEST" 2>/dev/null; } || break; sleep 0.1; done
   for pid in $SERVICE $GPSD_PID $SUBSCRIBER $BROKER; do kill "$pid" 2>/dev/null || true; done
   wait "$PG_STARTER" 2>/dev/null || true
-  if [ -e "$OUT/pg/postmaster.pid" ]; then
-    as_pg "$PGBIN/pg_ctl" -D "$OUT/pg" -m fast -w stop >/dev/null 2>&1 || true
+  if [ -e "$PGDIR/data/postmaster.pid" ]; then
+    as_pg "$PGBIN/pg_ctl" -D "$PGDIR/data" -m fast -w stop >/dev/null 2>&1 || true
   fi
+  cp "$PGDIR/postgres.log" "$OUT/postgres-server.log" 2>/dev/null || true
+  rm -rf "$PGDIR"
 }
 trap cleanup EXIT
 MOSQUITTO=$(command -v mosquitto || echo /usr/sbin/mosquitto)
