@@ -67,12 +67,6 @@ void add_fleet_sim_options(CLI::App& app, FleetSimOptions& o) {
 
 namespace {
 
-std::int64_t now_us() {
-  return std::chrono::duration_cast<std::chrono::microseconds>(
-             std::chrono::system_clock::now().time_since_epoch())
-      .count();
-}
-
 // tcp://host:port, mqtt://host:port, host:port or host; TLS is not simulated.
 bool parse_broker(const std::string& uri, std::string& host, int& port, std::string& error) {
   std::string rest = uri;

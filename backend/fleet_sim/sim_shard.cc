@@ -25,13 +25,14 @@
 #include "backend/fleet_sim/fleet_sim_model.h"
 
 namespace fleetgw::fleet_sim {
-namespace {
 
 std::int64_t now_us() {
   return std::chrono::duration_cast<std::chrono::microseconds>(
              std::chrono::system_clock::now().time_since_epoch())
       .count();
 }
+
+namespace {
 
 std::string random_store_id(std::mt19937_64& rng) {
   // Version-4 UUID layout, like the gateway's storage.store_id.

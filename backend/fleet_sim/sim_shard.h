@@ -32,4 +32,7 @@ struct ShardPlan {
 // the fleet report, for this shard's vehicles).
 nlohmann::json run_shard(const ShardPlan& plan);
 
+// The wall clock in µs since the epoch: records' created_at_us and the fleet's start.
+std::int64_t now_us();
+
 }  // namespace fleetgw::fleet_sim
