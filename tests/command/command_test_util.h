@@ -6,6 +6,8 @@
 
 #include <gtest/gtest.h>
 
+#include <chrono>
+#include <cstdint>
 #include <filesystem>
 #include <memory>
 #include <optional>
@@ -32,6 +34,14 @@ using namespace std::chrono_literals;
 
 inline constexpr const char* kVehicle = "bike-0042";
 inline constexpr const char* kKeyId = "backend-1";
+// The IoT node's SHUTDOWN function code (0x760 ..., MOTINOVA-CAN.md): tests assert that a
+// refused or no-op MC action never starts the shutdown procedure.
+inline constexpr std::uint8_t kIotFnShutdown = 0x10;
+
+// The wall clock, for scenarios that run against a real broker (live, not simulated time).
+inline Micros wall_now() {
+  return std::chrono::duration_cast<Micros>(std::chrono::system_clock::now().time_since_epoch());
+}
 
 // Every frame the gateway put on the bus, with the virtual time.
 class BusSender final : public node::FrameSender {

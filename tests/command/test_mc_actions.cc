@@ -12,7 +12,6 @@ namespace {
 constexpr uint8_t kMcFnAssist = 0x30;
 constexpr uint8_t kMcFnSettings = 0x34;
 constexpr uint8_t kMcFnClear = 0x36;
-constexpr uint8_t kIotFnShutdown = 0x10;
 
 sim::RideSegment mc_leg(double duration_s, double speed_kmh) {
   sim::RideSegment s;

@@ -8,8 +8,6 @@
 namespace fleetgw::command::testing {
 namespace {
 
-constexpr std::uint8_t kIotFnShutdown = 0x10;
-
 // A SignedCommand over exactly `command_bytes` (which need not be one serialized Command).
 std::string sign_bytes(const Rig& rig, const std::string& command_bytes) {
   v1::SignedCommand s;

@@ -19,10 +19,6 @@
 namespace fleetgw::command::testing {
 namespace {
 
-Micros wall_now() {
-  return std::chrono::duration_cast<Micros>(std::chrono::system_clock::now().time_since_epoch());
-}
-
 sim::Scenario live_scenario(sim::Scenario sc = quiet_scenario()) {
   sc.start = wall_now();
   return sc;

@@ -21,10 +21,6 @@
 namespace fleetgw::command::testing {
 namespace {
 
-Micros wall_now() {
-  return std::chrono::duration_cast<Micros>(std::chrono::system_clock::now().time_since_epoch());
-}
-
 // The pipeline's adapter (gateway/runtime/pipeline.cc): the service's signature check, run on
 // Paho's thread.
 uplink::CommandAuthenticator triage_with(PayloadAuthenticator auth) {

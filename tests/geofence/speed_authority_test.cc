@@ -15,7 +15,7 @@ namespace {
 
 using std::chrono::seconds;
 
-const Micros kT = seconds(1'790'000'000);
+const Micros kEpoch = seconds(1'790'000'000);
 
 ZoneEvent slow(std::string id, std::string name, int kmh, Transition t) {
   ZoneEvent e;
@@ -92,9 +92,9 @@ TEST(SpeedAuthority, EveryOrderOfCapZoneAndExitEndsAtTheMinimumAndNeverOvershoot
       for (int i = 0; i < 5; ++i) {
         Demands d;
         d.speed_limit_kmh = demand;
-        if (const auto w = e.next(d, mc, kT)) {
+        if (const auto w = e.next(d, mc, kEpoch)) {
           mc.speed_limit_kmh = w->speed_limit_kmh;
-          e.on_result(true, kT);
+          e.on_result(true, kEpoch);
         }
         if (capped) {
           EXPECT_LE(*mc.speed_limit_kmh, 20);
