@@ -161,12 +161,27 @@ TEST(GnssEndToEnd, PositionReachesTelemetryAndTheFaultBitFollowsGpsd) {
   // The accuracy of a receiver sending only GGA and RMC: gpsd sends TPV reports alone, whose eph
   // (17.1 m: the GGA's HDOP 0.9 times gpsd's range error) is the horizontal error. No SKY report
   // came, so no hdop and no satellite count -- never one made up from the eph.
+  // A fix that gpsd reported before its first eph (the cycle's first TPV can come from the RMC
+  // alone), or more than 2 s after the last one (a busy machine), carries none: never a stale or
+  // made-up one. Every error carried is gpsd's, and the route's positions do carry it.
+  ASSERT_TRUE(wait_until(
+      [&] {
+        for (const auto& s : telemetry(db)) {
+          if (s.msg.has_position() && s.msg.position().has_horizontal_error_dm()) return true;
+        }
+        return false;
+      },
+      30s))
+      << "no position carried gpsd's horizontal error\n"
+      << gw.log();
+  int with_error = 0;
   for (const auto& s : telemetry(db)) {
     if (!s.msg.has_position()) continue;
     const auto& p = s.msg.position();
-    EXPECT_TRUE(p.has_horizontal_error_dm())
-        << "seq " << s.seq << " fixed at " << p.fixed_at_us() << " lat " << p.lat_e7();
-    EXPECT_EQ(p.horizontal_error_dm(), 171u) << "seq " << s.seq;
+    if (p.has_horizontal_error_dm()) {
+      ++with_error;
+      EXPECT_EQ(p.horizontal_error_dm(), 171u) << "seq " << s.seq;
+    }
     if (p.has_hdop_centi()) {
       EXPECT_EQ(p.hdop_centi(), 90u) << "only the receiver's own HDOP";
     }
@@ -174,6 +189,7 @@ TEST(GnssEndToEnd, PositionReachesTelemetryAndTheFaultBitFollowsGpsd) {
       EXPECT_EQ(p.satellites(), 8u) << "only the receiver's own count";
     }
   }
+  EXPECT_GE(with_error, 1);
   // The fault clears once the fix holds for the fault debounce.
   ASSERT_TRUE(wait_until(
       [&] {
