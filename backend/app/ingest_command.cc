@@ -21,9 +21,13 @@ void add_ingest_options(CLI::App& app, ingest::IngestOptions& o) {
                  "libpq connection string, e.g. \"host=/run/postgresql dbname=fleet\" (passwords "
                  "belong in ~/.pgpass or PGPASSWORD, not here)")
       ->required();
-  app.add_option("--sessions", o.sessions,
-                 "MQTT sessions (processes) of this worker: at most this many messages per batch")
+  app.add_option("--sessions", o.sessions, "MQTT sessions of this worker (one process, one thread)")
       ->check(CLI::Range(1, 256))
+      ->capture_default_str();
+  app.add_option("--inflight", o.inflight,
+                 "unacknowledged messages the broker may send each session (MQTT 5 receive "
+                 "maximum): a batch holds at most sessions x inflight messages")
+      ->check(CLI::Range(1, 65535))
       ->capture_default_str();
   app.add_option("--batch", o.batch_rows, "a batch closes at this many rows...")
       ->check(CLI::Range(1, 1000000))
@@ -60,9 +64,9 @@ void add_ingest_options(CLI::App& app, ingest::IngestOptions& o) {
   // passwords out of the command line, visible in ps); a command-line value wins. Not --duration
   // or --gaps: those are one-off runs, not a service's settings.
   for (const char* name :
-       {"broker", "topic-prefix", "group", "client-id", "pg", "sessions", "batch", "batch-delay-ms",
-        "partition-days-ahead", "retention-days", "session-expiry-s", "ca-file", "cert-file",
-        "key-file", "username", "password", "log-level"}) {
+       {"broker", "topic-prefix", "group", "client-id", "pg", "sessions", "inflight", "batch",
+        "batch-delay-ms", "partition-days-ahead", "retention-days", "session-expiry-s", "ca-file",
+        "cert-file", "key-file", "username", "password", "log-level"}) {
     std::string env = "FLEETGW_INGEST_";
     for (const char* c = name; *c != '\0'; ++c) {
       env += *c == '-' ? '_' : static_cast<char>(std::toupper(static_cast<unsigned char>(*c)));

@@ -17,8 +17,11 @@ struct IngestOptions {
   // "<client_id>-s<i>". Default: "<group>-<hostname>".
   std::string client_id;
   std::string pg;  // libpq conninfo ("host=/run/postgresql dbname=fleet")
-  // MQTT sessions (processes) of this worker: at most this many messages per batch.
-  std::size_t sessions = 16;
+  // MQTT sessions of this worker (all in its one process and thread).
+  std::size_t sessions = 4;
+  // MQTT 5 receive maximum of each session: how many unacknowledged messages the broker may
+  // send it. A batch holds at most sessions x inflight messages.
+  std::uint32_t inflight = 1000;
   std::size_t batch_rows = 5000;      // a batch closes at this many rows...
   std::uint32_t batch_delay_ms = 50;  // ...or this long after its first message
   int partition_days_ahead = 7;       // telemetry partitions created ahead

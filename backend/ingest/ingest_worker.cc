@@ -1,4 +1,4 @@
-// The ingest worker (ingest_worker.h): session processes, the batcher's poll loop, PostgreSQL.
+// The ingest worker (ingest_worker.h): its MQTT sessions, the batch loop, PostgreSQL.
 #include "backend/ingest/ingest_worker.h"
 
 #include <fmt/format.h>
@@ -6,8 +6,6 @@
 #include <poll.h>
 #include <spdlog/spdlog.h>
 #include <sys/signalfd.h>
-#include <sys/socket.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -21,7 +19,7 @@
 
 #include "backend/ingest/envelope_rows.h"
 #include "backend/ingest/ingest_store.h"
-#include "backend/ingest/mqtt_session.h"
+#include "backend/ingest/mqtt_sessions.h"
 #include "backend/ingest/safe_text.h"
 
 namespace fleetgw::ingest {
@@ -58,16 +56,6 @@ std::string default_client_id(const std::string& group) {
   return group + "-" + (host[0] != '\0' ? host : "worker");
 }
 
-struct Session {
-  pid_t pid = -1;
-  int fd = -1;
-  std::string in;  // bytes received, not yet a whole frame
-  bool subscribed = false;
-  bool resumed = false;
-  bool disconnected = false;  // sent 'D': its connection to the broker is closed
-  bool closed = false;        // EOF: the process is gone
-};
-
 // A received message waiting for its batch to commit.
 struct Item {
   std::size_t session;
@@ -76,11 +64,11 @@ struct Item {
   std::variant<Decoded, Reject> decoded;
 };
 
-std::uint32_t get_u32(std::string_view s) {
-  std::uint32_t v = 0;
-  for (int i = 3; i >= 0; --i) v = (v << 8) | static_cast<unsigned char>(s[i]);
-  return v;
-}
+// After a message larger than this, freed memory is given back to the system (malloc_trim).
+constexpr std::size_t kLargeMessageBytes = 64 * 1024;
+
+// A batch also closes at this many payload bytes: with the rows bound, what bounds its memory.
+constexpr std::size_t kBatchMaxBytes = 32 * 1024 * 1024;
 
 std::optional<BatchPoint> crash_point() {
   const char* at = std::getenv("FLEETGW_INGEST_CRASH_AT");
@@ -93,8 +81,14 @@ std::optional<BatchPoint> crash_point() {
 
 class Worker {
  public:
-  Worker(const IngestOptions& o, IngestStore& store, std::vector<Session> sessions, int sigfd)
-      : o_(o), store_(store), sessions_(std::move(sessions)), sigfd_(sigfd) {
+  Worker(const IngestOptions& o, IngestStore& store, const std::string& client_id, int sigfd)
+      : o_(o),
+        store_(store),
+        sessions_(o, client_id,
+                  [this](std::size_t i, std::string_view topic, std::string_view payload) {
+                    add(i, topic, payload);
+                  }),
+        sigfd_(sigfd) {
     if (const auto point = crash_point()) {
       const char* n = std::getenv("FLEETGW_INGEST_CRASH_BATCH");
       const long crash_batch = n != nullptr ? std::max(1L, std::atol(n)) : 1;
@@ -104,39 +98,50 @@ class Worker {
     }
   }
 
+  bool connect(std::string& error) { return sessions_.connect(error); }
+
   int run(const std::string& client_id, const std::string& filter) {
     const auto start = Clock::now();
     auto next_report = start + 60s;
     auto next_maintenance = start + 1h;
     bool announced = false;
     int status = 0;
+    const auto k = static_cast<long>(sessions_.size());
     for (;;) {
       const auto now = Clock::now();
-      poll_once(now);
-      if (!announced && std::all_of(sessions_.begin(), sessions_.end(),
-                                    [](const Session& s) { return s.subscribed; })) {
+      // No message is read while a batch waits for PostgreSQL or is full: the broker keeps
+      // the rest (back-pressure), memory stays bounded.
+      const bool reading = !stopping_ && !retrying_ && !full();
+      auto wake = now + 200ms;
+      if (!batch_.empty()) wake = std::min(wake, std::max(retry_at_, first_at_ + delay()));
+      const auto timeout = std::chrono::duration_cast<std::chrono::milliseconds>(wake - now);
+      if (sessions_.poll(std::max(timeout, 0ms), sigfd_, reading, [this] { return !full(); })) {
+        signalfd_siginfo info{};
+        while (::read(sigfd_, &info, sizeof info) == sizeof info) {
+          if (info.ssi_signo == SIGINT || info.ssi_signo == SIGTERM) stopping_ = true;
+        }
+      }
+      if (!announced && sessions_.subscribed() == sessions_.size()) {
         announced = true;
-        const auto resumed = std::count_if(sessions_.begin(), sessions_.end(),
-                                           [](const Session& s) { return s.resumed; });
-        const auto k = static_cast<long>(sessions_.size());
-        spdlog::info("ingest: connected to {} as {}-s1..s{} ({} sessions, {}), subscribed to {}",
-                     o_.broker, client_id, k, k,
-                     resumed == k   ? "session resumed"
-                     : resumed == 0 ? "session new"
-                                    : fmt::format("{} of {} sessions resumed", resumed, k),
-                     filter);
+        const auto resumed = static_cast<long>(sessions_.resumed());
+        spdlog::info(
+            "ingest: connected to {} as {}-s1..s{} ({} sessions of {} in-flight messages, {}), "
+            "subscribed to {}",
+            o_.broker, client_id, k, k, o_.inflight,
+            resumed == k   ? "session resumed"
+            : resumed == 0 ? "session new"
+                           : fmt::format("{} of {} sessions resumed", resumed, k),
+            filter);
+      }
+      if (const std::string refused = sessions_.refused(); !refused.empty() && !stopping_) {
+        spdlog::error("ingest: the broker refused {}; stopping", refused);
+        status = 1;
+        stopping_ = true;
       }
       if (should_flush(Clock::now())) flush();
-      if (!stopping_) {
-        if (std::any_of(sessions_.begin(), sessions_.end(),
-                        [](const Session& s) { return s.closed; })) {
-          spdlog::error("ingest: a session process ended unexpectedly; stopping");
-          status = 1;
-          begin_stop();
-        } else if (o_.duration_s > 0 &&
-                   Clock::now() - start >= std::chrono::duration<double>(o_.duration_s)) {
-          begin_stop();
-        }
+      if (!stopping_ && o_.duration_s > 0 &&
+          Clock::now() - start >= std::chrono::duration<double>(o_.duration_s)) {
+        stopping_ = true;
       }
       if (Clock::now() >= next_report) {
         spdlog::info("{}", summary(counters_));
@@ -146,13 +151,13 @@ class Worker {
         next_maintenance += 1h;
         maintain();
       }
-      if (stopping_ && std::all_of(sessions_.begin(), sessions_.end(),
-                                   [](const Session& s) { return s.closed; })) {
-        break;
-      }
+      // Stopping: once the batch in hand is committed, or at once while PostgreSQL refuses
+      // it (its messages are left to the broker: nothing of them was acknowledged).
+      if (stopping_ && (batch_.empty() || retrying_)) break;
     }
-    for (Session& s : sessions_) ::waitpid(s.pid, nullptr, 0);
-    if (!batch_.empty()) not_committed_ += static_cast<std::int64_t>(batch_.size());
+    const bool committed = batch_.empty();
+    not_committed_ += static_cast<std::int64_t>(batch_.size());
+    sessions_.close(committed);
     if (not_committed_ > 0) {
       spdlog::warn(
           "ingest: stopped with {} uncommitted message(s): not acknowledged, the broker "
@@ -174,77 +179,9 @@ class Worker {
   }
 
  private:
-  void begin_stop() {
-    if (stopping_) return;
-    stopping_ = true;
-    for (Session& s : sessions_) {
-      if (!s.closed) ::kill(s.pid, SIGTERM);
-    }
-  }
-
-  void poll_once(Clock::time_point now) {
-    std::vector<pollfd> fds;
-    fds.push_back({sigfd_, POLLIN, 0});
-    for (const Session& s : sessions_) fds.push_back({s.closed ? -1 : s.fd, POLLIN, 0});
-    auto wake = now + 1s;
-    if (!batch_.empty()) wake = std::min(wake, std::max(retry_at_, first_at_ + delay()));
-    const auto ms = std::chrono::duration_cast<std::chrono::milliseconds>(wake - now).count();
-    ::poll(fds.data(), fds.size(), static_cast<int>(std::max<long long>(0, ms)));
-    if (fds[0].revents & POLLIN) {
-      signalfd_siginfo info{};
-      while (::read(sigfd_, &info, sizeof info) == sizeof info) {
-        if (info.ssi_signo == SIGINT || info.ssi_signo == SIGTERM) begin_stop();
-      }
-    }
-    for (std::size_t i = 0; i < sessions_.size(); ++i) {
-      if (fds[i + 1].revents & (POLLIN | POLLHUP | POLLERR)) read_session(i);
-    }
-  }
-
   std::chrono::milliseconds delay() const { return std::chrono::milliseconds(o_.batch_delay_ms); }
 
-  void read_session(std::size_t i) {
-    Session& s = sessions_[i];
-    char buf[64 * 1024];
-    const ssize_t n = ::read(s.fd, buf, sizeof buf);
-    if (n < 0 && (errno == EINTR || errno == EAGAIN)) return;
-    if (n <= 0) {
-      s.closed = true;
-      ::close(s.fd);
-      // Its message, if any, can no longer be acknowledged: the broker keeps it.
-      std::erase_if(batch_, [&](const Item& it) { return it.session == i; });
-      return;
-    }
-    s.in.append(buf, static_cast<std::size_t>(n));
-    for (;;) {
-      if (s.in.empty()) break;
-      const char type = s.in[0];
-      if (type == 'S') {
-        if (s.in.size() < 2) break;
-        s.subscribed = true;
-        s.resumed = s.in[1] != 0;
-        s.in.erase(0, 2);
-      } else if (type == 'D') {
-        s.disconnected = true;
-        s.in.erase(0, 1);
-      } else if (type == 'M') {
-        if (s.in.size() < 9) break;
-        const std::size_t tl = get_u32(std::string_view(s.in).substr(1, 4));
-        const std::size_t pl = get_u32(std::string_view(s.in).substr(5, 4));
-        if (s.in.size() < 9 + tl + pl) break;
-        const std::string_view topic = std::string_view(s.in).substr(9, tl);
-        const std::string_view payload = std::string_view(s.in).substr(9 + tl, pl);
-        add(i, topic, payload);
-        s.in.erase(0, 9 + tl + pl);
-        if (pl > kLargeMessageBytes) std::string().swap(s.in);
-      } else {
-        spdlog::error("ingest: session {} sent an unknown frame; dropping it", i + 1);
-        s.closed = true;
-        ::close(s.fd);
-        break;
-      }
-    }
-  }
+  bool full() const { return rows_ >= o_.batch_rows || bytes_ >= kBatchMaxBytes; }
 
   void add(std::size_t session, std::string_view topic, std::string_view payload) {
     if (batch_.empty()) first_at_ = Clock::now();
@@ -253,22 +190,16 @@ class Worker {
     if (const auto* d = std::get_if<Decoded>(&item.decoded)) {
       for (const RowSet& r : d->rows) rows_ += r.rows();
     }
+    bytes_ += payload.size() + topic.size();
     large_ = large_ || payload.size() > kLargeMessageBytes;
     batch_.push_back(std::move(item));
   }
 
   bool should_flush(Clock::time_point now) const {
     if (batch_.empty() || now < retry_at_) return false;
-    const auto live = std::count_if(sessions_.begin(), sessions_.end(),
-                                    [](const Session& s) { return !s.closed && !s.disconnected; });
-    return stopping_ || rows_ >= o_.batch_rows || static_cast<long>(batch_.size()) >= live ||
-           now >= first_at_ + delay();
-  }
-
-  void reply(std::size_t session, char answer) {
-    Session& s = sessions_[session];
-    if (s.closed) return;
-    if (::send(s.fd, &answer, 1, MSG_NOSIGNAL) != 1) s.closed = true;
+    // Every session at its receive maximum: nothing more can arrive before this commits.
+    const bool capped = sessions_.held() >= sessions_.size() * o_.inflight;
+    return stopping_ || full() || capped || now >= first_at_ + delay();
   }
 
   void flush() {
@@ -313,9 +244,12 @@ class Worker {
       spdlog::error("ingest: could not record rejected messages: {}", e.what());
     }
     counters_.messages += static_cast<std::int64_t>(batch_.size());
-    for (const Item& it : batch_) reply(it.session, 'A');  // the PUBACKs go now
+    // Every message received so far is in this batch (none is read while one is written):
+    // their PUBACKs go now.
+    sessions_.acknowledge();
     batch_.clear();
     rows_ = 0;
+    bytes_ = 0;
     retrying_ = false;
     backoff_ = 100ms;
     retry_at_ = {};
@@ -335,15 +269,6 @@ class Worker {
     retrying_ = true;
     retry_at_ = Clock::now() + backoff_;
     backoff_ = std::min(backoff_ * 2, std::chrono::milliseconds(5000));
-    if (!stopping_) return;
-    // Stopping: a session already disconnected from the broker is let go; its message was not
-    // acknowledged (the connection is closed) and comes again.
-    std::erase_if(batch_, [&](const Item& it) {
-      if (!sessions_[it.session].disconnected) return false;
-      reply(it.session, 'N');
-      ++not_committed_;
-      return true;
-    });
   }
 
   void log_reject(const RejectRow& r) {
@@ -362,10 +287,11 @@ class Worker {
 
   const IngestOptions& o_;
   IngestStore& store_;
-  std::vector<Session> sessions_;
+  MqttSessions sessions_;
   int sigfd_;
   std::vector<Item> batch_;
   std::size_t rows_ = 0;
+  std::size_t bytes_ = 0;
   bool large_ = false;
   Clock::time_point first_at_{};
   Clock::time_point retry_at_{};
@@ -405,48 +331,27 @@ int run_ingest(const IngestOptions& o) {
   }
   if (o.gaps) return print_gaps(store);
 
-  // Stop signals and SIGCHLD are read from a signalfd (this process) or sigwait (the sessions,
-  // which inherit the mask): no handler runs anywhere.
+  // Stop signals are read from a signalfd: no handler runs anywhere.
   sigset_t signals;
   sigemptyset(&signals);
   sigaddset(&signals, SIGINT);
   sigaddset(&signals, SIGTERM);
-  sigaddset(&signals, SIGCHLD);
   ::sigprocmask(SIG_BLOCK, &signals, nullptr);
+  const int sigfd = ::signalfd(-1, &signals, SFD_NONBLOCK | SFD_CLOEXEC);
 
   const std::string client_id = o.client_id.empty() ? default_client_id(o.group) : o.client_id;
-  std::vector<Session> sessions;
-  for (std::size_t i = 1; i <= std::max<std::size_t>(1, o.sessions); ++i) {
-    int sv[2];
-    if (::socketpair(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0, sv) != 0) {
-      std::cerr << "fleetgw ingest: socketpair failed\n";
-      return 1;
-    }
-    const pid_t pid = ::fork();
-    if (pid == 0) {
-      // The session process keeps stdio and its socket (as fd 3) only: not the database
-      // connection or the other sessions' sockets. _exit: a forked copy must not run the
-      // parent's exit handlers or destructors.
-      ::dup2(sv[1], 3);
-      ::close_range(4, ~0U, 0);
-      ::_exit(run_session(o, client_id + "-s" + std::to_string(i), i == 1, 3));
-    }
-    ::close(sv[1]);
-    if (pid < 0) {
-      ::close(sv[0]);
-      std::cerr << "fleetgw ingest: fork failed\n";
-      break;
-    }
-    Session s;
-    s.pid = pid;
-    s.fd = sv[0];
-    sessions.push_back(std::move(s));
-  }
-  const int sigfd = ::signalfd(-1, &signals, SFD_NONBLOCK | SFD_CLOEXEC);
   const std::string filter = "$share/" + o.group + "/" + o.topic_prefix + "/#";
-  Worker worker(o, store, std::move(sessions), sigfd);
-  worker.maintain();
-  const int status = worker.run(client_id, filter);
+  int status = 1;
+  {
+    Worker worker(o, store, client_id, sigfd);
+    std::string error;
+    if (!worker.connect(error)) {
+      std::cerr << "fleetgw ingest: " << error << '\n';
+    } else {
+      worker.maintain();
+      status = worker.run(client_id, filter);
+    }
+  }
   ::close(sigfd);
   return status;
 }

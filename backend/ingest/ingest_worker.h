@@ -3,21 +3,20 @@
 // PostgreSQL in batches (IngestStore::write_batch), acknowledging each message to the broker
 // only after the transaction holding its rows committed.
 //
-// How the acknowledgements wait for a batch (docs/backend.md, "Exactly once"): Paho C 1.3.12
-// has no manual-acknowledgement API; it sends the PUBACK of a QoS 1 message when the message
-// callback returns, and serves every client of a process from one receive thread. So the worker
-// is a process with K children (--sessions), each holding one MQTT session of the group
-// (mqtt_session.h): a child's callback hands its message over a socket to this process and
-// blocks until told the batch holding it committed. This process decodes, batches (closed at
-// --batch rows, when every session has a message in hand, or --batch-delay-ms after its first
-// message) and writes; a batch holds at most K messages.
+// How the acknowledgements wait for a batch (docs/backend.md, "Exactly once"): the worker is
+// ONE process and thread holding K MQTT sessions of the group (--sessions, mqtt_sessions.h),
+// each allowed --inflight unacknowledged messages by the broker (MQTT 5 receive maximum). The
+// library queues each message's PUBACK without writing it; the worker decodes, batches (closed
+// at --batch rows, 32 MiB, every session at its receive maximum, or --batch-delay-ms after its
+// first message), writes the batch in one transaction, and only then writes the sessions'
+// queues. No message is read while a batch is being written or retried.
 //
 // Contract:
 //  * run_ingest() returns the process exit status: 0 after SIGINT/SIGTERM or `duration_s` once
 //    every message in hand is committed and acknowledged and every session disconnected (a
 //    clean drain, no _exit), 3 when it stopped with messages it could not commit (PostgreSQL
 //    down: not acknowledged, the broker delivers them again), 1 when PostgreSQL or the broker
-//    cannot be reached at start (named on stderr) or a session process died, 2 for bad
+//    cannot be reached at start or the broker refuses a session (named on stderr), 2 for bad
 //    options; with `gaps` it prints the gap report (one line per hole) and returns 0 when it
 //    is empty, 1 otherwise.
 //  * A malformed message (decode_message() Reject) or one the database refuses is
@@ -25,8 +24,8 @@
 //    the batch's transaction, counted by reason, and logged once per reason with its topic
 //    (later ones at debug level); the rest of its batch commits.
 //  * PostgreSQL unavailable: the batch is retried with back-off (100 ms .. 5 s) from the poll
-//    loop (no library callback sleeps), its messages stay unacknowledged; no new batch starts,
-//    so at most K messages are in memory whatever the backlog.
+//    loop (no library callback sleeps), its messages stay unacknowledged; no message is read
+//    until it commits, so at most one batch is in memory whatever the backlog.
 //  * Memory: one message's rows are bounded by decode_message (kMaxSamples, the broker's
 //    packet limit); after a message over 64 KiB, freed memory is given back (malloc_trim).
 //  * Test hook: FLEETGW_INGEST_CRASH_AT=before_copy (the batch's transaction open, no row sent)
