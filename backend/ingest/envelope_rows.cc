@@ -232,6 +232,8 @@ std::variant<Decoded, Reject> decode_message(std::string_view topic_prefix, std:
       break;
   }
   if (b.error) return *b.error;
+  // After the status's own row is checked: the history row holds a subset of its values.
+  if (body == v1::Envelope::kStatus) status_history_rows(e, d);
   // A record accounts for its own sequence (an eviction report also for the evicted range,
   // added by eviction_rows); status, state and unstored command results for none.
   if (d.records > 0) d.ranges.push_back({e.sequence(), e.sequence()});

@@ -41,6 +41,9 @@ struct TableSpec {
   // Latest values (status, state), replaced by the next message: committed without waiting for
   // the WAL flush (docs/backend.md "Exactly once").
   bool latest_value = false;
+  // A change log (status_history): a row the statement skips is an unchanged state, not a
+  // duplicate record.
+  bool history = false;
 };
 
 // Rows for one table, row-major: values.size() == rows * table->column_count.

@@ -17,10 +17,10 @@ namespace fleetgw::ingest {
 namespace {
 
 // Every destination table, in the order a batch writes them.
-constexpr std::array<const TableSpec*, 13> kTables = {
-    &rows::kRides,   &rows::kFaults,   &rows::kTelemetry, &rows::kPacks,  &rows::kLocks,
-    &rows::kResults, &rows::kCommands, &rows::kInfo,      &rows::kAlarms, &rows::kEvictions,
-    &rows::kZones,   &rows::kStatus,   &rows::kState};
+constexpr std::array<const TableSpec*, 14> kTables = {
+    &rows::kRides,   &rows::kFaults,   &rows::kTelemetry, &rows::kPacks,        &rows::kLocks,
+    &rows::kResults, &rows::kCommands, &rows::kInfo,      &rows::kAlarms,       &rows::kEvictions,
+    &rows::kZones,   &rows::kStatus,   &rows::kState,     &rows::kStatusHistory};
 
 // One element of a text[] literal: NULL, or double-quoted with `"` and `\` escaped (every other
 // byte, newline included, kept as it is).
@@ -249,7 +249,7 @@ WriteStats IngestStore::write_all(std::span<const Decoded* const> messages,
     stats.inserted += r.affected();
     if (t == &rows::kState) {
       stats.stale_states += staged - r.affected() + superseded;
-    } else if (!t->latest_value) {
+    } else if (!t->latest_value && !t->history) {
       stats.duplicates += staged - r.affected();
     }
   }

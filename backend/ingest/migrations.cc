@@ -258,10 +258,11 @@ CREATE INDEX fault_events_by_kind ON fault_events (kind, vehicle_id);
 CREATE INDEX device_info_latest ON device_info (vehicle_id, created_at_us DESC);
 )sql";
 
-constexpr Migration kMigrations[] = {
+const Migration kMigrations[] = {
     {1, "records, latest state, sequence ranges, rejected messages", kV1},
     {2, "zone events, status publish refusals", kV2},
     {3, "telemetry partitioned by day, analyst indexes", kV3},
+    {4, "full vehicle state, status history", migration_v4_sql()},
 };
 
 // Any constant: the lock only serialises ingest workers migrating the same database.

@@ -28,4 +28,7 @@ std::span<const Migration> migrations();
 
 int migrate(PgConnection& conn);
 
+// Migration 4's SQL (migrations_v4.cc): the full vehicle state and the status history.
+std::string_view migration_v4_sql();
+
 }  // namespace fleetgw::ingest

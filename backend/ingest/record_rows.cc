@@ -88,13 +88,33 @@ const TableSpec kZones{"zone_events",
 // wrong once must not freeze its vehicle's state for ever (issue 24).
 const TableSpec kState{
     "vehicle_state",
-    "vehicle_id, updated_at_us, online, mode, soc_pct, range_m, odo_m, lat_e7, lon_e7", 9,
+    "vehicle_id, updated_at_us, online, mode, soc_pct, range_m, odo_m, lat_e7, lon_e7, locks, "
+    "faults, active_alarms, speed_limit_dkmh, assist, assist_name, bus_state, "
+    "position_fixed_at_us, horizontal_error_dm, heading_ddeg",
+    19,
     "ON CONFLICT (vehicle_id) DO UPDATE SET received_at_us = fleet_now_us(), updated_at_us = "
     "EXCLUDED.updated_at_us, online = EXCLUDED.online, mode = EXCLUDED.mode, soc_pct = "
     "EXCLUDED.soc_pct, range_m = EXCLUDED.range_m, odo_m = EXCLUDED.odo_m, lat_e7 = "
-    "EXCLUDED.lat_e7, lon_e7 = EXCLUDED.lon_e7 WHERE EXCLUDED.updated_at_us >= "
-    "vehicle_state.updated_at_us OR vehicle_state.updated_at_us > fleet_now_us() + "
-    "600000000",
+    "EXCLUDED.lat_e7, lon_e7 = EXCLUDED.lon_e7, locks = EXCLUDED.locks, faults = "
+    "EXCLUDED.faults, active_alarms = EXCLUDED.active_alarms, speed_limit_dkmh = "
+    "EXCLUDED.speed_limit_dkmh, assist = EXCLUDED.assist, assist_name = EXCLUDED.assist_name, "
+    "bus_state = EXCLUDED.bus_state, position_fixed_at_us = EXCLUDED.position_fixed_at_us, "
+    "horizontal_error_dm = EXCLUDED.horizontal_error_dm, heading_ddeg = EXCLUDED.heading_ddeg "
+    "WHERE EXCLUDED.updated_at_us >= vehicle_state.updated_at_us OR "
+    "vehicle_state.updated_at_us > fleet_now_us() + 600000000",
+    true};
+// Every status whose (online, last_will) differs from the vehicle's latest history row
+// (migration 4); a redelivered status conflicts on its key. The statement's own rows are not
+// visible to its NOT EXISTS: two statuses of one vehicle in one batch may both be kept even
+// with the same state (readers take changes, docs/backend.md "Schema").
+const TableSpec kStatusHistory{
+    "status_history",
+    "vehicle_id, created_at_us, online, last_will, connection, connected_at_us",
+    6,
+    "WHERE NOT EXISTS (SELECT 1 FROM (SELECT h.online, h.last_will FROM status_history h WHERE "
+    "h.vehicle_id = u.c0 ORDER BY h.id DESC LIMIT 1) l WHERE l.online = u.c2 AND l.last_will "
+    "= u.c3::boolean) ON CONFLICT DO NOTHING",
+    false,
     true};
 
 RowSet& new_rows(Decoded& d, const TableSpec& t) {
@@ -338,6 +358,22 @@ void zone_rows(const v1::Envelope& e, Decoded& d, RowBuilder& b) {
   d.records = 1;
 }
 
+// A text[] literal of enum names (names only: no quoting needed, quoted all the same).
+std::string name_array(const std::vector<std::string>& names) {
+  std::string array = "{";
+  for (const std::string& n : names) array += (array.size() > 1 ? ",\"" : "\"") + n + "\"";
+  return array + "}";
+}
+
+// Strings of a state's lock or fault entry: checked as every received text is.
+void check_entry_text(RowBuilder& b, std::string_view field, std::string_view s) {
+  if (s.size() > kMaxText) {
+    b.fail("text_too_long", fmt::format("{}: {} bytes (at most {})", field, s.size(), kMaxText));
+  } else if (s.find('\0') != std::string_view::npos) {
+    b.fail("nul_in_text", fmt::format("{}: NUL byte in \"{}\"", field, untrusted_excerpt(s)));
+  }
+}
+
 void state_rows(const v1::Envelope& e, RowBuilder& b) {
   const v1::VehicleState& s = e.state();
   b.text("vehicle_id", e.vehicle_id());
@@ -348,6 +384,62 @@ void state_rows(const v1::Envelope& e, RowBuilder& b) {
   b.opt_u32("range_m", s.has_range_m(), s.range_m());
   b.opt_u64("odo_m", s.has_odo_m(), s.odo_m());
   b.position(s.has_position(), s.position());
+  // A state names each lock and fault of the bike (a handful); more than kMaxStateEntries is
+  // not a bike's, and would make rows of megabytes.
+  if (s.locks_size() > kMaxStateEntries || s.faults_size() > kMaxStateEntries ||
+      s.active_alarms_size() > kMaxStateEntries) {
+    b.fail("too_many_entries",
+           fmt::format("state: {} locks, {} faults, {} alarms (at most {} each)", s.locks_size(),
+                       s.faults_size(), s.active_alarms_size(), kMaxStateEntries));
+  }
+  nlohmann::json locks = nlohmann::json::array();
+  for (const v1::VehicleLock& l : s.locks()) {
+    check_entry_text(b, "state.locks.node", l.node());
+    check_entry_text(b, "state.locks.kind", l.kind());
+    check_entry_text(b, "state.locks.state_name", l.state_name());
+    locks.push_back({{"node", l.node()},
+                     {"kind", l.kind()},
+                     {"state", enum_name(&v1::LockState_Name<v1::LockState>, l.state())},
+                     {"state_name", l.state_name()}});
+  }
+  nlohmann::json faults = nlohmann::json::array();
+  for (const v1::VehicleFault& f : s.faults()) {
+    check_entry_text(b, "state.faults.node", f.node());
+    check_entry_text(b, "state.faults.name", f.name());
+    check_entry_text(b, "state.faults.severity", f.severity());
+    nlohmann::json fault = {{"node", f.node()}, {"name", f.name()}, {"severity", f.severity()}};
+    fault["code"] = f.has_code() ? nlohmann::json(f.code()) : nlohmann::json(nullptr);
+    faults.push_back(std::move(fault));
+  }
+  // Invalid UTF-8 (a non-proto3 sender) becomes U+FFFD: jsonb accepts only valid text.
+  b.raw(locks.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace));
+  b.raw(faults.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace));
+  std::vector<std::string> alarms;
+  for (int a : s.active_alarms())
+    alarms.push_back(enum_name(&v1::AlarmKind_Name<v1::AlarmKind>, a));
+  b.raw(name_array(alarms));
+  b.opt_u32("state.speed_limit_dkmh", s.has_speed_limit_dkmh(), s.speed_limit_dkmh());
+  b.opt_u32("state.assist", s.has_assist(), s.assist());
+  b.text("state.assist_name", s.assist_name());
+  b.raw(enum_name(&v1::BusState_Name<v1::BusState>, s.bus_state()));
+  const v1::Position& p = s.position();
+  b.opt_i64(s.has_position() && p.fixed_at_us() != 0, p.fixed_at_us());
+  b.opt_u32("state.position.horizontal_error_dm", s.has_position() && p.has_horizontal_error_dm(),
+            p.horizontal_error_dm());
+  // heading_ddeg: Position field 8 (issue 27); NULL until this ingest is built against it.
+  b.null();
+}
+
+void status_history_rows(const v1::Envelope& e, Decoded& d) {
+  const v1::Status& s = e.status();
+  RowSet& rows = new_rows(d, kStatusHistory);
+  RowBuilder b(rows.values);
+  b.text("vehicle_id", e.vehicle_id());
+  b.i64(e.created_at_us());
+  b.raw(enum_name(&v1::OnlineState_Name<v1::OnlineState>, s.state()));
+  b.boolean(s.last_will());
+  b.raw(enum_name(&v1::ConnectionState_Name<v1::ConnectionState>, s.connection()));
+  b.opt_i64(s.connected_at_us() != 0, s.connected_at_us());
 }
 
 std::optional<Reject> telemetry_rows(const v1::Envelope& e, Decoded& d) {

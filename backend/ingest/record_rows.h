@@ -29,7 +29,10 @@ namespace fleetgw::ingest::rows {
 namespace v1 = fleetgw::v1;
 
 extern const TableSpec kRides, kFaults, kTelemetry, kPacks, kLocks, kResults, kCommands, kInfo,
-    kAlarms, kEvictions, kStatus, kState, kZones;
+    kAlarms, kEvictions, kStatus, kState, kZones, kStatusHistory;
+
+// Locks, faults or active alarms a VehicleState may name (a bike has a handful of each).
+constexpr int kMaxStateEntries = 256;
 
 // Appends one row's values with the checks of the contract; the first failure is kept.
 class RowBuilder {
@@ -119,6 +122,8 @@ void zone_rows(const v1::Envelope& e, Decoded& d, RowBuilder& b);
 void eviction_rows(const v1::Envelope& e, Decoded& d, RowBuilder& b);
 void status_rows(const v1::Envelope& e, RowBuilder& b);
 void state_rows(const v1::Envelope& e, RowBuilder& b);
+// The status's row of status_history (a RowSet of its own in d).
+void status_history_rows(const v1::Envelope& e, Decoded& d);
 std::optional<Reject> telemetry_rows(const v1::Envelope& e, Decoded& d);
 
 }  // namespace fleetgw::ingest::rows
