@@ -65,15 +65,20 @@ TEST(ServiceCommands, ResultLeavesAsSoonAsStoredNotAtATimer) {
     ms_rt.push_back(static_cast<double>(o.round_trip.count()) / 1000.0);
   }
   std::sort(ms_rt.begin(), ms_rt.end());
-  // A 200 ms tick would spread results uniformly over 0-200 ms after the confirmation: ten in
-  // a row below 100 ms has a probability of 1/1024. The pipeline needs a few ms.
-  EXPECT_LT(ms_rt.back(), 100.0) << "median " << ms_rt[ms_rt.size() / 2] << " ms";
+  // A 200 ms tick would spread results uniformly over 0-200 ms after the confirmation: seven of
+  // ten below 50 ms has a probability of 120 x (1/4)^7 x (3/4)^3 + ... < 0.4 %. The pipeline
+  // needs a few ms; up to three round trips may be slowed by a busy machine (CI runs beside a
+  // CPU burner) without hiding a timer.
+  const auto fast = std::count_if(ms_rt.begin(), ms_rt.end(), [](double m) { return m < 50.0; });
+  EXPECT_GE(fast, 7) << "median " << ms_rt[ms_rt.size() / 2] << " ms, slowest " << ms_rt.back();
   // A command whose signature does not verify gets its rejection at once too.
   const auto untrusted = command::Ed25519PrivateKey::generate();
   const auto bad = ops.send("rt-bad", "seat", "lock", 10s, &untrusted);
   ASSERT_TRUE(bad.answered);
   EXPECT_EQ(bad.result, v1::COMMAND_RESULT_CODE_REJECTED);
-  EXPECT_LT(bad.round_trip, 100ms);
+  // Not held for a timer either (the telemetry timers are at 60 s; 5 s leaves room for a busy
+  // machine).
+  EXPECT_LT(bad.round_trip, 5s);
   EXPECT_EQ(rig.service->stop(), 0) << rig.log();
   EXPECT_NE(rig.log().find("command received: started"), std::string::npos);
 }
