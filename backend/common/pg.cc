@@ -86,6 +86,26 @@ PgResult PgConnection::exec_params(std::string_view sql, std::span<const PgParam
                  conn_.get(), what);
 }
 
+std::int64_t PgConnection::copy_in(std::string_view copy_sql, std::string_view data,
+                                   std::string_view what) {
+  const std::string s(copy_sql);
+  PgResultPtr start(PQexec(conn_.get(), s.c_str()));
+  if (!start || PQresultStatus(start.get()) != PGRES_COPY_IN)
+    checked(start.release(), conn_.get(), what);
+  // Sent in pieces of 1 MiB (libpq buffers each; a blocking connection waits while it drains).
+  constexpr std::size_t kPiece = 1024 * 1024;
+  bool sent = true;
+  for (std::size_t at = 0; at < data.size() && sent; at += kPiece) {
+    const std::size_t n = std::min(kPiece, data.size() - at);
+    sent = PQputCopyData(conn_.get(), data.data() + at, static_cast<int>(n)) == 1;
+  }
+  PQputCopyEnd(conn_.get(), sent ? nullptr : "ingest: sending the COPY data failed");
+  // The COPY's own result, then the end of the command (NULL).
+  PgResultPtr end(PQgetResult(conn_.get()));
+  while (PGresult* extra = PQgetResult(conn_.get())) PQclear(extra);
+  return checked(end.release(), conn_.get(), what).affected();
+}
+
 void PgConnection::prepare(const std::string& name, std::string_view sql, int params,
                            std::string_view what) {
   const std::string s(sql);

@@ -105,6 +105,9 @@ class PgConnection {
   void prepare(const std::string& name, std::string_view sql, int params, std::string_view what);
   PgResult exec_prepared(const std::string& name, std::span<const PgParam> params,
                          std::string_view what);
+  // `COPY ... FROM STDIN` (text format) with `data` as its whole input; returns the rows
+  // copied. Throws PgError like exec() (the server's refusal of a row ends the COPY).
+  std::int64_t copy_in(std::string_view copy_sql, std::string_view data, std::string_view what);
   bool ok() const { return PQstatus(conn_.get()) == CONNECTION_OK; }
   PGconn* raw() { return conn_.get(); }
 

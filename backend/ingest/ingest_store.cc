@@ -238,6 +238,7 @@ WriteStats IngestStore::write_all(std::span<const Decoded* const> messages,
       for (const auto& [vehicle, i] : newest) kept.push_back(staged_rows[i]);
       staged_rows = std::move(kept);
     }
+    if (!t->latest_value && !t->history && copy_rows(c, *t, staged_rows, stats)) continue;
     const std::string& statement = insert_sql(c, *t);
     std::vector<PgParam> columns(cols, std::string("{"));
     for (const auto& row : staged_rows) {
@@ -274,6 +275,55 @@ WriteStats IngestStore::write_all(std::span<const Decoded* const> messages,
   tx.commit();
   if (hook_) hook_(BatchPoint::kAfterCommit);
   return stats;
+}
+
+bool IngestStore::copy_rows(PgConnection& c, const TableSpec& t,
+                            std::span<const std::span<const PgParam>> rows, WriteStats& stats) {
+  // COPY's text format: a tab between columns, a newline after each row, \N for NULL, and a
+  // backslash, tab, newline or carriage return inside a value escaped.
+  std::string data;
+  for (const auto& row : rows) {
+    for (std::size_t i = 0; i < row.size(); ++i) {
+      if (i > 0) data += '\t';
+      if (!row[i]) {
+        data += "\\N";
+        continue;
+      }
+      for (const char ch : *row[i]) {
+        switch (ch) {
+          case '\\':
+            data += "\\\\";
+            break;
+          case '\t':
+            data += "\\t";
+            break;
+          case '\n':
+            data += "\\n";
+            break;
+          case '\r':
+            data += "\\r";
+            break;
+          default:
+            data += ch;
+        }
+      }
+    }
+    data += '\n';
+  }
+  c.exec("SAVEPOINT ingest_copy", "savepoint");
+  try {
+    const std::int64_t n =
+        c.copy_in(fmt::format("COPY {} ({}) FROM STDIN", t.table, t.columns), data, t.table);
+    c.exec("RELEASE SAVEPOINT ingest_copy", "savepoint");
+    stats.inserted += n;
+    return true;
+  } catch (const PgError& e) {
+    // A row already there (a redelivery): the table's ON CONFLICT statement instead. Anything
+    // else (a poison row, the server away) is the caller's.
+    if (e.sqlstate() != "23505") throw;
+  }
+  c.exec("ROLLBACK TO SAVEPOINT ingest_copy", "savepoint");
+  return false;
 }
 
 BatchResult IngestStore::write_batch(std::span<const Decoded* const> messages,

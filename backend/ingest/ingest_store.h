@@ -4,7 +4,9 @@
 //  * IngestStore connects lazily (and again after a broken connection) and applies the
 //    migrations (migrations.h) at its first connection.
 //  * write_batch(messages) writes every message of the batch in ONE transaction, at bulk speed:
-//    per destination table one `INSERT ... SELECT ... FROM unnest($1::text[], ...) ON CONFLICT`
+//    per record table one COPY of the batch's rows (under a savepoint), and when one of them is
+//    already there (a redelivery: unique violation) instead, as for the latest-value tables,
+//    one `INSERT ... SELECT ... FROM unnest($1::text[], ...) ON CONFLICT`
 //    with every column of the batch's rows as one array parameter (records: DO NOTHING on
 //    their key; latest values: an upsert, the batch's newest row per vehicle only); then the
 //    batch's sequence ranges, merged per (vehicle, store) in memory and merged into
@@ -102,6 +104,10 @@ class IngestStore {
   WriteStats write_all(std::span<const Decoded* const> messages,
                        std::span<const RejectRow> rejects);
   void insert_reject(PgConnection& c, const RejectRow& r);
+  // The fast path of a record table: the batch's rows by one COPY (no array parameters, no
+  // casts from text[]), under a savepoint. False (rolled back) when a row is already there.
+  bool copy_rows(PgConnection& c, const TableSpec& t,
+                 std::span<const std::span<const PgParam>> rows, WriteStats& stats);
   // The name of t's prepared INSERT on connection c (prepared at its first use).
   const std::string& insert_sql(PgConnection& c, const TableSpec& t);
 

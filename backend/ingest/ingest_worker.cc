@@ -219,7 +219,11 @@ class Worker {
     }
     if (records > 0 && !retrying_) ++record_batches_;
     try {
+      const auto started = Clock::now();
       const BatchResult r = store_.write_batch(messages, rejects);
+      spdlog::debug(
+          "ingest: batch of {} messages, {} rows in {} ms", batch_.size(), rows_,
+          std::chrono::duration_cast<std::chrono::milliseconds>(Clock::now() - started).count());
       std::vector<RejectRow> refused;
       for (std::size_t m = 0; m < messages.size(); ++m) {
         if (!r.refused[m]) continue;

@@ -33,6 +33,7 @@ struct MqttSessions::Session {
   bool ever_connected = false;
   bool resumed = false;
   std::size_t held = 0;
+  bool closing = false;  // its DISCONNECT is ours: not a lost connection
   std::string refused;
   Clock::time_point retry_at{};
   Clock::time_point next_misc{};
@@ -111,7 +112,7 @@ void session_connected(mosquitto* m, void* obj, int rc, int flags, const mosquit
 
 void session_lost(mosquitto*, void* obj, int rc, const mosquitto_property*) {
   auto& s = *static_cast<MqttSessions::Session*>(obj);
-  if (s.connected || s.connecting) {
+  if ((s.connected || s.connecting) && !s.closing) {
     spdlog::warn(
         "ingest: {}: connection to the broker lost ({}); {} message(s) it held come "
         "again on the next connection",
@@ -317,6 +318,7 @@ void MqttSessions::close(bool committed) {
   }
   acknowledge();
   for (auto& s : sessions_) {
+    s->closing = true;
     if (s->mosq && mosquitto_socket(s->mosq.get()) >= 0) {
       mosquitto_disconnect_v5(s->mosq.get(), MQTT_RC_NORMAL_DISCONNECTION, nullptr);
     }
