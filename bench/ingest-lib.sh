@@ -140,8 +140,11 @@ start_workers() {
   local w
   WORKERS=()
   for w in $(seq "$1"); do
+    touch "$WORK/worker-$w.log"
+    # fleetgw-ingest itself (what `fleetgw ingest` execs): a worker built apart from the
+    # gateway's fleetgw (FLEETGW's directory) takes options that fleetgw may not know yet.
     # shellcheck disable=SC2086 # INGEST_ARGS: extra worker options, word-split on purpose
-    "$FLEETGW" ingest --broker "$BROKER_URI" --group bench --client-id "bench-worker-$w" \
+    "$(dirname "$FLEETGW")/fleetgw-ingest" --broker "$BROKER_URI" --group bench --client-id "bench-worker-$w" \
       --pg "$CONNINFO" ${INGEST_ARGS:-} >>"$WORK/worker-$w.log" 2>&1 &
     WORKERS+=("$!")
     PIDS+=("$!")

@@ -21,8 +21,8 @@ struct IngestOptions {
   std::size_t sessions = 4;
   // MQTT 5 receive maximum of each session: how many unacknowledged messages the broker may
   // send it. A batch holds at most sessions x inflight messages.
-  std::uint32_t inflight = 1000;
-  std::size_t batch_rows = 5000;      // a batch closes at this many rows...
+  std::uint32_t inflight = 3000;
+  std::size_t batch_rows = 20000;     // a batch closes at this many rows...
   std::uint32_t batch_delay_ms = 50;  // ...or this long after its first message
   int partition_days_ahead = 7;       // telemetry partitions created ahead
   int retention_days = 0;             // telemetry partitions older than this dropped (0: never)
