@@ -8,7 +8,7 @@
 namespace fleetgw::storage {
 namespace {
 
-constexpr std::array<std::pair<OutboxKind, std::string_view>, 11> kKindNames = {{
+constexpr std::array<std::pair<OutboxKind, std::string_view>, 12> kKindNames = {{
     {OutboxKind::kTelemetry, "telemetry"},
     {OutboxKind::kRide, "ride"},
     {OutboxKind::kFault, "fault"},
@@ -20,6 +20,7 @@ constexpr std::array<std::pair<OutboxKind, std::string_view>, 11> kKindNames = {
     {OutboxKind::kEvictionReport, "eviction_report"},
     {OutboxKind::kAlarm, "alarm"},
     {OutboxKind::kZone, "zone"},
+    {OutboxKind::kCampaign, "campaign"},
 }};
 
 }  // namespace

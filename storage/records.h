@@ -198,6 +198,7 @@ enum class OutboxKind : std::uint8_t {
   kEvictionReport,
   kAlarm,
   kZone,
+  kCampaign,  // collection campaign samples (issue 29): no table row, lowest priority
 };
 
 // Lower value = more urgent. Alarms share the top priority with command results (both are
@@ -211,6 +212,9 @@ enum class OutboxPriority : std::uint8_t {
   kLock = 3,
   kPack = 4,
   kTelemetry = 5,
+  // Below telemetry, only for OutboxKind::kCampaign (issue 29): campaign samples never hold back
+  // a record of the product, and their bytes in the store are this priority's depth.
+  kCampaign = 6,
 };
 inline constexpr int kLowestPriority = 5;
 

@@ -193,9 +193,11 @@ void validate(const Batch& b) {
   }
   for (std::size_t i = 0; i < b.messages.size(); ++i) {
     const UplinkMessage& m = b.messages[i];
-    if (m.priority < 0 || m.priority > kLowestPriority) {
+    const int lowest = m.kind == OutboxKind::kCampaign ? static_cast<int>(OutboxPriority::kCampaign)
+                                                       : kLowestPriority;
+    if (m.priority < 0 || m.priority > lowest) {
       reject("messages", i, "priority",
-             std::to_string(m.priority) + " outside 0.." + std::to_string(kLowestPriority));
+             std::to_string(m.priority) + " outside 0.." + std::to_string(lowest));
     }
     if (to_string(m.kind) == "invalid") reject("messages", i, "kind", "invalid value");
     if (m.payload.size() > Store::kMaxPayloadBytes) {

@@ -6,6 +6,7 @@
 
 #include <algorithm>
 
+#include "backend/ingest/campaign_rows.h"
 #include "backend/ingest/record_rows.h"
 #include "backend/ingest/safe_text.h"
 #include "fleetgw/v1/command.pb.h"
@@ -75,6 +76,8 @@ std::string_view leaf_of(v1::Envelope::BodyCase body) {
       return "state";
     case v1::Envelope::kZone:
       return "zone";
+    case v1::Envelope::kCampaign:
+      return "campaign";
     default:
       break;  // a body newer than this ingest: rejected as unsupported
   }
@@ -153,6 +156,11 @@ std::variant<Decoded, Reject> decode_message(std::string_view topic_prefix, std:
       body != v1::Envelope::kCommandResult && e.sequence() == 0) {
     return Reject{"record_without_sequence",
                   fmt::format("a {} record with sequence 0", leaf_of(body))};
+  }
+  if (body == v1::Envelope::kCampaign) {  // issue 29: a row per sample (campaign_rows.h)
+    if (auto r = campaign_rows(e, d)) return *r;
+    d.ranges.push_back({e.sequence(), e.sequence()});
+    return d;
   }
   const TableSpec* spec = nullptr;
   switch (body) {

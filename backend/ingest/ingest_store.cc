@@ -9,6 +9,7 @@
 #include <map>
 #include <utility>
 
+#include "backend/ingest/campaign_rows.h"
 #include "backend/ingest/migrations.h"
 #include "backend/ingest/record_rows.h"
 #include "backend/ingest/safe_text.h"
@@ -17,10 +18,11 @@ namespace fleetgw::ingest {
 namespace {
 
 // Every destination table, in the order a batch writes them.
-constexpr std::array<const TableSpec*, 14> kTables = {
+constexpr std::array<const TableSpec*, 15> kTables = {
     &rows::kRides,   &rows::kFaults,   &rows::kTelemetry, &rows::kPacks,        &rows::kLocks,
     &rows::kResults, &rows::kCommands, &rows::kInfo,      &rows::kAlarms,       &rows::kEvictions,
-    &rows::kZones,   &rows::kStatus,   &rows::kState,     &rows::kStatusHistory};
+    &rows::kZones,   &rows::kStatus,   &rows::kState,     &rows::kStatusHistory,
+    &kCampaignSamplesTable};
 
 // One element of a text[] literal: NULL, or double-quoted with `"` and `\` escaped (every other
 // byte, newline included, kept as it is).

@@ -7,6 +7,8 @@
 
 #include <string>
 
+#include "backend/ingest/campaign_rows.h"
+
 namespace fleetgw::ingest {
 namespace {
 
@@ -263,6 +265,7 @@ const Migration kMigrations[] = {
     {2, "zone events, status publish refusals", kV2},
     {3, "telemetry partitioned by day, analyst indexes", kV3},
     {4, "full vehicle state, status history", migration_v4_sql()},
+    {7, "campaign samples", migration_v7_sql()},  // issue 29 (migrations_v7_campaigns.cc)
 };
 
 // Any constant: the lock only serialises ingest workers migrating the same database.

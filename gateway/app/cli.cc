@@ -19,6 +19,7 @@
 #include "gateway/app/sibling_program.h"
 #include "gateway/app/table_format.h"
 #include "gateway/app/watch_command.h"
+#include "gateway/campaign/campaign_cli.h"
 #include "gateway/common/untrusted_text.h"
 #include "gateway/config/config.h"
 #include "gateway/decode/decode_command.h"
@@ -376,6 +377,7 @@ int run_cli(int argc, char** argv) {
                               "judge as this vehicle's gateway (a bundle for another is refused)");
 
   // command
+  campaign::CampaignCli campaign_cli(app);  // signals, campaign sign|check (issue 29)
   auto* command_cmd = app.add_subcommand(
       "command",
       "sign and send a remote command (lock/unlock, speed limit, assist, lights, "
@@ -508,6 +510,7 @@ int run_cli(int argc, char** argv) {
       }
       return run_status(status_options, status_format, std::cout, std::cerr);
     }
+    if (const auto status = campaign_cli.run()) return *status;
     if (keygen_cmd->parsed()) return command::run_keygen(keygen_prefix, std::cout);
     if (zones_sign_cmd->parsed()) {
       zones_sign.issued_at = std::chrono::duration_cast<std::chrono::microseconds>(

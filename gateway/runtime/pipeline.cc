@@ -7,6 +7,7 @@
 #include <iostream>
 
 #include "gateway/node/messages.h"
+#include "gateway/runtime/campaign_feed.h"
 #include "gateway/runtime/clock_units.h"
 #include "gateway/runtime/service.h"
 
@@ -121,6 +122,7 @@ Pipeline::Pipeline(asio::io_context& io, const config::Config& config, BusTransp
         uplink_config.zone_topics = zone_topics_;
         uplink_config.max_zone_bundle_bytes = max_bundle_bytes_;
       }
+      add_campaign_topics(config, uplink_config);
       uplink_ = std::make_unique<uplink::Uplink>(std::move(uplink_config), outbox_);
     } catch (const std::exception& e) {
       throw PipelineError(std::string("invalid [mqtt] configuration: ") + e.what());
@@ -142,6 +144,7 @@ Pipeline::Pipeline(asio::io_context& io, const config::Config& config, BusTransp
     });
   }
   core_.add_listener(*recorder_);
+  start_campaigns(config);  // a listener after the recorder
   parked_batch_delay_ = std::chrono::milliseconds(config.parked.telemetry_batch_ms);
   attach_parked_feed();  // after the recorder: it reads what the trackers just concluded
   // Node identities go to the backend at start (our own) and whenever one is heard or changes.
@@ -282,7 +285,12 @@ void Pipeline::settle() {
         }
         // Zone bundles: judged here, on the loop, like commands (Paho only queued them).
         for (const auto& bundle : uplink_->take_zone_bundles()) {
-          if (zones_) on_zone_bundle(bundle);
+          if (campaigns_ && campaigns_->handles(bundle.topic)) {
+            campaigns_->on_payload(bundle.topic, bundle.payload, bundle.oversized_bytes,
+                                   system_now(), bus_now());
+          } else if (zones_) {
+            on_zone_bundle(bundle);
+          }
           more = true;
         }
       }

@@ -47,6 +47,7 @@
 #include <vector>
 
 #include "gateway/can/replay_transport.h"
+#include "gateway/campaign/campaign_service.h"
 #include "gateway/can/transport.h"
 #include "gateway/command/command_service.h"
 #include "gateway/config/config.h"
@@ -94,6 +95,8 @@ ParkedConfig make_parked_config(const config::Config& config);
 // vehicle_bundles, "<topic_prefix>/<vehicle>/zones" (pipeline_zones.cc).
 std::vector<std::string> zone_bundle_topics(const config::Config& config);
 
+class CampaignFeed;  // campaign_feed.h
+
 class PipelineError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
@@ -135,6 +138,8 @@ class Pipeline {
   const PipelineCounters& counters() const { return counters_; }
   // The geofence section of the status; nullopt when [geofence] is disabled.
   std::optional<GeofenceStatus> geofence_status() const;
+  // The campaigns section of the status (issue 29); nullopt without [command.trusted_keys].
+  std::optional<nlohmann::json> campaign_status() const;
   // Parked (locked and still) or riding; nullopt before the first evaluation.
   std::optional<bool> parked() const { return parked_ ? parked_->parked() : std::nullopt; }
   // Bus time covered by the frames delivered so far (0 before the first frame).
@@ -151,6 +156,10 @@ class Pipeline {
   std::optional<std::chrono::steady_clock::time_point> core_deadline() const;
   void queue_device_info();
   void apply_gnss();
+  // Collection campaigns (issue 29; pipeline_campaigns.cc): their topics, the service fed by
+  // the core after the recorder, their records queued through the recorder.
+  void add_campaign_topics(const config::Config& config, uplink::UplinkConfig& uplink_config);
+  void start_campaigns(const config::Config& config);
   // Geofences (issue 14; pipeline_zones.cc): built from [geofence], fed by apply_gnss(), their
   // MC writes started at each settle through the command service.
   void start_zones(const config::Config& config);
@@ -181,6 +190,8 @@ class Pipeline {
   std::optional<Recorder> recorder_;
   std::unique_ptr<command::CommandService> commands_;
   std::unique_ptr<CommandFeed> command_feed_;
+  std::unique_ptr<campaign::CampaignService> campaigns_;  // nullptr without trusted keys
+  std::unique_ptr<CampaignFeed> campaign_feed_;
   StoreOutbox outbox_;
   std::unique_ptr<uplink::Uplink> uplink_;
   DeviceInfoReporter device_info_;

@@ -185,6 +185,7 @@ int run_service(const config::Config& config, const ServiceOptions& options,
     in.open_ride = pipeline->recorder().trackers().rides().current(pipeline->bus_now());
     in.parked = pipeline->parked();
     in.geofence = pipeline->geofence_status();
+    in.campaigns = pipeline->campaign_status();
     if (const uplink::Uplink* up = pipeline->uplink()) {
       const auto s = up->stats();
       in.uplink_failure =

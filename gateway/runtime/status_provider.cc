@@ -242,6 +242,7 @@ nlohmann::json make_status_json(const StatusInputs& in) {
     j["gnss"] = std::move(g);
   }
   if (in.geofence) j["geofence"] = geofence_json(*in.geofence, wall_now);
+  if (in.campaigns) j["campaigns"] = *in.campaigns;
   return j;
 }
 

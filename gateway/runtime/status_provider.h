@@ -68,6 +68,8 @@ struct StatusInputs {
   std::optional<bool> parked = std::nullopt;
   // nullopt when [geofence] is disabled (no "geofence" section).
   std::optional<GeofenceStatus> geofence = std::nullopt;
+  // The "campaigns" section (Pipeline::campaign_status(), issue 29); nullopt: none.
+  std::optional<nlohmann::json> campaigns = std::nullopt;
 };
 
 nlohmann::json make_status_json(const StatusInputs& in);

@@ -18,7 +18,7 @@ constexpr storage::OutboxKind kStorageKinds[] = {
     storage::OutboxKind::kLock,           storage::OutboxKind::kInfo,
     storage::OutboxKind::kStatus,         storage::OutboxKind::kCommandResult,
     storage::OutboxKind::kEvictionReport, storage::OutboxKind::kAlarm,
-    storage::OutboxKind::kZone,
+    storage::OutboxKind::kZone,           storage::OutboxKind::kCampaign,
 };
 
 }  // namespace
@@ -47,6 +47,8 @@ std::string uplink_kind(storage::OutboxKind kind) {
       return uplink::kind::kAlarm;
     case storage::OutboxKind::kZone:
       return uplink::kind::kZone;
+    case storage::OutboxKind::kCampaign:
+      return uplink::kind::kCampaign;
   }
   return "invalid";
 }

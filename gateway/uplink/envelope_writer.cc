@@ -31,6 +31,8 @@ constexpr KindRoute kRoutes[] = {
     {kind::kAlarm, &Topics::alarm,
      [](v1::Envelope& e) -> MessageLite* { return e.mutable_alarm(); }},
     {kind::kZone, &Topics::zone, [](v1::Envelope& e) -> MessageLite* { return e.mutable_zone(); }},
+    {kind::kCampaign, &Topics::campaign,
+     [](v1::Envelope& e) -> MessageLite* { return e.mutable_campaign(); }},
     {kind::kTelemetry, &Topics::telemetry,
      [](v1::Envelope& e) -> MessageLite* { return e.mutable_telemetry(); }},
 };

@@ -43,6 +43,7 @@ inline constexpr const char* kCommandResult = "cmd_result";  // payload: fleetgw
 inline constexpr const char* kEviction = "eviction";         // payload: fleetgw.v1.EvictionReport
 inline constexpr const char* kAlarm = "alarm";               // payload: fleetgw.v1.Alarm
 inline constexpr const char* kZone = "zone";                 // payload: fleetgw.v1.ZoneEvent
+inline constexpr const char* kCampaign = "campaign";  // payload: fleetgw.v1.CampaignSamples
 }  // namespace kind
 
 // One stored record as the uplink sees it (storage::OutboxEntry is the store's row type).

@@ -31,6 +31,9 @@ struct Topics {
   std::string cmd_result;   // <base>/cmd/result
   std::string zones;        // subscribed: this vehicle's zone bundles (<base>/zones)
   std::string fleet_zones;  // subscribed: the fleet-wide zone bundles (<prefix>/zones)
+  std::string campaign;         // campaign samples (issue 29)
+  std::string campaigns;        // subscribed: this vehicle's campaigns (<base>/campaigns)
+  std::string fleet_campaigns;  // subscribed: the fleet-wide campaigns (<prefix>/campaigns)
 };
 
 enum class TopicDirection { kPublish, kSubscribe };
@@ -45,7 +48,7 @@ struct TopicSpec {
 
 // The record kinds are spelled out (not taken from outbox_source.h) to keep this header free of
 // the outbox; test_topic_acl.cc checks every route of envelope_writer.cc lands on its own entry.
-inline constexpr std::array<TopicSpec, 15> kTopicTable{{
+inline constexpr std::array<TopicSpec, 18> kTopicTable{{
     {"telemetry", TopicDirection::kPublish, false, &Topics::telemetry, "telemetry"},
     {"ride", TopicDirection::kPublish, false, &Topics::ride, "ride"},
     {"fault", TopicDirection::kPublish, false, &Topics::fault, "fault"},
@@ -61,6 +64,9 @@ inline constexpr std::array<TopicSpec, 15> kTopicTable{{
     {"cmd", TopicDirection::kSubscribe, false, &Topics::cmd, ""},
     {"zones", TopicDirection::kSubscribe, false, &Topics::zones, ""},
     {"zones", TopicDirection::kSubscribe, true, &Topics::fleet_zones, ""},
+    {"campaign", TopicDirection::kPublish, false, &Topics::campaign, "campaign"},
+    {"campaigns", TopicDirection::kSubscribe, false, &Topics::campaigns, ""},
+    {"campaigns", TopicDirection::kSubscribe, true, &Topics::fleet_campaigns, ""},
 }};
 
 // The entry whose full name in `topics` is `*topic` (compared by address: Topics' own members);

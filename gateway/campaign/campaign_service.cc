@@ -1,0 +1,163 @@
+#include "gateway/campaign/campaign_service.h"
+
+#include <spdlog/spdlog.h>
+
+#include <sstream>
+
+#include "gateway/command/base64.h"
+
+namespace fleetgw::campaign {
+namespace {
+
+constexpr const char* kIndexKey = "campaign.index";
+
+std::span<const std::uint8_t> service_bytes(std::string_view s) {
+  return {reinterpret_cast<const std::uint8_t*>(s.data()), s.size()};
+}
+
+}  // namespace
+
+CampaignService::CampaignService(CampaignServiceConfig config, storage::Store& store)
+    : config_(std::move(config)),
+      store_(store),
+      authority_(config_.trusted_keys, config_.vehicle_id, config_.groups, config_.limits) {}
+
+bool CampaignService::handles(std::string_view topic) const {
+  return topic == config_.fleet_topic || topic == config_.vehicle_topic;
+}
+
+void CampaignService::restore(Micros wall_now, Micros bus_now) {
+  const auto index = store_.meta(kIndexKey);
+  if (!index) return;
+  std::istringstream ids(*index);
+  std::string id;
+  while (ids >> id) {
+    const auto text = store_.meta("campaign." + id);
+    const auto payload = text ? command::decode_base64(*text) : std::nullopt;
+    if (!payload) {
+      spdlog::warn("campaign: stored campaign '{}' is unreadable; dropped", id);
+      continue;
+    }
+    const std::string bytes(payload->begin(), payload->end());
+    // Judged as on the fleet topic: a stored per-vehicle campaign names this vehicle anyway.
+    auto v = authority_.offer(bytes, wall_now, CampaignTopic::kFleet);
+    if (!v.accepted()) {
+      spdlog::warn("campaign: stored campaign '{}' refused ({}): {}", id,
+                   campaign_refusal_name(v.reason), v.detail);
+      continue;
+    }
+    engine_.put(authority_.in_force().at(v.id).compiled, bus_now);
+    spdlog::info("campaign: '{}' restored: {}", v.id, v.detail);
+  }
+  std::string error;
+  persist(&error);  // drops what was refused
+}
+
+CampaignVerdict CampaignService::on_payload(std::string_view topic, std::string_view payload,
+                                            std::size_t oversized, Micros wall_now,
+                                            Micros bus_now) {
+  ++offered_;
+  expire(wall_now, bus_now);
+  const CampaignTopic from =
+      topic == config_.vehicle_topic ? CampaignTopic::kVehicle : CampaignTopic::kFleet;
+  CampaignVerdict v;
+  if (oversized > 0) {
+    v.reason = CampaignRefusal::kTooLarge;
+    v.detail = std::to_string(oversized) + " bytes, over the topic's limit";
+  } else if (payload.empty()) {
+    // A retained message cleared by the operator: nothing to judge (campaigns end at their end).
+    v.outcome = CampaignOutcome::kAlreadyInForce;
+    v.detail = "empty retained message";
+    return v;
+  } else {
+    v = authority_.offer(service_bytes(payload), wall_now, from);
+  }
+  if (v.accepted()) {
+    ++accepted_;
+    std::string error;
+    persist(&error);
+    if (!error.empty()) spdlog::error("campaign: '{}' not stored: {}", v.id, error);
+    engine_.put(authority_.in_force().at(v.id).compiled, bus_now);
+    spdlog::info("campaign: '{}' accepted: {}", v.id, v.detail);
+  } else if (v.outcome == CampaignOutcome::kRefused) {
+    ++refused_;
+    last_refusal_ = v;
+    const std::string key = std::string(campaign_refusal_name(v.reason)) + v.id;
+    if (key != last_logged_) {
+      spdlog::warn("campaign: refused ({}) on {}: {}", campaign_refusal_name(v.reason), topic,
+                   v.detail);
+      last_logged_ = key;
+    }
+  }
+  return v;
+}
+
+void CampaignService::expire(Micros wall_now, Micros bus_now) {
+  const auto gone = authority_.expire(wall_now);
+  if (gone.empty()) return;
+  for (const auto& id : gone) {
+    engine_.remove(id, bus_now);
+    spdlog::info("campaign: '{}' ended", id);
+  }
+  std::string error;
+  persist(&error);
+}
+
+void CampaignService::tick(Micros wall_now, Micros bus_now) {
+  engine_.tick(bus_now);
+  expire(wall_now, bus_now);
+}
+
+std::vector<storage::UplinkMessage> CampaignService::take_messages() {
+  std::vector<storage::UplinkMessage> out;
+  for (auto& r : engine_.take_records()) {
+    out.push_back({storage::OutboxKind::kCampaign,
+                   static_cast<int>(storage::OutboxPriority::kCampaign),
+                   storage::Bytes(r.payload.begin(), r.payload.end())});
+  }
+  return out;
+}
+
+void CampaignService::persist(std::string* error) {
+  storage::Batch batch;
+  std::string index;
+  for (const auto& [id, held] : authority_.in_force()) {
+    index += index.empty() ? id : " " + id;
+    batch.meta.emplace_back("campaign." + id, command::encode_base64(service_bytes(held.payload)));
+  }
+  batch.meta.emplace_back(kIndexKey, index);
+  const auto result = store_.write(batch);
+  if (!result.ok()) *error = result.error->message;
+}
+
+nlohmann::json CampaignService::status(Micros bus_now) const {
+  nlohmann::json campaigns = nlohmann::json::array();
+  for (const auto& v : engine_.view(bus_now)) {
+    const CompiledCampaign& c = *v.campaign;
+    campaigns.push_back({{"id", c.id},
+                         {"version", c.version},
+                         {"state", run_state_name(v.state)},
+                         {"signals", c.signals.size()},
+                         {"trigger", trigger_name(c.trigger)},
+                         {"sampling", sampling_name(c.sampling)},
+                         {"priority", c.priority},
+                         {"max_bytes_per_hour", c.cost.max_bytes_per_hour},
+                         {"ring_samples", c.cost.ring_samples},
+                         {"disk_budget_bytes", c.disk_budget_bytes},
+                         {"bytes_in_store", v.counters.bytes_in_store},
+                         {"samples", v.counters.samples},
+                         {"dropped", v.counters.dropped},
+                         {"records", v.counters.records},
+                         {"events", v.counters.events}});
+  }
+  nlohmann::json last = nullptr;
+  if (last_refusal_) {
+    last = {{"reason", campaign_refusal_name(last_refusal_->reason)},
+            {"detail", last_refusal_->detail},
+            {"id", last_refusal_->id}};
+  }
+  return {{"in_force", engine_.size()}, {"offered", offered_},  {"accepted", accepted_},
+          {"refused", refused_},        {"last_refusal", last}, {"campaigns", campaigns}};
+}
+
+}  // namespace fleetgw::campaign

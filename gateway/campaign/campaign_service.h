@@ -1,0 +1,75 @@
+// CampaignService: the campaigns of one gateway as the runtime drives them -- the authority
+// (which signed campaigns are in force), their persistence in the store, the engine on the
+// decoded messages, and the records for the outbox. The runtime's wiring is: restore() at
+// start-up, on_payload() for each message of the campaign topics, on_message()/tick() from the
+// core, take_messages() into the recorder, store_holds() with the outbox depth of the campaign
+// priority, status() for `fleetgw status`. No MQTT, no clock.
+//
+// Contract:
+//  * Persistence: each accepted campaign is written at once to the store's meta table
+//    ("campaign.<id>" = the SignedCampaign in base64, "campaign.index" = the ids), in its own
+//    transaction, so it runs after a restart with the broker down; restore() offers each stored
+//    one again (re-verified: a tampered row or a key no longer trusted is refused and dropped).
+//    Campaigns past their end are dropped from the store at the next on_payload() or tick().
+//  * Results: storage::UplinkMessage of kind kCampaign at OutboxPriority::kCampaign (below
+//    telemetry): through the same outbox, exactly once, never ahead of a fault or alarm.
+//  * Refusals are logged once per distinct reason and counted; the latest is in status().
+#pragma once
+
+#include <nlohmann/json.hpp>
+
+#include <map>
+#include <string>
+#include <vector>
+
+#include "gateway/campaign/campaign_authority.h"
+#include "gateway/campaign/campaign_engine.h"
+#include "storage/store.h"
+
+namespace fleetgw::campaign {
+
+struct CampaignServiceConfig {
+  std::map<std::string, std::string> trusted_keys;  // [command.trusted_keys]
+  std::string vehicle_id;
+  std::vector<std::string> groups;
+  std::string fleet_topic;    // <prefix>/campaigns
+  std::string vehicle_topic;  // <prefix>/<vehicle>/campaigns
+  CampaignLimits limits;
+};
+
+class CampaignService {
+ public:
+  CampaignService(CampaignServiceConfig config, storage::Store& store);
+
+  void restore(Micros wall_now, Micros bus_now);
+  bool handles(std::string_view topic) const;
+  // A payload of one of the campaign topics; `oversized` > 0: refused unread as too_large.
+  CampaignVerdict on_payload(std::string_view topic, std::string_view payload,
+                             std::size_t oversized, Micros wall_now, Micros bus_now);
+  void on_message(Micros bus_now, const motinova::DecodedMessage& message) {
+    engine_.on_message(bus_now, message);
+  }
+  void tick(Micros wall_now, Micros bus_now);
+  std::vector<storage::UplinkMessage> take_messages();
+  void store_holds(std::uint64_t bytes) { engine_.store_holds(bytes); }
+  std::size_t size() const { return engine_.size(); }
+  // {"in_force": n, "offered", "accepted", "refused", "last_refusal": {...} | null,
+  //  "campaigns": [{id, version, state, signals, trigger, sampling, priority,
+  //  max_bytes_per_hour, ring_samples, disk_budget_bytes, bytes_in_store, samples, dropped,
+  //  records, events}]}
+  nlohmann::json status(Micros bus_now) const;
+
+ private:
+  void persist(std::string* error);
+  void expire(Micros wall_now, Micros bus_now);
+
+  CampaignServiceConfig config_;
+  storage::Store& store_;
+  CampaignAuthority authority_;
+  CampaignEngine engine_;
+  std::uint64_t offered_ = 0, accepted_ = 0, refused_ = 0;
+  std::optional<CampaignVerdict> last_refusal_;
+  std::string last_logged_;
+};
+
+}  // namespace fleetgw::campaign

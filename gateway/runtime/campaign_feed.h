@@ -1,0 +1,53 @@
+// The campaigns as a listener of the core (issue 29): every decoded message and tick goes to the
+// CampaignService on the bus timeline, and the records it cuts are queued through the recorder
+// (the same outbox, the same flush discipline as device info). Every 5 s of wall time at most it
+// tells the service what the store holds at the campaign priority (their disk budgets).
+#pragma once
+
+#include <chrono>
+
+#include "gateway/campaign/campaign_service.h"
+#include "gateway/runtime/clock_units.h"
+#include "gateway/runtime/gateway_core.h"
+#include "gateway/runtime/recorder.h"
+#include "storage/store.h"
+
+namespace fleetgw::runtime {
+
+class CampaignFeed final : public MessageListener {
+ public:
+  CampaignFeed(campaign::CampaignService& service, Recorder& recorder, storage::Store& store)
+      : service_(service), recorder_(recorder), store_(store) {}
+
+  void on_message(const motinova::DecodedMessage& m, Micros t) override {
+    service_.on_message(t, m);
+    drain();
+  }
+  void tick(Micros t) override {
+    const Micros wall = system_now();
+    service_.tick(wall, t);
+    if (wall - last_depth_ >= std::chrono::seconds(5)) {
+      last_depth_ = wall;
+      std::uint64_t bytes = 0;
+      for (const auto& d : store_.outbox_depth()) {
+        if (d.priority == static_cast<int>(storage::OutboxPriority::kCampaign)) {
+          bytes = d.payload_bytes;
+        }
+      }
+      service_.store_holds(bytes);
+    }
+    drain();
+  }
+
+ private:
+  void drain() {
+    for (auto& m : service_.take_messages()) recorder_.queue_message(std::move(m));
+  }
+
+  campaign::CampaignService& service_;
+  Recorder& recorder_;
+  storage::Store& store_;
+  Micros last_depth_{0};
+};
+
+}  // namespace fleetgw::runtime
