@@ -111,6 +111,9 @@ std::vector<std::string> check_runnable(const config::Config& c) {
     const std::string key = "command.trusted_keys" + (p.key_id.empty() ? "" : "." + p.key_id);
     out.push_back(fmt::format("{}: {}", c.where(key), p.message));
   }
+  for (const auto& p : command::check_root_keys(c.command.root_keys)) {
+    out.push_back(fmt::format("{}: {}", c.where("command.root_keys." + p.key_id), p.message));
+  }
   return out;
 }
 

@@ -53,9 +53,10 @@ std::optional<Disposition> CommandService::Impl::journal_executing(const Verifie
     ++stats.storage_errors;
     spdlog::error("command {}: journal write failed: {}", cmd.command_id, *error);
     // Journaled as rejected once the store accepts writes again (see store_result).
-    return reject({RejectReason::kStorageError, "journal write failed: " + *error, cmd.command_id,
-                   true, cmd.command_sha256},
-                  now, cmd.expires_at, /*always_answer=*/true);
+    Rejection rej{RejectReason::kStorageError, "journal write failed: " + *error, cmd.command_id,
+                  true, cmd.command_sha256};
+    rej.operator_id = cmd.operator_id;
+    return reject(rej, now, cmd.expires_at, /*always_answer=*/true);
   }
   ++stats.accepted;
   return std::nullopt;
@@ -174,6 +175,7 @@ void CommandService::Impl::finish(Running& r, Micros now) {
   v1::CommandResult out;
   out.set_command_id(r.cmd.command_id);
   out.set_command_sha256(r.cmd.command_sha256);
+  out.set_operator_id(r.cmd.operator_id);
   v1::CommandResultCode worst = v1::COMMAND_RESULT_CODE_SUCCEEDED;
   const v1::LockActionResult* worst_step = nullptr;
   for (const Step& s : r.steps) {

@@ -33,6 +33,10 @@ Disposition CommandService::Impl::on_payload(std::span<const std::uint8_t> paylo
       return true;
     }
   };
+  // Issue 28: revoked, out of scope or outside its delegation's window. Answered like a payload
+  // that failed authentication (bound to the payload, rate limited, never journaled or marked
+  // as seen): a withdrawn key must neither fill the journal nor use up a command id.
+  if (auto rej = verifier.authorize(cmd, wall_now, synced)) return reject(*rej, now, std::nullopt);
   if (auto rej = verifier.check(cmd, wall_now, synced, seen)) {
     // A replay whose journal entry is gone (purged) gets no new journal row either.
     const bool journal = rej->reason != RejectReason::kReplayed;
@@ -52,9 +56,10 @@ std::optional<Disposition> CommandService::Impl::answer_known(const VerifiedComm
                                                               Micros now) {
   auto reused_id = [&] {
     // Not journaled again: the journal entry belongs to the first command with this id.
-    return reject({RejectReason::kReplayed, "command id already used by a different command",
-                   cmd.command_id, true, cmd.command_sha256},
-                  now, std::nullopt, /*always_answer=*/true);
+    Rejection rej{RejectReason::kReplayed, "command id already used by a different command",
+                  cmd.command_id, true, cmd.command_sha256};
+    rej.operator_id = cmd.operator_id;
+    return reject(rej, now, std::nullopt, /*always_answer=*/true);
   };
 
   // Answered while the store refused it: the same answer again, never a second execution.
@@ -76,7 +81,7 @@ std::optional<Disposition> CommandService::Impl::answer_known(const VerifiedComm
   if (entry) {
     const auto it = known.find(cmd.command_id);
     if (it != known.end() && it->second.first != cmd.command_sha256) return reused_id();
-    return duplicate(*entry, cmd.command_sha256, now);
+    return duplicate(*entry, cmd.command_sha256, now, cmd.operator_id);
   }
   return std::nullopt;
 }
@@ -102,7 +107,9 @@ Disposition CommandService::Impl::answer_busy(VerifiedCommand cmd, Micros now) {
 
 std::optional<Rejection> CommandService::Impl::preflight(const VerifiedCommand& cmd, Micros now) {
   auto fail = [&](RejectReason r, std::string detail) {
-    return Rejection{r, std::move(detail), cmd.command_id, true, cmd.command_sha256};
+    Rejection out{r, std::move(detail), cmd.command_id, true, cmd.command_sha256};
+    out.operator_id = cmd.operator_id;
+    return out;
   };
   if (context.node.shutdown_running()) {
     return fail(RejectReason::kShuttingDown, "the gateway is shutting the bike down");
@@ -131,6 +138,7 @@ std::optional<Rejection> CommandService::Impl::preflight(const VerifiedCommand& 
     if (auto rej = interlock(k, cmd.target, now)) {
       rej->command_id = cmd.command_id;
       rej->command_sha256 = cmd.command_sha256;
+      rej->operator_id = cmd.operator_id;
       return rej;
     }
   }
@@ -140,6 +148,13 @@ std::optional<Rejection> CommandService::Impl::preflight(const VerifiedCommand& 
                              kind_of(cmd.lock_index) == "wheel";
     if (auto detail = lock_guard(ride_ending, now)) {
       return fail(RejectReason::kNoParkingZone, std::move(*detail));
+    }
+  }
+  if (unlock_guard && cmd.target == LockTarget::kUnlocked) {
+    const bool ride_starting = cmd.whole_vehicle || kind_of(cmd.lock_index) == "frame" ||
+                               kind_of(cmd.lock_index) == "wheel";
+    if (auto detail = unlock_guard(ride_starting, now)) {
+      return fail(RejectReason::kNoStartZone, std::move(*detail));
     }
   }
   return std::nullopt;

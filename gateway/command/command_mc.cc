@@ -64,6 +64,7 @@ Disposition CommandService::Impl::on_mc_command(VerifiedCommand cmd, Micros now)
   if (auto rej = mc.preflight(cmd.mc, !running.empty(), now)) {
     rej->command_id = cmd.command_id;
     rej->command_sha256 = cmd.command_sha256;
+    rej->operator_id = cmd.operator_id;
     remember(cmd, std::max(cmd.expires_at, wall_now + config.rejected_retention));
     return reject(*rej, now, cmd.expires_at);
   }
@@ -87,6 +88,7 @@ void CommandService::Impl::finish_mc(McOutcome outcome, Micros now) {
   v1::CommandResult out;
   out.set_command_id(run.cmd.command_id);
   out.set_command_sha256(run.cmd.command_sha256);
+  out.set_operator_id(run.cmd.operator_id);
   out.set_result(outcome.code);
   out.set_reason(std::move(outcome.reason));
   if (run.cmd.mc.kind == McActionKind::kSpeedLimit) {

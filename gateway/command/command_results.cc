@@ -185,6 +185,7 @@ Disposition CommandService::Impl::reject(const Rejection& rej, Micros now,
   r.set_command_id(rej.command_id);
   r.set_command_sha256(rej.command_sha256);
   r.set_payload_sha256(rej.payload_sha256);
+  r.set_operator_id(rej.operator_id);
   r.set_result(v1::COMMAND_RESULT_CODE_REJECTED);
   // The detail quotes received strings only through untrusted_excerpt: one safe line.
   r.set_reason(std::string(reject_reason_name(rej.reason)) + ": " + rej.detail);
@@ -205,7 +206,8 @@ Disposition CommandService::Impl::reject(const Rejection& rej, Micros now,
 }
 
 Disposition CommandService::Impl::duplicate(const storage::CommandJournalEntry& entry,
-                                            const std::string& sha, Micros now) {
+                                            const std::string& sha, Micros now,
+                                            const std::string& operator_id) {
   ++stats.duplicates;
   if (entry.state == kExecuting) {
     if (executing(entry.command_id)) {
@@ -213,7 +215,7 @@ Disposition CommandService::Impl::duplicate(const storage::CommandJournalEntry& 
       return Disposition::kDuplicateInProgress;
     }
     // Journaled by an earlier run that did not finish (recover() not called yet).
-    finish_interrupted(entry, now, sha);
+    finish_interrupted(entry, now, sha, operator_id);
     return Disposition::kDuplicateAnswered;
   }
   if (!take_token(now)) {
@@ -224,6 +226,7 @@ Disposition CommandService::Impl::duplicate(const storage::CommandJournalEntry& 
   v1::CommandResult r;
   r.set_command_id(entry.command_id);
   r.set_command_sha256(sha);
+  r.set_operator_id(operator_id);
   r.set_result(code_from_name(entry.state));
   bool found = false;
   try {
@@ -284,9 +287,11 @@ Disposition CommandService::Impl::duplicate_unjournaled(const Unjournaled& u, Mi
 }
 
 void CommandService::Impl::finish_interrupted(const storage::CommandJournalEntry& entry, Micros now,
-                                              const std::string& sha) {
+                                              const std::string& sha,
+                                              const std::string& operator_id) {
   v1::CommandResult r;
   r.set_command_id(entry.command_id);
+  r.set_operator_id(operator_id);
   r.set_command_sha256(sha.empty() ? entry.command_sha256 : sha);
   r.set_result(v1::COMMAND_RESULT_CODE_TIMEOUT);
   // Lock and MC commands alike: the bus never confirmed it, and it is not sent again.

@@ -91,6 +91,8 @@ CommandServiceConfig make_command_service_config(const config::Config& c) {
   CommandServiceConfig out;
   out.verifier.vehicle_id = c.vehicle.id;
   out.verifier.trusted_keys = c.command.trusted_keys;
+  out.verifier.root_keys = c.command.root_keys;
+  out.verifier.groups = c.vehicle.groups;
   out.verifier.clock_skew = Micros(std::int64_t{c.command.clock_skew_s} * 1'000'000);
   out.verifier.lock_kinds = c.protocol.lock_kinds;
   out.decode_options = c.protocol;
@@ -238,6 +240,10 @@ void CommandService::set_result_observer(ResultObserver observer) {
 
 void CommandService::set_lock_guard(LockGuard guard) {
   impl_->lock_guard = std::move(guard);
+}
+
+void CommandService::set_unlock_guard(LockGuard guard) {
+  impl_->unlock_guard = std::move(guard);
 }
 
 bool CommandService::busy() const {

@@ -232,6 +232,10 @@ class CommandService {
   // refuses the command (rejected, no_parking_zone: <detail>); nullopt lets it run.
   using LockGuard = std::function<std::optional<std::string>(bool ride_ending, Micros now)>;
   void set_lock_guard(LockGuard guard);
+  // Issue 27: the same before an unlock command that unlocks, with ride_ending read as "ride
+  // starting" (a whole-vehicle unlock or a frame or wheel lock); a detail refuses it (rejected,
+  // no_start_zone: <detail>).
+  void set_unlock_guard(LockGuard guard);
   bool busy() const;
   // An MC action on the gateway's own behalf (issue 14: a geofence's speed limit or assist
   // cap): the same pre-flight and bus confirmation as a remote MC command, but no journal and

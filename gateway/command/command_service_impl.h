@@ -78,7 +78,8 @@ struct CommandService::Impl : std::enable_shared_from_this<CommandService::Impl>
   std::vector<std::unique_ptr<Running>> running;
   CommandStats stats;
   ResultObserver observer;
-  LockGuard lock_guard;  // geofence no-parking zones; empty: every lock may run
+  LockGuard lock_guard;    // geofence no-parking zones; empty: every lock may run
+  LockGuard unlock_guard;  // geofence no-start zones (issue 27); empty: every unlock may run
   // Rate limit for results not tied to a new authenticated command (token bucket per minute).
   double tokens = 0;
   Micros tokens_at{0};
@@ -137,12 +138,13 @@ struct CommandService::Impl : std::enable_shared_from_this<CommandService::Impl>
   Disposition reject(const Rejection& rej, Micros now, std::optional<Micros> expires,
                      bool always_answer = false);
   Disposition duplicate(const storage::CommandJournalEntry& entry, const std::string& sha,
-                        Micros now);
+                        Micros now, const std::string& operator_id = {});
   Disposition duplicate_unjournaled(const Unjournaled& u, Micros now);
   // Answers a command a previous run left "executing"; bound to `sha` (the digest of the bytes
   // just received again) or, when empty, to the digest the journal kept.
+  // operator_id: the redelivered command's (the journal does not keep it).
   void finish_interrupted(const storage::CommandJournalEntry& entry, Micros now,
-                          const std::string& sha = {});
+                          const std::string& sha = {}, const std::string& operator_id = {});
   void count(const v1::CommandResult& r);
   bool take_token(Micros now);
 };

@@ -4,6 +4,7 @@
 // Contract: check_trusted_keys() never throws; it returns one problem per key id that is empty or
 // whose value is not a base64 raw Ed25519 public key (32 bytes). An empty map is valid (commands
 // are then all refused as unknown_key). The key text never appears in a message.
+// check_root_keys() applies the same to [command.root_keys] and the id rule of signing.h.
 #pragma once
 
 #include <map>
@@ -19,5 +20,9 @@ struct TrustedKeyProblem {
 
 std::vector<TrustedKeyProblem> check_trusted_keys(
     const std::map<std::string, std::string>& trusted_keys);
+
+// The same for [command.root_keys] (issue 28), whose ids are also named in delegations and
+// revocation lists: an id must be 1..64 characters of [A-Za-z0-9._-].
+std::vector<TrustedKeyProblem> check_root_keys(const std::map<std::string, std::string>& root_keys);
 
 }  // namespace fleetgw::command

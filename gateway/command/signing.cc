@@ -3,6 +3,7 @@
 #include <charconv>
 #include <fstream>
 #include <iostream>
+#include <stdexcept>
 
 #include "fleetgw/v1/command.pb.h"
 #include "gateway/command/sha256.h"
@@ -130,6 +131,20 @@ SentCommand sign_for_sending(const v1::Command& command, const Ed25519PrivateKey
                              std::string_view key_id) {
   SentCommand sent;
   sent.payload = sign_command(command, key, key_id, &sent.command_sha256);
+  return sent;
+}
+
+SentCommand sign_for_sending(const v1::Command& command, const Ed25519PrivateKey& key,
+                             std::string_view key_id, std::string_view signed_delegation) {
+  SentCommand sent = sign_for_sending(command, key, key_id);
+  if (signed_delegation.empty()) return sent;
+  v1::SignedCommand s;
+  s.ParseFromString(sent.payload);
+  // Outside the signed bytes: the delegation carries the root's own signature.
+  if (!s.mutable_delegation()->ParseFromString(std::string(signed_delegation))) {
+    throw std::invalid_argument("not a fleetgw.v1.SignedDelegation");
+  }
+  sent.payload = s.SerializeAsString();
   return sent;
 }
 

@@ -66,6 +66,10 @@ struct SentCommand {
 // sign_command() with both digests' inputs kept, for result_answers().
 SentCommand sign_for_sending(const v1::Command& command, const Ed25519PrivateKey& key,
                              std::string_view key_id);
+// The same with the key's delegation (issue 28) in SignedCommand.delegation: a serialized
+// fleetgw.v1.SignedDelegation as `fleetgw keys delegate` writes it (empty: none).
+SentCommand sign_for_sending(const v1::Command& command, const Ed25519PrivateKey& key,
+                             std::string_view key_id, std::string_view signed_delegation);
 
 bool result_answers(const v1::CommandResult& result, std::string_view command_id,
                     const SentCommand& sent);

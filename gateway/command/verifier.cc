@@ -131,6 +131,18 @@ std::string_view reject_reason_name(RejectReason reason) {
       return "lock_moving";
     case RejectReason::kNoParkingZone:
       return "no_parking_zone";
+    case RejectReason::kNoStartZone:
+      return "no_start_zone";
+    case RejectReason::kDelegationInvalid:
+      return "delegation_invalid";
+    case RejectReason::kRevoked:
+      return "revoked";
+    case RejectReason::kOutOfScope:
+      return "out_of_scope";
+    case RejectReason::kDelegationNotYetValid:
+      return "delegation_not_yet_valid";
+    case RejectReason::kDelegationExpired:
+      return "delegation_expired";
   }
   return "unknown";
 }
@@ -180,9 +192,18 @@ std::string format_utc(Micros t) {
   return out;
 }
 
-CommandVerifier::CommandVerifier(VerifierConfig config) : config_(std::move(config)) {
+CommandVerifier::CommandVerifier(VerifierConfig config)
+    : config_(std::move(config)),
+      roots_(config_.root_keys),
+      identity_{config_.vehicle_id, config_.groups} {
   if (!valid_vehicle_id(config_.vehicle_id)) {
     throw std::invalid_argument("command: invalid vehicle id '" + config_.vehicle_id + "'");
+  }
+  for (const auto& g : config_.groups) {
+    if (!valid_vehicle_id(g)) {
+      throw std::invalid_argument("vehicle.groups: '" + g +
+                                  "' is not 1..64 characters of [A-Za-z0-9._-]");
+    }
   }
   for (const auto& [id, text] : config_.trusted_keys) {
     if (id.empty()) throw std::invalid_argument("command.trusted_keys: empty key id");
@@ -290,24 +311,41 @@ VerifyResult CommandVerifier::authenticate(std::span<const std::uint8_t> payload
     }
   }
 
-  const auto key = keys_.find(signed_cmd.key_id());
-  if (key == keys_.end()) {
+  // A trusted key (unscoped, as before issue 28), else a key the root delegated.
+  const Ed25519PublicKey* key = nullptr;
+  std::optional<OpenedDelegation> delegated;
+  if (const auto trusted = keys_.find(signed_cmd.key_id()); trusted != keys_.end()) {
+    key = &trusted->second;
+  } else if (!signed_cmd.has_delegation()) {
     return unauthentic(payload, RejectReason::kUnknownKey,
                        "key id " + quote_untrusted(signed_cmd.key_id()) + " is not trusted", id);
+  } else {
+    auto opened = roots_.open(signed_cmd.delegation(), signed_cmd.key_id());
+    if (auto* problem = std::get_if<DelegationProblem>(&opened)) {
+      return unauthentic(payload, RejectReason::kDelegationInvalid, std::move(problem->detail), id);
+    }
+    delegated.emplace(std::move(std::get<OpenedDelegation>(opened)));
+    key = &delegated->public_key;
   }
   const auto* msg = reinterpret_cast<const std::uint8_t*>(signed_cmd.command().data());
   const auto* sig = reinterpret_cast<const std::uint8_t*>(signed_cmd.signature().data());
-  if (!key->second.verify({msg, signed_cmd.command().size()},
-                          {sig, signed_cmd.signature().size()})) {
+  if (!key->verify({msg, signed_cmd.command().size()}, {sig, signed_cmd.signature().size()})) {
     return unauthentic(payload, RejectReason::kBadSignature,
-                       "Ed25519 signature does not verify with key " + quote_untrusted(key->first),
+                       "Ed25519 signature does not verify with " +
+                           std::string(delegated ? "delegated key " : "key ") +
+                           quote_untrusted(signed_cmd.key_id()),
                        id);
   }
   // Authentic from here on: bound to the signed bytes.
   std::string digest = sha256(signed_cmd.command());
+  std::string operator_id =
+      cmd.operator_id().empty() ? std::string() : common::untrusted_excerpt(cmd.operator_id(), 64);
   if (cmd.vehicle_id() != config_.vehicle_id) {
-    return reject(RejectReason::kWrongVehicle,
-                  "command is for vehicle " + quote_untrusted(cmd.vehicle_id()), id, true, digest);
+    Rejection r =
+        reject(RejectReason::kWrongVehicle,
+               "command is for vehicle " + quote_untrusted(cmd.vehicle_id()), id, true, digest);
+    r.operator_id = std::move(operator_id);
+    return r;
   }
 
   VerifiedCommand out;
@@ -322,14 +360,71 @@ VerifyResult CommandVerifier::authenticate(std::span<const std::uint8_t> payload
   if (cmd.target_case() == v1::Command::kLockKind) out.lock_kind = cmd.lock_kind();
   out.mc = std::move(mc);
   out.command_sha256 = std::move(digest);
+  out.operator_id = std::move(operator_id);
+  if (delegated) out.delegation = std::move(delegated->grant);
+  // What an authorize() refusal is bound to; every result of a trusted key's command is bound
+  // to the command bytes, so only pay for it when it may be needed.
+  if (delegated || !revocations_.lists().empty()) {
+    out.payload_sha256 = sha256({reinterpret_cast<const char*>(payload.data()), payload.size()});
+  }
   return out;
+}
+
+std::string_view delegation_action(const VerifiedCommand& c) {
+  if (c.mc.kind != McActionKind::kNone) return mc_action_name(c.mc.kind);
+  return c.target == node::LockTarget::kLocked ? "lock" : "unlock";
+}
+
+std::optional<Rejection> CommandVerifier::authorize(const VerifiedCommand& c, Micros now,
+                                                    bool clock_synchronised) const {
+  // Not authorised is answered like not authentic: bound to the payload, never journaled.
+  auto refuse = [&](RejectReason r, std::string detail) {
+    Rejection out{r, std::move(detail), c.command_id, false, {}, c.payload_sha256};
+    out.operator_id = c.operator_id;
+    return out;
+  };
+  if (!c.delegation) {
+    // A trusted key: only a root's revocation list can withdraw it.
+    if (auto why = revocations_.revoked({}, 0, c.key_id)) {
+      return refuse(RejectReason::kRevoked, std::move(*why));
+    }
+    return std::nullopt;
+  }
+  auto problem =
+      judge(*c.delegation, delegation_action(c), identity_, now, clock_synchronised, revocations_);
+  if (!problem) return std::nullopt;
+  switch (problem->reason) {
+    case DelegationRefusal::kRevoked:
+      return refuse(RejectReason::kRevoked, std::move(problem->detail));
+    case DelegationRefusal::kOutOfScope:
+      return refuse(RejectReason::kOutOfScope, std::move(problem->detail));
+    case DelegationRefusal::kClockUnsynchronised:
+      return refuse(RejectReason::kClockUnsynchronised, std::move(problem->detail));
+    case DelegationRefusal::kNotYetValid:
+      return refuse(RejectReason::kDelegationNotYetValid, std::move(problem->detail));
+    case DelegationRefusal::kExpired:
+      return refuse(RejectReason::kDelegationExpired, std::move(problem->detail));
+    case DelegationRefusal::kInvalid:
+      break;
+  }
+  return refuse(RejectReason::kDelegationInvalid, std::move(problem->detail));
+}
+
+RevocationVerdict CommandVerifier::offer_revocations(std::span<const std::uint8_t> payload) {
+  return revocations_.offer(payload, roots_);
+}
+
+std::vector<std::string> CommandVerifier::restore_revocations(std::string_view persisted) {
+  return revocations_.restore(persisted, roots_);
 }
 
 std::optional<Rejection> CommandVerifier::check(VerifiedCommand& c, Micros now,
                                                 bool clock_synchronised,
                                                 const SeenPredicate& seen) const {
   auto reject_auth = [&](RejectReason r, std::string detail) {
-    return reject(r, std::move(detail), c.command_id, true, c.command_sha256);
+    Rejection out = reject(r, std::move(detail), c.command_id, true, c.command_sha256);
+    out.operator_id = c.operator_id;
+    return out;
   };
   if (!clock_synchronised) {
     return reject_auth(RejectReason::kClockUnsynchronised,
@@ -375,6 +470,7 @@ VerifyResult CommandVerifier::verify(std::span<const std::uint8_t> payload, Micr
                                      bool clock_synchronised, const SeenPredicate& seen) const {
   VerifyResult r = authenticate(payload);
   if (auto* c = std::get_if<VerifiedCommand>(&r)) {
+    if (auto rejection = authorize(*c, now, clock_synchronised)) return std::move(*rejection);
     if (auto rejection = check(*c, now, clock_synchronised, seen)) return std::move(*rejection);
   }
   return r;

@@ -23,8 +23,27 @@
 //    also what kmh 0 is on the wire (proto3 does not send a zero): 0 is never a limit.
 //    The clock check comes before the time checks because they are meaningless on an
 //    unsynchronised clock (it would report "issued in the future" instead of the real cause).
+//  * Delegated keys (issue 28, delegation.h, docs/commands.md "Delegations"): a key id that is
+//    not a trusted key but comes with SignedCommand.delegation is judged in three places:
+//      2. delegation_invalid   instead of unknown_key: the delegation does not open (unknown
+//                              root, the root's signature, malformed, for another key id)
+//      3. signature_invalid    the delegation's public key does not verify the command bytes
+//      4a. revoked             the delegation's serial or its key id is on a revocation list in
+//                              force (a trusted key id too: a root may revoke one)
+//      4b. out_of_scope        the command's action ("lock", "unlock", "speed_limit", ...) is
+//                              not granted, then: this vehicle is not in its vehicle_ids, none
+//                              of its groups in its groups, and not all_vehicles
+//      4c. clock_unsynchronised  the window cannot be judged
+//      4d. delegation_not_yet_valid  now < not_before
+//      4e. delegation_expired  now >= not_after
+//    then 5-10 as for any command. Checks 4a-4e are authorize(); their rejections are NOT
+//    authenticated (Rejection::authenticated false, bound to payload_sha256): a revoked or
+//    out-of-scope key must neither fill the journal nor pre-empt a command id. The operator_id
+//    of a command whose signature verified is carried in every Rejection and VerifiedCommand.
 //  * authenticate() runs checks 1-4 only: what the command service needs to recognise a
 //    redelivery of a command it already journaled before judging its freshness again.
+//  * authorize() runs 4a-4e on an authenticated command; it reads the revocation lists held by
+//    the verifier (offer_revocations()/restore_revocations(): the caller persists them).
 //  * Rejection::command_id is the id found in the payload when one could be parsed, even if the
 //    command was not authentic (so an operator sees why their command was refused);
 //    Rejection::authenticated tells whether the signature was valid. A VerifiedCommand and an
@@ -36,8 +55,8 @@
 //  * Received strings quoted in a detail (key id, vehicle id, lock kind) are untrusted: they go
 //    through common::untrusted_excerpt (valid UTF-8, control characters escaped, cut on a
 //    code-point boundary), so a detail is always safe to log, store and serialize.
-//  * The constructor throws std::invalid_argument for a trusted key that is not a base64 raw
-//    Ed25519 public key (naming the key id) or an invalid vehicle id.
+//  * The constructor throws std::invalid_argument for a trusted or root key that is not a base64
+//    raw Ed25519 public key (naming the key id), an invalid vehicle id or group.
 #pragma once
 
 #include <array>
@@ -50,8 +69,10 @@
 #include <string>
 #include <string_view>
 #include <variant>
+#include <vector>
 
 #include "fleetgw/v1/command.pb.h"
+#include "gateway/command/delegation.h"
 #include "gateway/command/ed25519.h"
 #include "gateway/node/lock_actuator.h"
 #include "motinova/can.h"
@@ -89,12 +110,21 @@ enum class RejectReason : std::uint8_t {
   kLockMoving,
   // Geofence (issue 14): a ride-ending lock inside a no-parking zone, refused by configuration
   kNoParkingZone,
+  // Geofence (issue 27): an unlock that would start a ride inside a no-start zone
+  kNoStartZone,
+  // Delegated keys (issue 28; delegation.h)
+  kDelegationInvalid,
+  kRevoked,
+  kOutOfScope,
+  kDelegationNotYetValid,
+  kDelegationExpired,
 };
 // The reason as sent in CommandResult.reason: "malformed", "unknown_key", "signature_invalid",
 // "wrong_vehicle", "clock_unsynchronised", "expired", "issued_in_future", "validity_too_long",
 // "replayed", "lock_not_fitted", "lock_offline", "interlock_moving", "interlock_motion_unknown",
 // "lock_busy", "shutting_down", "storage_error", "mc_offline", "mc_busy", "mc_state_unknown",
-// "out_of_range", "unknown_assist_level", "lock_moving", "no_parking_zone".
+// "out_of_range", "unknown_assist_level", "lock_moving", "no_parking_zone", "delegation_invalid",
+// "revoked", "out_of_scope", "delegation_not_yet_valid", "delegation_expired".
 std::string_view reject_reason_name(RejectReason reason);
 
 // "succeeded", "failed", "timeout", "rejected" or "unspecified": the result names used in logs,
@@ -111,6 +141,8 @@ struct Rejection {
   // an oversized one). Copied into the CommandResult so it is bound to what was received.
   std::string command_sha256{};
   std::string payload_sha256{};
+  // Command.operator_id (escaped, untrusted) once the command's signature verified; else empty.
+  std::string operator_id{};
 };
 
 // The MC actions of issue 13 (Command.mc_action); kNone for a lock command.
@@ -151,15 +183,30 @@ struct VerifiedCommand {
   // SHA-256 of the signed Command bytes: binds the result to them and tells a redelivery (same
   // bytes) from a reused id (different bytes).
   std::string command_sha256;
+  // Command.operator_id as received, escaped (common::untrusted_excerpt, 64 bytes): echoed in
+  // every result.
+  std::string operator_id;
+  // The delegation it was signed under (a delegated key), and the SHA-256 of the whole payload
+  // that an authorize() rejection is bound to.
+  std::optional<Grant> delegation;
+  std::string payload_sha256;
 };
+
+// The action name a delegation must grant for this command: "lock", "unlock" or the MC
+// action's name ("speed_limit", ...).
+std::string_view delegation_action(const VerifiedCommand& command);
 
 using VerifyResult = std::variant<VerifiedCommand, Rejection>;
 
 struct VerifierConfig {
   std::string vehicle_id;
   std::map<std::string, std::string> trusted_keys;  // key id -> base64 raw Ed25519 public key
-  Micros clock_skew = 30s;                          // allowance for issued_at in the future
-  Micros max_validity = 24h;                        // longest accepted expires_at - issued_at
+  // Issue 28: the fleet's root keys (id -> base64 raw Ed25519 public key) that sign
+  // delegations and revocation lists, and this vehicle's groups ([vehicle] groups).
+  std::map<std::string, std::string> root_keys;
+  std::vector<std::string> groups;
+  Micros clock_skew = 30s;    // allowance for issued_at in the future
+  Micros max_validity = 24h;  // longest accepted expires_at - issued_at
   std::array<std::string, motinova::kLockCount> lock_kinds{};  // "" = not fitted
   std::size_t max_payload_bytes = 4096;
 };
@@ -173,15 +220,28 @@ class CommandVerifier {
   VerifyResult authenticate(std::span<const std::uint8_t> payload) const;
   VerifyResult verify(std::span<const std::uint8_t> payload, Micros now, bool clock_synchronised,
                       const SeenPredicate& seen) const;
+  // Checks 4a-4e (revocation, scope, window) on an authenticated command.
+  std::optional<Rejection> authorize(const VerifiedCommand& command, Micros now,
+                                     bool clock_synchronised) const;
   // Checks 5-10 on an authenticated command.
   std::optional<Rejection> check(VerifiedCommand& command, Micros now, bool clock_synchronised,
                                  const SeenPredicate& seen) const;
+
+  // Revocation lists (delegation.h Revocations), judged against the root keys.
+  RevocationVerdict offer_revocations(std::span<const std::uint8_t> payload);
+  std::vector<std::string> restore_revocations(std::string_view persisted);
+  const Revocations& revocations() const { return revocations_; }
+  const RootKeys& root_keys() const { return roots_; }
+  const VehicleIdentity& identity() const { return identity_; }
 
   const VerifierConfig& config() const { return config_; }
 
  private:
   VerifierConfig config_;
   std::map<std::string, Ed25519PublicKey, std::less<>> keys_;
+  RootKeys roots_;
+  VehicleIdentity identity_;
+  Revocations revocations_;
 };
 
 // Limits of the command id (chosen by the backend): 1..128 printable ASCII characters without

@@ -165,6 +165,34 @@ class Section {
     out = values;
   }
 
+  // An array of up to `max` distinct ids (1..64 of [A-Za-z0-9._-]), e.g. [vehicle] groups.
+  void id_list(std::string_view key, std::vector<std::string>& out, std::size_t max) {
+    const toml::node* n = find(key);
+    if (!n) return;
+    const toml::array* a = n->as_array();
+    if (!a || a->size() > max) {
+      problem(*n, key, fmt::format("expected an array of at most {} strings", max));
+      return;
+    }
+    std::vector<std::string> values;
+    for (std::size_t i = 0; i < a->size(); ++i) {
+      const auto* s = (*a)[i].as_string();
+      const bool ok = s && !s->get().empty() && s->get().size() <= 64 &&
+                      s->get().find_first_not_of("ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz"
+                                                 "0123456789._-") == std::string::npos;
+      if (!ok) {
+        problem(*n, key, fmt::format("element {} must be 1..64 characters of [A-Za-z0-9._-]", i));
+        return;
+      }
+      if (std::find(values.begin(), values.end(), s->get()) != values.end()) {
+        problem(*n, key, fmt::format("element {} ('{}') is repeated", i, s->get()));
+        return;
+      }
+      values.push_back(s->get());
+    }
+    out = std::move(values);
+  }
+
   // Every key of a free-form table of strings (e.g. trusted keys).
   void string_map(std::map<std::string, std::string>& out) {
     if (!table_) return;
@@ -301,6 +329,9 @@ Config parse_root(const toml::table& root, const std::string& name) {
                              "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789._-") ==
                              std::string::npos;
       if (!id_ok) s.invalid("id", "must be 1..64 characters of [A-Za-z0-9._-]");
+      s.id_list("groups", c.vehicle.groups, 32);
+      s.string("type_id", c.vehicle.type_id);
+      if (c.vehicle.type_id.size() > 64) s.invalid("type_id", "must be at most 64 bytes");
     }
     {
       auto s = top.sub("log");
@@ -481,6 +512,8 @@ Config parse_root(const toml::table& root, const std::string& name) {
       s.choice("mc_settings_limit", c.command.mc_settings_limit, {"factory", "effective"});
       auto keys = s.sub("trusted_keys");
       keys.string_map(c.command.trusted_keys);
+      auto roots = s.sub("root_keys");
+      roots.string_map(c.command.root_keys);
     }
   }
   if (!problems.empty()) throw ConfigError(std::move(problems));

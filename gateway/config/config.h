@@ -32,6 +32,12 @@ struct ConfigError : std::runtime_error {
 
 struct VehicleConfig {
   std::string id = "bike-0001";
+  // Issue 28: the groups the vehicle belongs to (e.g. "berlin-north"); a delegation may be
+  // scoped to a group instead of vehicle ids. Each 1..64 of [A-Za-z0-9._-], at most 32.
+  std::vector<std::string> groups;
+  // Issue 27: the GBFS vehicle type (vehicle_type_id) of this bike: a GBFS zone rule naming
+  // vehicle types applies only when it names this one. Empty: only rules for every type.
+  std::string type_id;
 };
 
 struct LogConfig {
@@ -182,6 +188,9 @@ struct GeofenceConfig {
 
 struct CommandConfig {
   std::map<std::string, std::string> trusted_keys;  // key id -> base64 Ed25519 public key
+  // Issue 28: the fleet's root keys (key id -> base64 Ed25519 public key): they sign
+  // delegations (scoped, expiring keys) and revocation lists, never commands.
+  std::map<std::string, std::string> root_keys;
   int clock_skew_s = 30;
   double interlock_speed_kmh = 1.0;
   int interlock_motor_s = 5;
