@@ -40,6 +40,8 @@ struct Session {
   std::string operator_name;
   Role role = Role::Viewer;
   std::string csrf_token;
+  // An API token's (api_tokens.h), sent as `Authorization: Bearer`: no cookie, so no CSRF.
+  bool bearer = false;
 };
 
 struct LoginOutcome {

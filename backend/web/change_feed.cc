@@ -16,7 +16,10 @@ constexpr std::string_view kPollSql = R"sql(
 SELECT (SELECT max(received_at_us) FROM vehicle_state)::text || '/' ||
        coalesce((SELECT max(received_at_us) FROM status)::text, '-'),
        coalesce((SELECT max(committed_at_us) FROM alarms)::text, '-') || '/' ||
-       coalesce((SELECT max(acked_at_us) FROM console_alarm_acks)::text, '-')
+       coalesce((SELECT max(acked_at_us) FROM console_alarm_acks)::text, '-') || '/' ||
+       coalesce((SELECT max(resolved_at_us) FROM console_alarm_resolutions)::text, '-'),
+       coalesce((SELECT max(issued_at_us) FROM console_commands)::text, '-') || '/' ||
+       coalesce((SELECT max(result_at_us) FROM console_commands)::text, '-')
 )sql";
 
 }  // namespace
@@ -49,6 +52,14 @@ ChangeFeed::Cursor ChangeFeed::current() {
   return cursor_;
 }
 
+void ChangeFeed::notify_commands() {
+  {
+    const std::lock_guard lock(mu_);
+    ++cursor_.commands;
+  }
+  cv_.notify_all();
+}
+
 ChangeFeed::Cursor ChangeFeed::wait_change(Cursor seen, std::chrono::milliseconds timeout) {
   std::unique_lock lock(mu_);
   cv_.wait_for(lock, timeout, [&] { return stopped_ || !(cursor_ == seen); });
@@ -59,6 +70,7 @@ void ChangeFeed::run(const std::stop_token& stop) {
   std::unique_ptr<PgConnection> conn;
   std::string fleet_mark;
   std::string alarm_mark;
+  std::string command_mark;
   std::string last_error;
   while (!stop.stop_requested()) {
     try {
@@ -66,7 +78,10 @@ void ChangeFeed::run(const std::stop_token& stop) {
       const PgResult r = conn->exec(kPollSql, "change poll");
       const std::string f = r.is_null(0, 0) ? "-" : r.str(0, 0);
       const std::string a = r.str(0, 1);
+      const std::string cm = r.str(0, 2);
       const std::lock_guard lock(mu_);
+      if (cm != command_mark) ++cursor_.commands;
+      command_mark = cm;
       // An alarm or an acknowledgement changes the fleet's colours too.
       if (f != fleet_mark || a != alarm_mark) ++cursor_.fleet;
       if (a != alarm_mark) ++cursor_.alarms;

@@ -9,7 +9,8 @@
 //
 // Contract:
 //  * Cursor counts changes: `fleet` grows when any vehicle's state, status or alarms changed,
-//    `alarms` when an alarm arrived or was acknowledged.
+//    `alarms` when an alarm arrived, was acknowledged or resolved, `commands` when a console
+//    command was recorded or its result stored (by any instance).
 //  * wait_change() blocks until the cursor differs from `seen`, `timeout` passes or stop() is
 //    called, and returns the current cursor. Thread-safe.
 //  * A failing query (database down, ingest schema not there yet) is logged once per kind of
@@ -30,6 +31,7 @@ class ChangeFeed {
   struct Cursor {
     std::uint64_t fleet = 0;
     std::uint64_t alarms = 0;
+    std::uint64_t commands = 0;  // a console command was sent or its result arrived
     bool operator==(const Cursor&) const = default;
   };
 
@@ -40,6 +42,9 @@ class ChangeFeed {
 
   Cursor wait_change(Cursor seen, std::chrono::milliseconds timeout);
   Cursor current();
+  // A command result stored by this instance: announced at once, not at the next poll (the
+  // click-to-result time is what an operator feels). Other instances see it by polling.
+  void notify_commands();
   void stop();
   bool stopped();
 

@@ -4,6 +4,8 @@
 
 #include <string>
 
+#include "backend/web/registry_schema.h"
+
 namespace fleetgw::web {
 namespace {
 
@@ -42,6 +44,34 @@ CREATE TABLE console_alarm_acks (
 CREATE INDEX console_alarm_acks_by_time ON console_alarm_acks (acked_at_us);
 )sql";
 
+// Version 2 (issue 28): commands the console signed and published, with the bike's result;
+// alarm resolutions; API tokens for machine clients (only the SHA-256 of a token is stored).
+constexpr std::string_view kV2 = R"sql(
+CREATE TABLE console_commands (
+  command_id text PRIMARY KEY, vehicle_id text NOT NULL, operator text NOT NULL,
+  address text NOT NULL, action text NOT NULL, params text NOT NULL DEFAULT '',
+  key_id text NOT NULL, delegation_serial bigint, command_sha256 text NOT NULL,
+  payload_sha256 text NOT NULL, issued_at_us bigint NOT NULL, expires_at_us bigint NOT NULL,
+  batch_id text, result text, reason text, result_operator text, duration_ms bigint,
+  final_state text, limit_in_force text, result_at_us bigint);
+CREATE INDEX console_commands_by_vehicle ON console_commands (vehicle_id, issued_at_us);
+CREATE INDEX console_commands_by_result ON console_commands (result_at_us);
+CREATE INDEX console_commands_by_time ON console_commands (issued_at_us);
+
+CREATE TABLE console_alarm_resolutions (
+  vehicle_id text NOT NULL, store_id text NOT NULL, sequence bigint NOT NULL,
+  resolved_by text NOT NULL, resolved_at_us bigint NOT NULL, note text NOT NULL DEFAULT '',
+  PRIMARY KEY (vehicle_id, store_id, sequence));
+CREATE INDEX console_alarm_resolutions_by_time ON console_alarm_resolutions (resolved_at_us);
+
+CREATE TABLE console_api_tokens (
+  id bigserial PRIMARY KEY, name text NOT NULL CHECK (length(name) BETWEEN 1 AND 64),
+  token_sha256 text NOT NULL UNIQUE,
+  role text NOT NULL CHECK (role IN ('viewer', 'operator', 'admin')),
+  created_by text NOT NULL, created_at_us bigint NOT NULL, revoked_at_us bigint,
+  revoked_by text, last_used_us bigint);
+)sql";
+
 struct Version {
   int number;
   std::string_view name;
@@ -49,6 +79,8 @@ struct Version {
 };
 constexpr Version kVersions[] = {
     {1, "operators, sessions, login throttle, audit, alarm acknowledgements", kV1},
+    {2, "console commands, alarm resolutions, API tokens", kV2},
+    {3, "vehicle registry, GBFS ids, zone bundles, MDS agencies", kRegistrySchemaV3},
 };
 
 // Any constant other than the ingest's: the lock serialises console migrations only.

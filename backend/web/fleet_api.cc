@@ -43,7 +43,9 @@ LEFT JOIN LATERAL (
                  a.sequence DESC) last
   LEFT JOIN console_alarm_acks k ON k.vehicle_id = v.vehicle_id
        AND k.store_id = last.store_id AND k.sequence = last.sequence
-  WHERE last.transition = 'ALARM_TRANSITION_RAISED') al ON true
+  WHERE last.transition = 'ALARM_TRANSITION_RAISED' AND NOT EXISTS (
+    SELECT 1 FROM console_alarm_resolutions res WHERE res.vehicle_id = v.vehicle_id
+      AND res.store_id = last.store_id AND res.sequence = last.sequence)) al ON true
 ORDER BY v.vehicle_id
 )sql";
 
@@ -51,13 +53,16 @@ ORDER BY v.vehicle_id
 constexpr std::string_view kAlarmColumns = R"sql(
   a.vehicle_id, a.store_id, a.sequence, a.kind, a.transition, a.at_us, a.created_at_us,
   a.committed_at_us, a.speed_dkmh, a.soc_pct, a.lock_kind, a.detail, k.acked_by, k.acked_at_us,
-  a.transition = 'ALARM_TRANSITION_RAISED' AND NOT EXISTS (
+  a.transition = 'ALARM_TRANSITION_RAISED' AND res.resolved_by IS NULL AND NOT EXISTS (
     SELECT 1 FROM alarms b WHERE b.vehicle_id = a.vehicle_id AND b.kind = a.kind
       AND b.lock_kind = a.lock_kind
       AND (coalesce(b.at_us, b.created_at_us), b.sequence)
           > (coalesce(a.at_us, a.created_at_us), a.sequence))
+  , res.resolved_by, res.resolved_at_us, res.note
 FROM alarms a LEFT JOIN console_alarm_acks k ON k.vehicle_id = a.vehicle_id
   AND k.store_id = a.store_id AND k.sequence = a.sequence
+LEFT JOIN console_alarm_resolutions res ON res.vehicle_id = a.vehicle_id
+  AND res.store_id = a.store_id AND res.sequence = a.sequence
 )sql";
 
 json opt_int(const PgResult& r, int row, int col) {
@@ -139,6 +144,9 @@ json alarm_row(const PgResult& r, int i) {
   a["acked_by"] = opt_text(r, i, 12);
   a["acked_at_us"] = opt_int(r, i, 13);
   a["active"] = r.boolean(i, 14);
+  a["resolved_by"] = opt_text(r, i, 15);
+  a["resolved_at_us"] = opt_int(r, i, 16);
+  a["resolution_note"] = opt_text(r, i, 17);
   return a;
 }
 
@@ -304,6 +312,45 @@ std::optional<json> vehicle(PgConnection& c, std::string_view vehicle_id) {
                              {"result", opt_text(cmds, i, 6)},
                              {"reason", opt_text(cmds, i, 7)},
                              {"duration_ms", opt_int(cmds, i, 8)}});
+  }
+
+  // What the bike reports of itself in vehicle_state beyond the fleet columns (issue 28's
+  // migration 4 of the ingest: locks, faults, active alarms, speed limit in force, assist,
+  // bus state). Read as the row's JSON, so a database without those columns yet still works.
+  const PgResult full =
+      c.query("SELECT to_jsonb(vs) FROM vehicle_state vs WHERE vehicle_id = $1", p, "state");
+  json reported = json::object();
+  if (full.rows() == 1) {
+    const json row = pg_json(full, 0, 0);
+    for (const char* k : {"locks", "faults", "active_alarms", "speed_limit_dkmh", "assist_name",
+                          "bus_state"}) {
+      if (row.is_object() && row.contains(k)) reported[k] = row[k];
+    }
+  }
+  v["reported"] = reported;
+
+  // The console's own commands: who sent each, and the bike's answer.
+  const PgResult cc = c.query(
+      "SELECT command_id, operator, action, params, issued_at_us, expires_at_us, result, reason, "
+      "result_operator, duration_ms, final_state, limit_in_force, result_at_us, key_id "
+      "FROM console_commands WHERE vehicle_id = $1 ORDER BY issued_at_us DESC LIMIT 50",
+      p, "vehicle console commands");
+  v["console_commands"] = json::array();
+  for (int i = 0; i < cc.rows(); ++i) {
+    v["console_commands"].push_back({{"command_id", cc.str(i, 0)},
+                                     {"operator", cc.str(i, 1)},
+                                     {"action", cc.str(i, 2)},
+                                     {"params", cc.str(i, 3)},
+                                     {"issued_at_us", opt_int(cc, i, 4)},
+                                     {"expires_at_us", opt_int(cc, i, 5)},
+                                     {"result", opt_text(cc, i, 6)},
+                                     {"reason", opt_text(cc, i, 7)},
+                                     {"result_operator", opt_text(cc, i, 8)},
+                                     {"duration_ms", opt_int(cc, i, 9)},
+                                     {"final_state", opt_text(cc, i, 10)},
+                                     {"limit_in_force", opt_text(cc, i, 11)},
+                                     {"result_at_us", opt_int(cc, i, 12)},
+                                     {"key_id", cc.str(i, 13)}});
   }
   return v;
 }

@@ -9,9 +9,13 @@
 #include <stdexcept>
 
 #include "backend/common/pg.h"
+#include "backend/web/api_tokens.h"
 #include "backend/web/auth.h"
 #include "backend/web/change_feed.h"
+#include "backend/web/command_hub.h"
+#include "backend/web/command_signer.h"
 #include "backend/web/fleet_api.h"
+#include "backend/web/route_context.h"
 #include "backend/web/secrets.h"
 
 namespace fleetgw::web {
@@ -91,6 +95,10 @@ struct WebServer::Impl {
   PgPool pool;
   Auth auth;
   ChangeFeed feed;
+  // Commands (command_routes.cc): both or neither; after feed, which their results wake.
+  std::unique_ptr<CommandSigner> signer;
+  std::unique_ptr<CommandHub> hub;
+  RouteContext ctx;
   std::unique_ptr<httplib::Server> server;
   std::atomic<int> streams{0};
   int port = 0;
@@ -100,21 +108,47 @@ struct WebServer::Impl {
         tls(!options.tls_cert.empty()),
         pool(options.pg, static_cast<std::size_t>(options.db_connections)),
         auth(pool),
-        feed(options.pg, std::chrono::milliseconds(options.poll_ms)) {}
+        feed(options.pg, std::chrono::milliseconds(options.poll_ms)),
+        ctx{o, pool, auth, feed, nullptr, nullptr, {}} {
+    if (o.signing_key.empty() != o.broker.empty()) {
+      throw std::runtime_error("--broker and --signing-key go together (commands need both)");
+    }
+    if (!o.delegation.empty() && o.signing_key.empty()) {
+      throw std::runtime_error("--delegation needs --signing-key");
+    }
+    if (!o.signing_key.empty()) {
+      signer = std::make_unique<CommandSigner>(
+          o.signing_key, o.delegation,
+          o.key_id.empty() ? std::filesystem::path(o.signing_key).stem().string() : o.key_id);
+      hub = std::make_unique<CommandHub>(o, pool, auth, [this] { feed.notify_commands(); });
+      ctx.signer = signer.get();
+      ctx.hub = hub.get();
+    }
+    ctx.authorise = [this](const httplib::Request& req, httplib::Response& res, Role needed,
+                           std::string_view action) { return authorise(req, res, needed, action); };
+  }
 
   // The session of the request, enforcing role, CSRF and origin; nullopt once a refusal has
   // been written to `res` (and audited when the request changes state).
   std::optional<Session> authorise(const httplib::Request& req, httplib::Response& res, Role needed,
                                    std::string_view action) {
     const bool changes_state = req.method != "GET" && req.method != "HEAD";
-    std::optional<Session> s = auth.session(cookie_value(req, kCookie));
+    // A machine client's API token (api_tokens.h), or a browser's session cookie.
+    const std::string authz = req.get_header_value("Authorization");
+    std::optional<Session> s;
+    if (authz.starts_with("Bearer ")) {
+      auto c = pool.lease();
+      s = token_session(*c, std::string_view(authz).substr(7));
+    } else {
+      s = auth.session(cookie_value(req, kCookie));
+    }
     if (!s) {
       if (changes_state)
         auth.audit(std::nullopt, req.remote_addr, action, req.path, "unauthenticated");
       error(res, 401, "login required");
       return std::nullopt;
     }
-    if (changes_state) {
+    if (changes_state && !s->bearer) {
       if (!same_origin(req)) {
         auth.audit(s->operator_name, req.remote_addr, action, req.path, "refused_origin");
         error(res, 403, "cross-origin request refused");
@@ -229,6 +263,8 @@ void WebServer::Impl::events(const httplib::Request& req, httplib::Response& res
           if (now.alarms != seen->alarms) {
             msg += "event: alarms\ndata: " + std::to_string(now.alarms) + "\n\n";
           }
+          if (now.commands != seen->commands)
+            msg += "event: commands\ndata: " + std::to_string(now.commands) + "\n\n";
           *seen = now;
           if (msg.empty()) {
             // Heartbeat; and a stream outlives neither its session nor a logout.
@@ -275,7 +311,10 @@ void WebServer::Impl::routes() {
   });
   s.Get("/api/config", [this](const httplib::Request& req, httplib::Response& res) {
     if (!authorise(req, res, Role::Viewer, "config")) return;
-    reply(res, 200, {{"tile_url", o.tile_url}, {"tile_attribution", o.tile_attribution}});
+    reply(res, 200,
+          {{"tile_url", o.tile_url},
+           {"tile_attribution", o.tile_attribution},
+           {"commands", signer ? signer->describe() : json(nullptr)}});
   });
   s.Get("/api/fleet", [this](const httplib::Request& req, httplib::Response& res) {
     if (!authorise(req, res, Role::Viewer, "fleet")) return;
@@ -363,6 +402,8 @@ void WebServer::Impl::routes() {
   });
   s.Get("/api/events",
         [this](const httplib::Request& req, httplib::Response& res) { events(req, res); });
+  add_command_routes(s, ctx);
+  add_admin_routes(s, ctx);
   // Anything else under /api/ is a JSON 404, not the static file handler's.
   s.Get(R"(/api/.*)", [](const httplib::Request&, httplib::Response& res) {
     error(res, 404, "no such API path");

@@ -41,6 +41,28 @@ void add_serve_options(CLI::App& app, ServeOptions& o) {
   app.add_option("--log-level", o.log_level, "trace, debug, info, warn, error")
       ->check(CLI::IsMember({"trace", "debug", "info", "warn", "error"}))
       ->capture_default_str();
+  app.add_option("--broker", o.broker,
+                 "MQTT broker for commands (tcp://, ssl://, mqtt://, mqtts://); none: the "
+                 "console sends no commands");
+  app.add_option("--topic-prefix", o.topic_prefix, "topic prefix of the fleet")
+      ->capture_default_str();
+  app.add_option("--ca-file", o.ca_file, "CA bundle (broker TLS)");
+  app.add_option("--cert-file", o.cert_file, "client certificate (broker mutual TLS)");
+  app.add_option("--key-file", o.key_file, "client key of --cert-file");
+  app.add_option("--username", o.username, "MQTT user name");
+  app.add_option("--password", o.password, "MQTT password (never logged)");
+  app.add_option("--signing-key", o.signing_key,
+                 "this server's Ed25519 private key (PEM, as fleetgw keygen writes it; refused "
+                 "when its group or others may read it)");
+  app.add_option("--delegation", o.delegation,
+                 "the fleet root's delegation of --signing-key (a serialized "
+                 "fleetgw.v1.SignedDelegation, fleetgw keys delegate)");
+  app.add_option("--key-id", o.key_id,
+                 "key id of --signing-key without --delegation (default: the file's stem)");
+  app.add_option("--command-ttl-s", o.command_ttl_s,
+                 "a command expires this long after it is signed")
+      ->check(CLI::Range(5, 3600))
+      ->capture_default_str();
   app.add_option("--add-operator", o.add_operator,
                  "create or update the operator NAME (password: first line of stdin) and exit");
   app.add_option("--role", o.role, "role of --add-operator: viewer, operator or admin")
@@ -50,7 +72,9 @@ void add_serve_options(CLI::App& app, ServeOptions& o) {
   // unit's environment file keeps the database password out of ps); the command line wins.
   for (const char* name : {"pg", "listen", "tls-cert", "tls-key", "static-dir", "leaflet-dir",
                            "tile-url", "tile-attribution", "threads", "db-connections",
-                           "max-event-streams", "poll-ms", "log-level"}) {
+                           "max-event-streams", "poll-ms", "log-level", "broker",
+                           "topic-prefix", "ca-file", "cert-file", "key-file", "username",
+                           "password", "signing-key", "delegation", "key-id", "command-ttl-s"}) {
     std::string env = "FLEETGW_SERVE_";
     for (const char* c = name; *c != '\0'; ++c) {
       env += *c == '-' ? '_' : static_cast<char>(std::toupper(static_cast<unsigned char>(*c)));

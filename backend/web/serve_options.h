@@ -22,6 +22,18 @@ struct ServeOptions {
   int poll_ms = 1000;          // change poll interval (live updates)
   std::size_t max_body_bytes = 64 * 1024;
   std::string log_level = "info";
+  // Commands (issue 28): the broker, this server's signing key and the root's delegation of it.
+  std::string broker;  // "" = commands off (the API answers 503)
+  std::string topic_prefix = "fleet/v1";
+  std::string ca_file;  // TLS to the broker, as for fleetgw ingest
+  std::string cert_file;
+  std::string key_file;
+  std::string username;
+  std::string password;  // never logged
+  std::string signing_key;  // PKCS#8 PEM Ed25519 private key (mode 0600)
+  std::string delegation;   // serialized fleetgw.v1.SignedDelegation ("": a plain trusted key)
+  std::string key_id;       // without a delegation: the key id (default: the key file's stem)
+  int command_ttl_s = 60;   // a command's validity: expires_at = issued_at + this
   // One-off administration instead of serving:
   std::string add_operator;  // with role; the password is read from stdin
   std::string role;

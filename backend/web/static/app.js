@@ -4,6 +4,7 @@
 // get DOM nodes, not strings (Leaflet would parse a string as HTML).
 import { el, clear, ago, when, fmt } from './dom.js';
 import { FleetMap, VehicleMap, STATES } from './maps.js';
+import { Commands, resultText, renderHistory } from './commands.js';
 
 const app = {
   session: null, // {name, role, csrf_token}
@@ -14,6 +15,9 @@ const app = {
   vehicleMap: null,
   events: null,
   view: '',
+  selected: new Set(), // vehicle ids ticked in the list (commands to several bikes)
+  buttonsFor: null, // the vehicle whose command buttons are on the page
+  commands: null,
 };
 
 const ROLE_RANK = { viewer: 0, operator: 1, admin: 2 };
@@ -108,7 +112,14 @@ function listen() {
     if (app.view === 'vehicle') await renderVehicle(currentVehicleId());
   }, 300);
   const alarmsChanged = debounce(loadAlarms, 300);
+  // A command result: the commands this page waits for, at once (no debounce: the operator is
+  // watching), and the vehicle page's history.
+  const commandsChanged = async () => {
+    await app.commands.refresh();
+    if (app.view === 'vehicle') await loadHistory(currentVehicleId());
+  };
   app.events = new EventSource('/api/events');
+  app.events.addEventListener('commands', () => commandsChanged().catch(() => {}));
   app.events.addEventListener('fleet', fleetChanged);
   app.events.addEventListener('alarms', alarmsChanged);
   app.events.onerror = () => status('live updates interrupted: retrying');
@@ -140,14 +151,49 @@ function locksText(locks) {
   return (locks || []).map((l) => `${l.kind || 'lock'}: ${l.name || l.state}`).join(', ');
 }
 
+function pickCell(v) {
+  const box = el('input', { type: 'checkbox', 'aria-label': `select ${v.id}` });
+  box.checked = app.selected.has(v.id);
+  box.addEventListener('click', (ev) => ev.stopPropagation());
+  box.addEventListener('change', () => {
+    if (box.checked) app.selected.add(v.id); else app.selected.delete(v.id);
+    renderBulk();
+  });
+  return el('td', { className: 'pick' }, box);
+}
+
+function renderBulk() {
+  const on = Boolean(app.commands.enabled());
+  document.getElementById('bulk').hidden = !on;
+  document.getElementById('pick-all').hidden = !on;
+  document.getElementById('bulk-count').textContent = `${app.selected.size} selected`;
+}
+
+// Several bikes: one line per bike, updated as the results come.
+function bulkSent(out) {
+  const line = document.getElementById('bulk-result');
+  if (out.error) { line.textContent = out.error; return; }
+  const state = new Map(out.commands.map((c) => [c.vehicle_id, c.error || 'sent']));
+  const show = () => {
+    line.textContent = [...state].map(([v, r]) => `${v}: ${r}`).join(' · ');
+  };
+  for (const c of out.commands) {
+    if (!c.command_id || c.error) continue;
+    app.commands.watch(c.command_id, (cmd) => { state.set(c.vehicle_id, resultText(cmd)); show(); });
+  }
+  show();
+}
+
 function renderList() {
   const body = document.querySelector('#fleet-table tbody');
   clear(body);
+  const picking = Boolean(app.commands.enabled());
   let n = 0;
   for (const v of app.fleet) {
     if (!passesFilters(v)) continue;
     n += 1;
     const row = el('tr', { className: 'link', dataset: { vehicle: v.id } },
+      picking ? pickCell(v) : el('td', { className: 'pick' }),
       el('td', { className: 'wrap' }, v.id),
       stateCell(v.state),
       el('td', {}, v.soc_pct === null ? '–' : `${v.soc_pct} %`),
@@ -159,10 +205,34 @@ function renderList() {
     body.append(row);
   }
   document.getElementById('list-count').textContent = `${n} of ${app.fleet.length} vehicles`;
+  renderBulk();
 }
 
 // --- alarms ----------------------------------------------------------------------------------
 function ackCell(alarm, onDone) {
+  const cell = ackOnly(alarm, onDone);
+  if (alarm.resolved_by) {
+    cell.append(el('div', { className: 'muted' },
+      `resolved by ${alarm.resolved_by}, ${when(alarm.resolved_at_us)}`));
+  } else if (alarm.transition === 'ALARM_TRANSITION_RAISED' && can('operator')) {
+    const button = el('button', { type: 'button', className: 'resolve',
+      dataset: { alarm: alarm.id } }, 'Resolve');
+    button.addEventListener('click', async () => {
+      button.disabled = true;
+      try {
+        await api(`/api/alarms/${encodeURIComponent(alarm.id)}/resolve`, { method: 'POST' });
+        await onDone();
+      } catch (e) {
+        button.disabled = false;
+        status(`resolve failed: ${e.message}`);
+      }
+    });
+    cell.append(' ', button);
+  }
+  return cell;
+}
+
+function ackOnly(alarm, onDone) {
   if (alarm.acked_by) return el('td', {}, `${alarm.acked_by}, ${when(alarm.acked_at_us)}`);
   if (alarm.transition !== 'ALARM_TRANSITION_RAISED') return el('td', {}, '');
   if (!can('operator')) return el('td', { className: 'muted' }, 'not yet');
@@ -233,8 +303,25 @@ async function renderVehicle(id) {
   fact(dl, 'Range', v.range_m === null ? null : `${fmt(v.range_m / 1000)} km`);
   fact(dl, 'Speed', v.speed_kmh === null ? null : `${fmt(v.speed_kmh)} km/h`);
   fact(dl, 'Position', v.lat === null ? null : `${v.lat.toFixed(5)}, ${v.lon.toFixed(5)}`);
-  fact(dl, 'Locks', locksText(v.locks) || null);
-  fact(dl, 'Active alarms', v.alarms.kinds.map(shortKind).join(', ') || 'none');
+  // What the bike reports of itself (the ingest's vehicle_state, when it has these columns),
+  // else what the console derives from the event tables.
+  const rep = v.reported || {};
+  const locks = Array.isArray(rep.locks) && rep.locks.length ? rep.locks.map((l) =>
+    `${l.kind || l.lock_kind || 'lock'}: ${l.state_name || l.name || l.state}`).join(', ')
+    : locksText(v.locks);
+  fact(dl, 'Locks', locks || null);
+  if (rep.speed_limit_dkmh !== undefined && rep.speed_limit_dkmh !== null) {
+    fact(dl, 'Speed limit in force', `${fmt(rep.speed_limit_dkmh / 10)} km/h`);
+  }
+  if (rep.assist_name) fact(dl, 'Assist', rep.assist_name);
+  if (rep.bus_state) fact(dl, 'Bus', String(rep.bus_state).replace(/^BUS_STATE_/, '').toLowerCase());
+  if (Array.isArray(rep.faults)) {
+    fact(dl, 'Active faults', rep.faults.map((f) => (typeof f === 'string' ? f
+      : f.name || f.code)).join(', ') || 'none');
+  }
+  const active = Array.isArray(rep.active_alarms) ? rep.active_alarms.map(shortKind)
+    : v.alarms.kinds.map(shortKind);
+  fact(dl, 'Active alarms', active.join(', ') || 'none');
   fact(dl, 'Last seen', ago(v.last_seen_us));
   if (v.status) {
     fact(dl, 'Connection', v.status.connection);
@@ -267,6 +354,15 @@ async function renderVehicle(id) {
       el('td', {}, f.severity.replace(/^FAULT_SEVERITY_/, '').toLowerCase()), el('td', {}, f.kind),
       el('td', {}, when(f.last_seen_us))));
   }
+  if (app.buttonsFor !== v.id) {
+    app.buttonsFor = v.id;
+    const last = document.getElementById('v-last-result');
+    last.textContent = '';
+    delete last.dataset.result;
+    app.commands.renderButtons(document.getElementById('v-buttons'), () => [v.id],
+      (out) => vehicleSent(v.id, out));
+  }
+  renderHistory(document.querySelector('#v-console-commands tbody'), v.console_commands || []);
   const commands = document.querySelector('#v-commands tbody');
   clear(commands);
   for (const c of v.commands) {
@@ -274,6 +370,33 @@ async function renderVehicle(id) {
       el('td', {}, c.key_id), el('td', {}, c.result ?? 'pending'),
       el('td', { className: 'wrap' }, c.reason ?? '')));
   }
+}
+
+// The vehicle page's answer line: the command's result as soon as the bike sends it.
+function vehicleSent(id, out) {
+  const last = document.getElementById('v-last-result');
+  const one = out.commands && out.commands[0];
+  if (out.error || !one || one.error) {
+    last.dataset.result = 'failed';
+    last.textContent = out.error || (one && one.error) || 'not sent';
+    return;
+  }
+  last.dataset.result = 'pending';
+  last.dataset.command = one.command_id;
+  last.textContent = 'sent, waiting for the bike';
+  app.commands.watch(one.command_id, (c) => {
+    if (last.dataset.command !== c.command_id) return;
+    last.dataset.result = c.result || 'pending';
+    last.textContent = resultText(c);
+  });
+  loadHistory(id).catch(() => {});
+}
+
+async function loadHistory(id) {
+  if (!id) return;
+  const r = await api(`/api/commands?vehicle=${encodeURIComponent(id)}&limit=50`);
+  if (currentVehicleId() !== id) return;
+  renderHistory(document.querySelector('#v-console-commands tbody'), r.commands);
 }
 
 // --- routing ---------------------------------------------------------------------------------
@@ -289,6 +412,7 @@ async function route() {
     a.classList.toggle('active', a.id === `nav-${app.view}`);
   }
   if (app.view === 'map') app.fleetMap.resize();
+  if (app.view !== 'vehicle') app.buttonsFor = null;
   if (app.view === 'vehicle') await renderVehicle(currentVehicleId());
 }
 
@@ -296,6 +420,12 @@ async function start() {
   document.getElementById('top').hidden = false;
   document.getElementById('who').textContent = `${app.session.name} (${app.session.role})`;
   app.config = await api('/api/config');
+  app.buttonsFor = null;
+  if (!app.commands) {
+    app.commands = new Commands({ api, can, status, config: () => app.config });
+  }
+  app.commands.renderButtons(document.getElementById('bulk-buttons'), () => [...app.selected],
+    bulkSent);
   if (!app.fleetMap) {
     app.fleetMap = new FleetMap('map', app.config, (id) => {
       location.hash = `#vehicle/${encodeURIComponent(id)}`;
@@ -318,6 +448,13 @@ async function boot() {
     document.getElementById(id).addEventListener('input', renderList);
   }
   document.getElementById('f-unacked').addEventListener('change', renderAlarms);
+  document.getElementById('pick-all').addEventListener('change', (ev) => {
+    for (const v of app.fleet) {
+      if (!passesFilters(v)) continue;
+      if (ev.target.checked) app.selected.add(v.id); else app.selected.delete(v.id);
+    }
+    renderList();
+  });
   window.addEventListener('hashchange', () => route().catch(() => {}));
   try {
     app.session = await api('/api/session');

@@ -31,6 +31,9 @@ if ! cmp -s "$here/package.json" "$cache/package.json" || [ ! -d "$cache/node_mo
   fi
   exec 9>&-
 fi
-cp "$here/console_test.mjs" "$cache/console_test.mjs"  # resolved against the cache's node_modules
+cp "$here"/*.mjs "$cache/"  # resolved against the cache's node_modules
 [ "${1:-}" = --install ] && exit 0
-exec node "$cache/console_test.mjs" "$@"
+#   console-browser.sh --script NAME.mjs SPEC   runs another of the scripts here
+script=console_test.mjs
+if [ "${1:-}" = --script ]; then script=$2; shift 2; fi
+exec node "$cache/$script" "$@"

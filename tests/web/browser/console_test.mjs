@@ -83,7 +83,7 @@ try {
   // The list: the markup-bearing id is a row whose text is exactly that id.
   await page.goto(`${spec.url}/#list`);
   await page.waitForSelector('#fleet-table tbody tr', { visible: true });
-  const listed = await page.$$eval('#fleet-table tbody tr td:first-child', (tds) => tds.map((t) => t.textContent));
+  const listed = await page.$$eval('#fleet-table tbody tr td:nth-child(2)', (tds) => tds.map((t) => t.textContent));
   if (!listed.includes(spec.xss_id)) fail(`the id ${spec.xss_id} is not shown as text: ${listed}`);
   await page.type('#f-search', 'script');
   const filtered = await page.$$eval('#fleet-table tbody tr', (rows) => rows.length);
