@@ -348,13 +348,14 @@ int run_cli(int argc, char** argv) {
       ->required();
 
   // zones (issue 14): signed geofence bundles from GeoJSON, and their check
-  auto* zones_cmd =
-      app.add_subcommand("zones", "sign a geofence bundle from GeoJSON, or check one");
+  auto* zones_cmd = app.add_subcommand(
+      "zones", "sign a geofence bundle from GeoJSON or GBFS, check one, export one as GBFS");
   zones_cmd->require_subcommand(1);
   auto* zones_sign_cmd =
-      zones_cmd->add_subcommand("sign", "GeoJSON zones -> a signed zone bundle file");
+      zones_cmd->add_subcommand("sign", "GeoJSON or GBFS zones -> a signed zone bundle file");
   geofence::ZonesSignOptions zones_sign;
-  zones_sign_cmd->add_option("geojson", zones_sign.geojson, "GeoJSON FeatureCollection of zones")
+  zones_sign_cmd->add_option("geojson", zones_sign.geojson,
+                             "GeoJSON FeatureCollection of zones, or GBFS geofencing_zones.json")
       ->required();
   zones_sign_cmd->add_option("--version", zones_sign.version, "bundle version (> the one in force)")
       ->required();
@@ -364,6 +365,8 @@ int run_cli(int argc, char** argv) {
   zones_sign_cmd->add_option("--out", zones_sign.out, "signed bundle file to write")->required();
   zones_sign_cmd->add_option("--vehicle", zones_sign.vehicle_id,
                              "sign for this vehicle only (default: fleet-wide)");
+  zones_sign_cmd->add_option("--mds-geography", zones_sign.mds_geography,
+                             "the input is an MDS 2.0 Policy (speed rules); this its Geography");
   auto* zones_check_cmd = zones_cmd->add_subcommand(
       "check", "judge a signed zone bundle as a gateway would (keys from --config)");
   geofence::ZonesCheckOptions zones_check;
@@ -375,6 +378,18 @@ int run_cli(int argc, char** argv) {
                               "the bundle in force (a gateway's stored file) to compare with");
   zones_check_cmd->add_option("--vehicle", zones_check.vehicle_id,
                               "judge as this vehicle's gateway (a bundle for another is refused)");
+  // issue 27: the bundle in force (or a signed file) back as GBFS v3.0 geofencing_zones.json
+  auto* zones_export_cmd = zones_cmd->add_subcommand(
+      "export", "a signed zone bundle (default: the one in force) as GBFS geofencing_zones.json");
+  geofence::ZonesExportOptions zones_export;
+  std::string zones_export_config;
+  zones_export_cmd->add_option("bundle", zones_export.bundle,
+                               "signed zone bundle file (default: --config's bundle_file)");
+  zones_export_cmd->add_option("--config", zones_export_config,
+                               "configuration: [command.trusted_keys] to check the signature, "
+                               "[geofence] bundle_file, [vehicle] id");
+  zones_export_cmd->add_option("--out", zones_export.out_file, "write here (default: stdout)");
+  zones_export_cmd->add_option("--ttl", zones_export.ttl_s, "the feed's ttl, seconds (default 0)");
 
   // command
   campaign::CampaignCli campaign_cli(app);  // signals, campaign sign|check (issue 29)
@@ -521,6 +536,19 @@ int run_cli(int argc, char** argv) {
       zones_check.trusted_keys = config::load_config(zones_config).command.trusted_keys;
       if (!zones_in_force.empty()) zones_check.in_force = zones_in_force;
       return geofence::run_zones_check(zones_check, std::cout, std::cerr);
+    }
+    if (zones_export_cmd->parsed()) {
+      if (!zones_export_config.empty()) {
+        const auto c = config::load_config(zones_export_config);
+        zones_export.trusted_keys = c.command.trusted_keys;
+        zones_export.vehicle_id = c.vehicle.id;
+        if (zones_export.bundle.empty()) zones_export.bundle = c.geofence.bundle_file;
+      }
+      if (zones_export.bundle.empty()) {
+        std::cerr << "fleetgw zones export: name a bundle file or --config\n";
+        return 2;
+      }
+      return geofence::run_zones_export(zones_export, std::cout, std::cerr);
     }
     if (command_cmd->parsed()) {
       cmd_options.timeout = std::chrono::seconds(cmd_timeout_s);

@@ -122,9 +122,76 @@ std::optional<ZoneKind> kind_of(int kind) {
       return ZoneKind::kNoRide;
     case v1::ZONE_KIND_NO_PARKING:
       return ZoneKind::kNoParking;
+    case v1::ZONE_KIND_NO_START:
+      return ZoneKind::kNoStart;
+    case v1::ZONE_KIND_RULES:
+      return ZoneKind::kRules;
     default:
       return std::nullopt;
   }
+}
+
+// A GBFS rule as the engine applies it, or why it cannot be one.
+std::variant<ZoneRuleSpec, std::string> rule_spec_of(const v1::ZoneRule& r) {
+  ZoneRuleSpec spec;
+  for (const auto& type : r.vehicle_type_ids()) {
+    if (type.empty() || type.size() > 64 || !common::is_valid_utf8(type)) {
+      return "a vehicle type id must be 1..64 bytes of UTF-8";
+    }
+    spec.vehicle_type_ids.push_back(type);
+  }
+  if (r.has_maximum_speed_kph()) {
+    if (r.maximum_speed_kph() > 255) {
+      return "maximum_speed_kph " + std::to_string(r.maximum_speed_kph()) + " is not in 0..255";
+    }
+    spec.effects.speed_limit_kmh = static_cast<int>(r.maximum_speed_kph());
+  }
+  spec.effects.no_start = !r.ride_start_allowed();
+  spec.effects.no_parking = !r.ride_end_allowed();
+  spec.effects.no_ride = !r.ride_through_allowed();
+  return spec;
+}
+
+// The issue-27 fields of zone `z` (rules, window, polygons, names) into `zone`, or why not.
+std::optional<std::string> gbfs_fields_of(const v1::Zone& z, Zone& zone,
+                                          const BundleLimits& limits) {
+  if (z.kind() != v1::ZONE_KIND_RULES && z.rules_size() > 0) {
+    return std::string("rules are only for zones of kind rules");
+  }
+  for (int r = 0; r < z.rules_size(); ++r) {
+    auto spec = rule_spec_of(z.rules(r));
+    if (auto* error = std::get_if<std::string>(&spec)) {
+      return "rule " + std::to_string(r) + ": " + *error;
+    }
+    zone.rules.push_back(std::move(std::get<ZoneRuleSpec>(spec)));
+  }
+  if (z.start_us() < 0 || z.end_us() < 0) return std::string("start_us/end_us before 1970");
+  if (z.start_us() != 0 && z.end_us() != 0 && z.end_us() <= z.start_us()) {
+    return "end_us " + std::to_string(z.end_us()) + " is not after start_us " +
+           std::to_string(z.start_us());
+  }
+  zone.start = Micros(z.start_us());
+  zone.end = Micros(z.end_us());
+  if (z.polygon_rings_size() > 0) {
+    std::uint64_t total = 0;
+    for (const auto count : z.polygon_rings()) {
+      if (count == 0) return std::string("polygon_rings: a polygon of 0 rings");
+      total += count;
+    }
+    if (total != static_cast<std::uint64_t>(z.rings_size())) {
+      return "polygon_rings add up to " + std::to_string(total) + " rings, the zone has " +
+             std::to_string(z.rings_size());
+    }
+  }
+  for (int n = 0; n < z.names_size(); ++n) {
+    const auto& name = z.names(n);
+    if (name.text().size() > limits.max_name_bytes || !common::is_valid_utf8(name.text()) ||
+        name.language().size() > 35 || !common::is_valid_utf8(name.language())) {
+      return "names " + std::to_string(n) + ": text must be at most " +
+             std::to_string(limits.max_name_bytes) + " bytes of UTF-8, language at most 35";
+    }
+  }
+  return std::nullopt;
 }
 
 std::string_view bundle_topic_name(BundleTopic topic) {
@@ -152,6 +219,13 @@ std::variant<ZoneSet, std::string> compile_zones(const v1::ZoneBundle& bundle,
     return "vehicle_id " + quote_zone_text(bundle.vehicle_id()) +
            " must be 1..64 characters of [A-Za-z0-9._-] (or empty: fleet-wide)";
   }
+  if (bundle.precedence() != v1::ZONE_PRECEDENCE_UNION &&
+      bundle.precedence() != v1::ZONE_PRECEDENCE_FIRST_MATCH) {
+    return "unknown precedence " + std::to_string(bundle.precedence());
+  }
+  if (bundle.precedence() != v1::ZONE_PRECEDENCE_FIRST_MATCH && bundle.default_rules_size() > 0) {
+    return std::string("default_rules need precedence first_match (GBFS)");
+  }
   if (static_cast<std::size_t>(bundle.zones_size()) > limits.max_zones) {
     return std::to_string(bundle.zones_size()) + " zones, at most " +
            std::to_string(limits.max_zones);
@@ -166,6 +240,15 @@ std::variant<ZoneSet, std::string> compile_zones(const v1::ZoneBundle& bundle,
   ZoneSet set;
   set.version = bundle.version();
   set.issued_at = Micros(bundle.issued_at_us());
+  set.precedence = bundle.precedence() == v1::ZONE_PRECEDENCE_FIRST_MATCH ? Precedence::kFirstMatch
+                                                                          : Precedence::kUnion;
+  for (int r = 0; r < bundle.default_rules_size(); ++r) {
+    auto spec = rule_spec_of(bundle.default_rules(r));
+    if (auto* error = std::get_if<std::string>(&spec)) {
+      return "default rule " + std::to_string(r) + ": " + *error;
+    }
+    set.default_rules.push_back(std::move(std::get<ZoneRuleSpec>(spec)));
+  }
   set.zones.reserve(static_cast<std::size_t>(bundle.zones_size()));
   std::set<std::string_view> ids;
   for (int i = 0; i < bundle.zones_size(); ++i) {
@@ -181,6 +264,8 @@ std::variant<ZoneSet, std::string> compile_zones(const v1::ZoneBundle& bundle,
     }
     const auto kind = kind_of(z.kind());
     if (!kind) return where + ": unknown kind " + std::to_string(z.kind());
+    // 0 stays refused here: proto3 cannot tell it from a limit left out. GBFS's "stop" is a
+    // rules zone's maximum_speed_kph of 0 (explicit presence; issue 27).
     if (*kind == ZoneKind::kSlow && (z.speed_limit_kmh() < 1 || z.speed_limit_kmh() > 255)) {
       return where + ": a slow zone needs speed_limit_kmh in 1..255, not " +
              std::to_string(z.speed_limit_kmh());
@@ -197,8 +282,15 @@ std::variant<ZoneSet, std::string> compile_zones(const v1::ZoneBundle& bundle,
       }
       rings.push_back(std::move(std::get<Ring>(ring)));
     }
-    Zone zone{z.id(), z.name(), *kind, static_cast<int>(z.speed_limit_kmh()),
-              ZonePolygon::build(rings)};
+    Zone zone{z.id(),
+              z.name(),
+              *kind,
+              static_cast<int>(z.speed_limit_kmh()),
+              ZonePolygon::build(rings),
+              {},
+              Micros(0),
+              Micros(0)};
+    if (auto error = gbfs_fields_of(z, zone, limits)) return where + ": " + *error;
     set.vertices += zone.shape.vertex_count();
     set.zones.push_back(std::move(zone));
   }

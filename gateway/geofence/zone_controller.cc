@@ -60,7 +60,9 @@ void ZoneController::on_position(Micros now, const gnss::Position* fix,
   engine_.step(now, fix, events);
 }
 
-std::optional<McWrite> ZoneController::tick(Micros now, const McView& mc) {
+std::optional<McWrite> ZoneController::tick(Micros now, const McView& mc,
+                                            std::vector<ZoneEvent>& events) {
+  engine_.advance(now, events);
   return enforcer_.next(engine_.demands(now), mc, now);
 }
 

@@ -25,7 +25,12 @@
 //    stale; only a real change of position should be passed (a fix counts once towards the
 //    dwell). Appends enter/exit events.
 //  * tick(now, mc): the MC write to make now (ZoneEnforcer::next on the engine's demands), or
-//    nullopt; next_deadline(now) is when tick() should run next for a ramp.
+//    nullopt; next_deadline(now) is when tick() should run next for a ramp or a zone's time
+//    window (issue 27). tick(now, mc, events) first moves the engine to `now` (a window that
+//    opened or closed around the bike: an ENTER or EXIT appended); tick(now, mc) does the same
+//    and drops those events (tests of the writes alone).
+//  * starting(fix, ride_starting, now): an unlock judged against the no-start zones (issue 27,
+//    ZoneEngine::starting).
 #pragma once
 
 #include <filesystem>
@@ -71,13 +76,20 @@ class ZoneController {
   BundleVerdict on_oversized(std::size_t bytes, std::size_t limit, Micros now);
   const BundleCounters& counters() const { return counters_; }
   void on_position(Micros now, const gnss::Position* fix, std::vector<ZoneEvent>& events);
-  std::optional<McWrite> tick(Micros now, const McView& mc);
+  std::optional<McWrite> tick(Micros now, const McView& mc, std::vector<ZoneEvent>& events);
+  std::optional<McWrite> tick(Micros now, const McView& mc) {
+    std::vector<ZoneEvent> dropped;
+    return tick(now, mc, dropped);
+  }
   void on_write_result(bool succeeded, Micros now) { enforcer_.on_result(succeeded, now); }
   std::optional<Micros> next_deadline(Micros now) const { return engine_.next_change(now); }
 
   Demands demands(Micros now) const { return engine_.demands(now); }
   ParkingVerdict parking(const gnss::Position* fix, bool ride_ending, Micros now) const {
     return engine_.parking(fix, ride_ending, now);
+  }
+  ParkingVerdict starting(const gnss::Position* fix, bool ride_starting, Micros now) const {
+    return engine_.starting(fix, ride_starting, now);
   }
   const ZoneAuthority& authority() const { return authority_; }
 

@@ -17,6 +17,10 @@ std::string_view zone_kind_name(ZoneKind kind) {
       return "no_ride";
     case ZoneKind::kNoParking:
       return "no_parking";
+    case ZoneKind::kNoStart:
+      return "no_start";
+    case ZoneKind::kRules:
+      return "rules";
   }
   return "unknown";
 }
@@ -31,8 +35,42 @@ std::string_view transition_name(Transition t) {
       return "locked_in_no_parking";
     case Transition::kLockRefused:
       return "lock_refused";
+    case Transition::kUnlockRefused:
+      return "unlock_refused";
   }
   return "unknown";
+}
+
+bool ZoneRuleSpec::applies_to(std::string_view vehicle_type_id) const {
+  return vehicle_type_ids.empty() || std::find(vehicle_type_ids.begin(), vehicle_type_ids.end(),
+                                               vehicle_type_id) != vehicle_type_ids.end();
+}
+
+std::optional<Effects> Zone::effects_for(std::string_view vehicle_type_id) const {
+  Effects e;
+  switch (kind) {
+    case ZoneKind::kOperatingArea:
+      return e;
+    case ZoneKind::kSlow:
+      e.speed_limit_kmh = speed_limit_kmh;
+      return e;
+    case ZoneKind::kNoRide:
+      e.no_ride = true;
+      return e;
+    case ZoneKind::kNoParking:
+      e.no_parking = true;
+      return e;
+    case ZoneKind::kNoStart:
+      e.no_start = true;
+      return e;
+    case ZoneKind::kRules:
+      break;
+  }
+  // GBFS: the first rule for the vehicle's type; none, and the zone is not there for it.
+  for (const auto& r : rules) {
+    if (r.applies_to(vehicle_type_id)) return r.effects;
+  }
+  return std::nullopt;
 }
 
 void Ramp::retarget(double to, Micros now, Micros duration) {
@@ -91,7 +129,16 @@ ZoneEvent ZoneEngine::event_for(const Zone& zone, Transition t, Micros now,
   e.position = where;
   e.bundle_version = zones_ ? zones_->version : 0;
   e.speed_limit_kmh = zone.kind == ZoneKind::kSlow ? zone.speed_limit_kmh : 0;
+  if (zone.kind == ZoneKind::kRules) {
+    if (const auto fx = zone.effects_for(config_.vehicle_type_id); fx && fx->speed_limit_kmh) {
+      e.speed_limit_kmh = *fx->speed_limit_kmh;
+    }
+  }
   return e;
+}
+
+bool ZoneEngine::live(std::size_t i, Micros now) const {
+  return effects_[i].has_value() && zones_->zones[i].exists_at(now);
 }
 
 void ZoneEngine::set_zones(std::shared_ptr<const ZoneSet> zones, Micros now,
@@ -107,7 +154,7 @@ void ZoneEngine::set_zones(std::shared_ptr<const ZoneSet> zones, Micros now,
       const auto it = kept.find(old.id);
       if (it != kept.end()) {
         next[it->second] = states_[i];
-      } else if (states_[i].confirmed == Side::kInside) {
+      } else if (states_[i].confirmed == Side::kInside && (i >= existed_.size() || existed_[i])) {
         // Its effects end with it: say so, as if the bike had left it.
         events.push_back(event_for(old, Transition::kExit, now, last_fix_));
       }
@@ -115,18 +162,56 @@ void ZoneEngine::set_zones(std::shared_ptr<const ZoneSet> zones, Micros now,
   }
   zones_ = std::move(zones);
   states_ = std::move(next);
+  effects_.assign(states_.size(), std::nullopt);
+  existed_.assign(states_.size(), false);
+  default_effects_.reset();
+  if (zones_) {
+    for (std::size_t i = 0; i < zones_->zones.size(); ++i) {
+      effects_[i] = zones_->zones[i].effects_for(config_.vehicle_type_id);
+      existed_[i] = zones_->zones[i].exists_at(now);
+      // A zone not for this bike (another vehicle type) is never located: no state to keep.
+      if (!effects_[i]) states_[i] = State{};
+    }
+    for (const auto& r : zones_->default_rules) {
+      if (r.applies_to(config_.vehicle_type_id)) {
+        default_effects_ = r.effects;
+        break;
+      }
+    }
+  }
   update_targets(now);
+}
+
+void ZoneEngine::advance(Micros now, std::vector<ZoneEvent>& events) {
+  if (!zones_) return;
+  bool changed = false;
+  for (std::size_t i = 0; i < zones_->zones.size(); ++i) {
+    const bool exists = zones_->zones[i].exists_at(now);
+    if (exists == existed_[i]) continue;
+    existed_[i] = exists;
+    changed = true;
+    // The window opened or closed around a bike that stayed inside: the zone came or went.
+    if (effects_[i] && states_[i].confirmed == Side::kInside) {
+      events.push_back(event_for(zones_->zones[i], exists ? Transition::kEnter : Transition::kExit,
+                                 now, last_fix_));
+    }
+  }
+  if (changed) update_targets(now);
 }
 
 Demands ZoneEngine::step(Micros now, const gnss::Position* fix, std::vector<ZoneEvent>& events) {
   if (fix == nullptr) {
     for (auto& s : states_) s.pending = Side::kUnknown;
+    advance(now, events);
     return demands(now);
   }
   last_fix_ = *fix;
+  advance(now, events);
   if (zones_) {
     for (std::size_t i = 0; i < zones_->zones.size(); ++i) {
+      if (!effects_[i]) continue;  // not for this bike's type
       const Zone& zone = zones_->zones[i];
+      const bool exists = existed_[i];
       State& s = states_[i];
       const Where w = zone.shape.locate(fix->lat_deg, fix->lon_deg, config_.margin_m);
       const Side side = w == Where::kInside    ? Side::kInside
@@ -144,6 +229,7 @@ Demands ZoneEngine::step(Micros now, const gnss::Position* fix, std::vector<Zone
       const Side before = s.confirmed;
       s.confirmed = side;
       s.pending = Side::kUnknown;
+      if (!exists) continue;  // outside its window: tracked, but silent
       if (side == Side::kInside) {
         events.push_back(event_for(zone, Transition::kEnter, now, *fix));
       } else if (before == Side::kInside) {
@@ -158,7 +244,9 @@ Demands ZoneEngine::step(Micros now, const gnss::Position* fix, std::vector<Zone
 void ZoneEngine::relocate(Micros now, const gnss::Position& fix, std::vector<ZoneEvent>& events) {
   if (!zones_) return;
   last_fix_ = fix;
+  advance(now, events);
   for (std::size_t i = 0; i < zones_->zones.size(); ++i) {
+    if (!effects_[i]) continue;  // not for this bike's type
     const Zone& zone = zones_->zones[i];
     State& s = states_[i];
     const Where w = zone.shape.locate(fix.lat_deg, fix.lon_deg, config_.margin_m);
@@ -167,6 +255,7 @@ void ZoneEngine::relocate(Micros now, const gnss::Position& fix, std::vector<Zon
     s.pending = Side::kUnknown;
     if (side == s.confirmed) continue;
     const Side before = std::exchange(s.confirmed, side);
+    if (!existed_[i]) continue;  // outside its window: tracked, but silent
     if (side == Side::kInside) {
       events.push_back(event_for(zone, Transition::kEnter, now, fix));
     } else if (before == Side::kInside) {
@@ -177,20 +266,45 @@ void ZoneEngine::relocate(Micros now, const gnss::Position& fix, std::vector<Zon
 }
 
 void ZoneEngine::update_targets(Micros now) {
+  const Effects fx = effective(now);
   double speed = config_.unrestricted_kmh;
-  bool no_ride = false;
-  if (zones_) {
-    for (std::size_t i = 0; i < zones_->zones.size(); ++i) {
-      if (states_[i].confirmed != Side::kInside) continue;
-      const Zone& zone = zones_->zones[i];
-      if (zone.kind == ZoneKind::kSlow) speed = std::min<double>(speed, zone.speed_limit_kmh);
-      if (zone.kind == ZoneKind::kNoRide) no_ride = true;
-    }
+  // 0 km/h is GBFS's "stop": the assistance fades to off; the MC is never given 0.
+  if (fx.speed_limit_kmh && *fx.speed_limit_kmh > 0) {
+    speed = std::min<double>(speed, *fx.speed_limit_kmh);
   }
+  const bool no_ride = fx.no_ride || (fx.speed_limit_kmh && *fx.speed_limit_kmh == 0);
   speed_.retarget(speed, now,
                   speed < speed_.value(now) ? config_.speed_ramp : config_.restore_ramp);
   assist_.retarget(no_ride ? 0.0 : 100.0, now,
                    no_ride ? config_.assist_fade : config_.restore_ramp);
+}
+
+Effects ZoneEngine::effective(Micros now) const {
+  Effects fx;
+  if (!zones_) return fx;
+  const bool first_match = zones_->precedence == Precedence::kFirstMatch;
+  bool all_outside = true;
+  for (std::size_t i = 0; i < zones_->zones.size(); ++i) {
+    const Zone& zone = zones_->zones[i];
+    if (zone.kind == ZoneKind::kOperatingArea || !live(i, now)) continue;
+    const Side side = states_[i].confirmed;
+    if (side != Side::kInside) {
+      all_outside = all_outside && side == Side::kOutside;
+      continue;
+    }
+    const Effects& z = *effects_[i];
+    if (first_match) return z;  // GBFS: the first zone listed wins
+    if (z.speed_limit_kmh) {
+      fx.speed_limit_kmh = std::min(fx.speed_limit_kmh.value_or(z.speed_limit_kmh.value()),
+                                    z.speed_limit_kmh.value());
+    }
+    fx.no_ride = fx.no_ride || z.no_ride;
+    fx.no_parking = fx.no_parking || z.no_parking;
+    fx.no_start = fx.no_start || z.no_start;
+  }
+  // Outside every zone (each one known to be outside): the default rules.
+  if (first_match && all_outside && default_effects_) return *default_effects_;
+  return fx;
 }
 
 Demands ZoneEngine::demands(Micros now) const {
@@ -205,42 +319,103 @@ Demands ZoneEngine::demands(Micros now) const {
     for (std::size_t i = 0; i < zones_->zones.size(); ++i) {
       const Zone& zone = zones_->zones[i];
       const Side side = states_[i].confirmed;
-      if (zone.kind == ZoneKind::kOperatingArea) {
+      if (zone.kind == ZoneKind::kOperatingArea && live(i, now)) {
         any_area = true;
         inside_area = inside_area || side == Side::kInside;
         every_area_known = every_area_known && side != Side::kUnknown;
       }
-      if (zone.kind == ZoneKind::kNoParking && side == Side::kInside) d.in_no_parking_zone = true;
     }
     d.outside_operating_area = any_area && !inside_area && every_area_known;
+    const Effects fx = effective(now);
+    d.in_no_parking_zone = fx.no_parking;
+    d.in_no_start_zone = fx.no_start;
   }
   return d;
 }
 
 std::optional<Micros> ZoneEngine::next_change(Micros now) const {
-  const auto a = speed_.next_step(now);
+  auto a = speed_.next_step(now);
   const auto b = assist_.next_step(now);
-  if (a && b) return std::min(*a, *b);
-  return a ? a : b;
+  if (b && (!a || *b < *a)) a = b;
+  // The next window edge of a zone for this bike: advance() must run then.
+  if (zones_) {
+    for (std::size_t i = 0; i < zones_->zones.size(); ++i) {
+      if (!effects_[i]) continue;
+      for (const Micros edge : {zones_->zones[i].start, zones_->zones[i].end}) {
+        if (edge.count() != 0 && edge > now && (!a || edge < *a)) a = edge;
+      }
+    }
+  }
+  return a;
+}
+
+ZoneEngine::Judged ZoneEngine::judge(const gnss::Position& fix, Micros now,
+                                     bool Effects::*effect) const {
+  Judged j;
+  const bool first_match = zones_->precedence == Precedence::kFirstMatch;
+  bool all_outside = true;
+  for (std::size_t i = 0; i < zones_->zones.size(); ++i) {
+    const Zone& zone = zones_->zones[i];
+    if (zone.kind == ZoneKind::kOperatingArea || !live(i, now)) continue;
+    const Where w = zone.shape.locate(fix.lat_deg, fix.lon_deg, config_.margin_m);
+    if (w == Where::kOutside) continue;
+    all_outside = false;
+    if ((*effects_[i]).*effect) {
+      j.near = true;
+      if (j.zone == nullptr) j.zone = &zone;
+      if (w == Where::kInside) {
+        j.inside = true;
+        j.zone = &zone;
+        return j;
+      }
+    }
+    // GBFS: a zone the fix is clearly inside decides, whatever comes after it.
+    if (first_match && w == Where::kInside) return j;
+  }
+  if (first_match && all_outside && default_effects_ && (*default_effects_).*effect) {
+    j.near = j.inside = j.by_default = true;
+  }
+  return j;
+}
+
+ParkingVerdict ZoneEngine::verdict_of(const Judged& j, const gnss::Position& fix, Micros now,
+                                      Transition reported, Transition refused, bool refuse) const {
+  ParkingVerdict v;
+  if (!j.near) return v;
+  v.in_no_parking_zone = true;
+  v.refuse = refuse && j.inside;
+  const Transition t = v.refuse ? refused : reported;
+  if (j.by_default) {
+    // The default rules outside every zone have no zone of their own: named as GBFS names them.
+    ZoneEvent e;
+    e.zone_id = "global_rules";
+    e.zone_name = "outside every zone";
+    e.kind = ZoneKind::kRules;
+    e.transition = t;
+    e.at = now;
+    e.position = fix;
+    e.bundle_version = zones_->version;
+    v.event = std::move(e);
+  } else {
+    v.event = event_for(*j.zone, t, now, fix);
+  }
+  return v;
 }
 
 ParkingVerdict ZoneEngine::parking(const gnss::Position* fix, bool ride_ending, Micros now) const {
-  ParkingVerdict v;
-  if (fix == nullptr || !zones_) return v;
-  const Zone* near = nullptr;
-  for (const Zone& zone : zones_->zones) {
-    if (zone.kind != ZoneKind::kNoParking) continue;
-    const Where w = zone.shape.locate(fix->lat_deg, fix->lon_deg, config_.margin_m);
-    if (w == Where::kOutside) continue;
-    v.in_no_parking_zone = true;
-    if (w == Where::kInside && ride_ending && config_.refuse_ride_ending_locks) {
-      v.refuse = true;
-      v.event = event_for(zone, Transition::kLockRefused, now, *fix);
-      return v;
-    }
-    if (near == nullptr) near = &zone;
-  }
-  if (near != nullptr) v.event = event_for(*near, Transition::kLockedInNoParking, now, *fix);
+  if (fix == nullptr || !zones_) return {};
+  return verdict_of(judge(*fix, now, &Effects::no_parking), *fix, now,
+                    Transition::kLockedInNoParking, Transition::kLockRefused,
+                    ride_ending && config_.refuse_ride_ending_locks);
+}
+
+ParkingVerdict ZoneEngine::starting(const gnss::Position* fix, bool ride_starting,
+                                    Micros now) const {
+  if (fix == nullptr || !zones_ || !ride_starting) return {};
+  auto v = verdict_of(judge(*fix, now, &Effects::no_start), *fix, now, Transition::kUnlockRefused,
+                      Transition::kUnlockRefused, true);
+  // Only a refusal is news: an unlock within the margin of a no-start zone runs unreported.
+  if (!v.refuse) v.event.reset();
   return v;
 }
 

@@ -42,6 +42,21 @@
 //    `refuse_ride_ending_locks`, the lock ends a ride and the fix is inside by at least the
 //    margin. An unknown position never refuses a lock (a rider must always be able to end a
 //    ride).
+//  * Issue 27 (GBFS): a zone's effects are those of its kind, or for a kRules zone those of its
+//    first rule for `vehicle_type_id` (none: the zone does not exist for this bike: never
+//    located, no events). A zone with a time window [start, end) exists only within it, by the
+//    `now` given (the gateway's clock): outside it no events and no effects; a window opening or
+//    closing while the bike is inside is an ENTER or EXIT at that instant (advance(now) and
+//    every step/relocate), and next_change() includes the next window edge.
+//  * Precedence: kUnion (every bundle before issue 27) combines every zone the bike is in (the
+//    lowest limit, any no-ride...); kFirstMatch (GBFS) takes only the first zone in bundle order
+//    the bike is confirmed inside (operating areas aside), and outside every zone -- each one
+//    that exists for the bike confirmed outside -- the bundle's default rules.
+//  * A limit of 0 km/h ("stop") fades the assistance to off as a no-ride zone does; the MC is
+//    never given 0.
+//  * starting(fix, ride_starting, now) judges an unlock as parking() judges a lock, against the
+//    no-start effects: refused when it starts a ride and the fix is clearly inside (no
+//    configuration: refusing a start strands nobody); an unknown position never refuses.
 #pragma once
 
 #include <chrono>
@@ -61,9 +76,32 @@ using Micros = std::chrono::microseconds;
 using namespace std::chrono_literals;
 
 // Same numbers as fleetgw.v1.ZoneKind.
-enum class ZoneKind : std::uint8_t { kOperatingArea = 1, kSlow = 2, kNoRide = 3, kNoParking = 4 };
-// "operating_area", "slow", "no_ride", "no_parking".
+enum class ZoneKind : std::uint8_t {
+  kOperatingArea = 1,
+  kSlow = 2,
+  kNoRide = 3,
+  kNoParking = 4,
+  kNoStart = 5,
+  kRules = 6,
+};
+// "operating_area", "slow", "no_ride", "no_parking", "no_start", "rules".
 std::string_view zone_kind_name(ZoneKind kind);
+
+// What a zone (or the default outside every zone) demands of the bike.
+struct Effects {
+  std::optional<int> speed_limit_kmh;  // 0: stop (the assistance fades to off)
+  bool no_ride = false;
+  bool no_parking = false;
+  bool no_start = false;
+  friend bool operator==(const Effects&, const Effects&) = default;
+};
+
+// A GBFS rule (fleetgw.v1.ZoneRule): its effects, for which vehicle types (empty: every one).
+struct ZoneRuleSpec {
+  std::vector<std::string> vehicle_type_ids;
+  Effects effects;
+  bool applies_to(std::string_view vehicle_type_id) const;
+};
 
 struct Zone {
   std::string id;
@@ -71,13 +109,25 @@ struct Zone {
   ZoneKind kind = ZoneKind::kSlow;
   int speed_limit_kmh = 0;  // kSlow only
   ZonePolygon shape;
+  std::vector<ZoneRuleSpec> rules{};  // kRules only
+  Micros start{0};                    // exists from (0: always)...
+  Micros end{0};                      // ...until, exclusive (0: no end)
+  bool exists_at(Micros now) const {
+    return (start.count() == 0 || now >= start) && (end.count() == 0 || now < end);
+  }
+  // The effects for a bike of `vehicle_type_id`; nullopt: the zone does not apply to it.
+  std::optional<Effects> effects_for(std::string_view vehicle_type_id) const;
 };
+
+enum class Precedence : std::uint8_t { kUnion = 0, kFirstMatch = 1 };
 
 struct ZoneSet {
   std::uint64_t version = 0;
   Micros issued_at{0};
   std::vector<Zone> zones;
   std::size_t vertices = 0;
+  Precedence precedence = Precedence::kUnion;
+  std::vector<ZoneRuleSpec> default_rules;  // kFirstMatch: outside every zone
 };
 
 struct EngineConfig {
@@ -88,6 +138,7 @@ struct EngineConfig {
   Micros restore_ramp = 5s;
   int unrestricted_kmh = 25;  // the bike's own limit: where a restored limit ramps back to
   bool refuse_ride_ending_locks = false;
+  std::string vehicle_type_id{};  // [vehicle] type_id: which GBFS rules apply (empty: untyped only)
 };
 
 // Same numbers as fleetgw.v1.ZoneTransition.
@@ -96,8 +147,9 @@ enum class Transition : std::uint8_t {
   kExit = 2,
   kLockedInNoParking = 3,
   kLockRefused = 4,
+  kUnlockRefused = 5,
 };
-// "enter", "exit", "locked_in_no_parking", "lock_refused".
+// "enter", "exit", "locked_in_no_parking", "lock_refused", "unlock_refused".
 std::string_view transition_name(Transition t);
 
 struct ZoneEvent {
@@ -116,6 +168,7 @@ struct Demands {
   int assist_cap_percent = 100;
   bool outside_operating_area = false;
   bool in_no_parking_zone = false;
+  bool in_no_start_zone = false;
   friend bool operator==(const Demands&, const Demands&) = default;
 };
 
@@ -153,9 +206,13 @@ class ZoneEngine {
   void set_zones(std::shared_ptr<const ZoneSet> zones, Micros now, std::vector<ZoneEvent>& events);
   Demands step(Micros now, const gnss::Position* fix, std::vector<ZoneEvent>& events);
   void relocate(Micros now, const gnss::Position& fix, std::vector<ZoneEvent>& events);
+  // Window edges up to `now`: ENTER/EXIT of a zone the bike is inside, new targets.
+  void advance(Micros now, std::vector<ZoneEvent>& events);
   Demands demands(Micros now) const;
   std::optional<Micros> next_change(Micros now) const;
   ParkingVerdict parking(const gnss::Position* fix, bool ride_ending, Micros now) const;
+  // An unlock at `fix`: `refuse` when it starts a ride clearly inside a no-start zone.
+  ParkingVerdict starting(const gnss::Position* fix, bool ride_starting, Micros now) const;
 
   const std::shared_ptr<const ZoneSet>& zones() const { return zones_; }
   const EngineConfig& config() const { return config_; }
@@ -172,10 +229,27 @@ class ZoneEngine {
   ZoneEvent event_for(const Zone& zone, Transition t, Micros now,
                       const std::optional<gnss::Position>& where) const;
   void update_targets(Micros now);
+  // Does zone i take part at `now` (for this bike's type, within its window)?
+  bool live(std::size_t i, Micros now) const;
+  // The effects in force from the confirmed states (precedence applied).
+  Effects effective(Micros now) const;
+  // A lock or unlock judged at a fix against one effect (no_parking or no_start).
+  struct Judged {
+    bool near = false;    // inside or within the margin of a zone with the effect
+    bool inside = false;  // clearly inside it (past the margin)
+    const Zone* zone = nullptr;
+    bool by_default = false;  // the default rules outside every zone
+  };
+  Judged judge(const gnss::Position& fix, Micros now, bool Effects::*effect) const;
+  ParkingVerdict verdict_of(const Judged& j, const gnss::Position& fix, Micros now,
+                            Transition reported, Transition refused, bool refuse) const;
 
   EngineConfig config_;
   std::shared_ptr<const ZoneSet> zones_;
   std::vector<State> states_;
+  std::vector<std::optional<Effects>> effects_;  // per zone, for this bike's type
+  std::optional<Effects> default_effects_;
+  std::vector<bool> existed_;  // per zone: within its window at the last advance()
   std::optional<gnss::Position> last_fix_;
   Ramp speed_;
   Ramp assist_;

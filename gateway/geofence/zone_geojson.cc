@@ -16,6 +16,7 @@ std::optional<v1::ZoneKind> geojson_kind(std::string_view name) {
   if (name == "slow") return v1::ZONE_KIND_SLOW;
   if (name == "no_ride") return v1::ZONE_KIND_NO_RIDE;
   if (name == "no_parking") return v1::ZONE_KIND_NO_PARKING;
+  if (name == "no_start") return v1::ZONE_KIND_NO_START;  // issue 27
   return std::nullopt;
 }
 
@@ -64,7 +65,9 @@ std::optional<std::string> geojson_feature(const json& f, std::size_t index, v1:
   const json kind = props.value("kind", json());
   const auto k = kind.is_string() ? geojson_kind(kind.get<std::string>()) : std::nullopt;
   if (!k) {
-    return where + ": \"kind\" must be \"operating_area\", \"slow\", \"no_ride\" or \"no_parking\"";
+    return where +
+           ": \"kind\" must be \"operating_area\", \"slow\", \"no_ride\", \"no_parking\" or "
+           "\"no_start\"";
   }
   zone.set_kind(*k);
   if (props.contains("name")) {

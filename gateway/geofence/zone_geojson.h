@@ -5,7 +5,8 @@
 //  * Each Feature is one zone: geometry Polygon (its rings: the boundary, then holes) or
 //    MultiPolygon (every ring of every polygon, under the even-odd rule: polygons must not
 //    overlap); properties "id" (or the Feature's "id"), "kind" ("operating_area", "slow",
-//    "no_ride", "no_parking"), "name" (optional), "speed_limit_kmh" (slow zones).
+//    "no_ride", "no_parking", "no_start" since issue 27), "name" (optional), "speed_limit_kmh"
+//    (slow zones). A GBFS geofencing_zones.json goes through proto/convert/gbfs_zones.h instead.
 //  * Positions are [longitude, latitude] in degrees (GeoJSON order), rounded to 1e-7 degrees;
 //    a closing position equal to the first is kept (the bundle accepts it).
 //  * Anything that is not such a collection -- not JSON, a missing or mistyped member, a

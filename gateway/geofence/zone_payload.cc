@@ -22,6 +22,7 @@ v1::ZoneEvent zone_event_message(const ZoneEvent& event) {
     if (p.alt_m) out->set_alt_dm(s32(*p.alt_m * 10.0));
     if (p.hdop) out->set_hdop_centi(u32(*p.hdop * 100.0));
     if (p.horizontal_error_m) out->set_horizontal_error_dm(u32(*p.horizontal_error_m * 10.0));
+    if (p.heading_deg) out->set_heading_ddeg(u32(*p.heading_deg * 10.0) % 3600);
     if (p.satellites > 0) out->set_satellites(static_cast<std::uint32_t>(p.satellites));
     out->set_fixed_at_us(p.fixed_at.count());
   }

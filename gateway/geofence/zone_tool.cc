@@ -9,6 +9,8 @@
 #include "gateway/geofence/zone_bundle.h"
 #include "gateway/geofence/zone_file.h"
 #include "gateway/geofence/zone_geojson.h"
+#include "proto/convert/gbfs_zones.h"
+#include "proto/convert/mds_policy.h"
 
 namespace fleetgw::geofence {
 namespace {
@@ -19,6 +21,30 @@ void print_verdict(const BundleVerdict& v, std::ostream& out) {
   out << bundle_outcome_name(v.outcome);
   if (v.reason != BundleRefusal::kNone) out << " (" << bundle_refusal_name(v.reason) << ")";
   out << ": " << v.detail << '\n';
+}
+
+// A GBFS document (or an MDS Policy with its Geography) into a bundle the gateway accepts; its
+// notes on `err`.
+std::variant<v1::ZoneBundle, std::string> bundle_from_gbfs(
+    std::string_view text, std::uint64_t version, Micros issued_at, std::ostream& err,
+    const std::optional<std::string>& mds_geography = std::nullopt) {
+  auto imported = mds_geography ? convert::zone_bundle_from_mds(text, *mds_geography)
+                                : convert::zone_bundle_from_gbfs(text);
+  if (auto* problem = std::get_if<std::string>(&imported)) {
+    return (mds_geography ? "MDS " : "GBFS ") + *problem;
+  }
+  auto& gbfs = std::get<convert::GbfsZonesImport>(imported);
+  for (const auto& note : gbfs.notes) {
+    err << "zones sign: note: " << common::untrusted_excerpt(note, 256) << '\n';
+  }
+  gbfs.bundle.set_version(version);
+  gbfs.bundle.set_issued_at_us(issued_at.count());
+  // The gateway's own rules, so a bundle signed here is one it accepts.
+  auto compiled = compile_zones(gbfs.bundle);
+  if (auto* error = std::get_if<std::string>(&compiled)) {
+    return (mds_geography ? "MDS: " : "GBFS data.geofencing_zones.features: ") + *error;
+  }
+  return std::move(gbfs.bundle);
 }
 
 }  // namespace
@@ -36,7 +62,18 @@ int run_zones_sign(const ZonesSignOptions& options, std::ostream& out, std::ostr
           << '\n';
       return 1;
     }
-    auto bundle = bundle_from_geojson(*text, options.version, options.issued_at);
+    std::optional<std::string> geography;
+    if (!options.mds_geography.empty()) {
+      geography = read_zone_file(options.mds_geography, error, kMaxGeojsonBytes);
+      if (!geography) {
+        err << "zones sign: "
+            << (error.empty() ? options.mds_geography.string() + ": no such file" : error) << '\n';
+        return 1;
+      }
+    }
+    auto bundle = geography || convert::is_gbfs_geofencing_zones(*text)
+                      ? bundle_from_gbfs(*text, options.version, options.issued_at, err, geography)
+                      : bundle_from_geojson(*text, options.version, options.issued_at);
     if (auto* problem = std::get_if<std::string>(&bundle)) {
       err << "zones sign: " << options.geojson.string() << ": " << *problem << '\n';
       return 1;
@@ -108,12 +145,63 @@ int run_zones_check(const ZonesCheckOptions& options, std::ostream& out, std::os
       out << "  " << z.id << "  " << zone_kind_name(z.kind) << "  " << z.shape.vertex_count()
           << " vertices";
       if (z.kind == ZoneKind::kSlow) out << "  " << z.speed_limit_kmh << " km/h";
+      if (z.kind == ZoneKind::kRules) out << "  " << z.rules.size() << " rule(s)";
+      if (z.start.count() != 0) out << "  from " << convert::rfc3339_from_us(z.start.count());
+      if (z.end.count() != 0) out << "  until " << convert::rfc3339_from_us(z.end.count());
       if (!z.name.empty()) out << "  \"" << common::untrusted_excerpt(z.name, 128) << '"';
       out << '\n';
     }
     return 0;
   } catch (const std::exception& e) {
     err << "zones check: " << e.what() << '\n';
+    return 1;
+  }
+}
+
+int run_zones_export(const ZonesExportOptions& options, std::ostream& out, std::ostream& err) {
+  try {
+    std::string error;
+    const auto payload = read_zone_file(options.bundle, error);
+    if (!payload) {
+      err << "zones export: "
+          << (error.empty() ? options.bundle.string() + ": no such file" : error) << '\n';
+      return 1;
+    }
+    if (options.trusted_keys.empty()) {
+      err << "zones export: " << options.bundle.string()
+          << ": signature not checked (no --config with [command.trusted_keys])\n";
+    } else {
+      ZoneAuthority authority(options.trusted_keys, {}, options.vehicle_id);
+      const auto v = authority.offer(*payload);
+      if (v.outcome == BundleOutcome::kRefused) {
+        err << "zones export: " << options.bundle.string() << ": a gateway would refuse it: ";
+        print_verdict(v, err);
+        return 1;
+      }
+    }
+    v1::SignedZoneBundle signed_bundle;
+    v1::ZoneBundle bundle;
+    if (!signed_bundle.ParseFromString(*payload) ||
+        !bundle.ParseFromString(signed_bundle.bundle())) {
+      err << "zones export: " << options.bundle.string() << ": not a fleetgw.v1.SignedZoneBundle\n";
+      return 1;
+    }
+    convert::GbfsExportOptions gbfs;
+    gbfs.ttl_s = options.ttl_s;
+    const std::string text = convert::gbfs_from_zone_bundle(bundle, gbfs).dump(2) + "\n";
+    if (options.out_file.empty()) {
+      out << text;
+      return 0;
+    }
+    if (!write_zone_file(options.out_file, text, error)) {
+      err << "zones export: " << error << '\n';
+      return 1;
+    }
+    out << "zones export: version " << bundle.version() << ", " << bundle.zones_size()
+        << " zones -> " << options.out_file.string() << '\n';
+    return 0;
+  } catch (const std::exception& e) {
+    err << "zones export: " << e.what() << '\n';
     return 1;
   }
 }

@@ -12,6 +12,19 @@
 //    line saying what it wrote. Exit 0; 1 with a message on `err`
 //    naming the file and the problem (unreadable, invalid zone, bad key); nothing is written
 //    then.
+//  * Issue 27: run_zones_sign() also reads a GBFS v3.0 geofencing_zones.json as published (a
+//    document with data.geofencing_zones; proto/convert/gbfs_zones.h maps it): precedence
+//    first_match, one `rules` zone per feature, global_rules as the default. Every note of the
+//    conversion (read, no effect on the bike) is printed on `err` as "zones sign: note: <json
+//    path>: ..." and the bundle is signed; a rule it cannot express is refused, naming the rule
+//    and its JSON path, and nothing is written. With `mds_geography` the input is an MDS 2.0
+//    Policy whose speed rules become rules zones over that Geography (proto/convert/
+//    mds_policy.h), with the same notes and refusals.
+//  * run_zones_export() writes a signed bundle file (the gateway's bundle_file: the bundle in
+//    force) back as GBFS v3.0 geofencing_zones.json on `out` or into `out_file` (atomically).
+//    With trusted keys it first judges the file as a gateway would and exports only what one
+//    would accept (exit 1 with the verdict otherwise); without, it says on `err` that the
+//    signature was not checked. Exit 1 when the file is unreadable or not a SignedZoneBundle.
 //  * run_zones_check() judges a signed bundle file exactly as a gateway would: with the trusted
 //    keys given and, when `in_force` names a file (the gateway's stored bundle), against the
 //    bundle in force there, and with `vehicle_id` as that vehicle's gateway (a bundle signed
@@ -39,6 +52,8 @@ struct ZonesSignOptions {
   Micros issued_at{0};
   std::filesystem::path out;
   std::string vehicle_id;  // empty: a fleet-wide bundle; else only that vehicle accepts it
+  // Issue 27: set, `geojson` is an MDS 2.0 Policy and this its Geography (mds_policy.h).
+  std::filesystem::path mds_geography{};
 };
 int run_zones_sign(const ZonesSignOptions& options, std::ostream& out, std::ostream& err);
 
@@ -49,5 +64,14 @@ struct ZonesCheckOptions {
   std::string vehicle_id;  // judge as this vehicle's gateway; empty: any vehicle
 };
 int run_zones_check(const ZonesCheckOptions& options, std::ostream& out, std::ostream& err);
+
+struct ZonesExportOptions {
+  std::filesystem::path bundle;                     // a signed bundle file
+  std::map<std::string, std::string> trusted_keys;  // empty: the signature is not checked
+  std::string vehicle_id;                           // judge as this vehicle's gateway
+  std::filesystem::path out_file;                   // empty: `out`
+  std::uint32_t ttl_s = 0;
+};
+int run_zones_export(const ZonesExportOptions& options, std::ostream& out, std::ostream& err);
 
 }  // namespace fleetgw::geofence

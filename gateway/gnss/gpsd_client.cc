@@ -102,6 +102,7 @@ std::string GpsdClient::connect() {
 void GpsdClient::close() {
   data_.reset();
   horizontal_error_m_.reset();
+  heading_deg_.reset();
 }
 
 int GpsdClient::fd() const {
@@ -130,6 +131,19 @@ std::optional<double> horizontal_error_m(const gps_fix_t& fix) {
     if (usable(m)) return m;
   }
   return std::nullopt;
+}
+
+// A TPV's course over ground (track), when gpsd reported one with a speed of at least 1 km/h:
+// a receiver's course at a standstill is noise. Untrusted: non-finite or out of [0, 360] is none.
+std::optional<double> heading_deg(const gps_data_t& g) {
+  constexpr double kMinSpeedMps = 1.0 / 3.6;
+  if (!(g.set & TRACK_SET) || !(g.set & SPEED_SET)) return std::nullopt;
+  const double track = g.fix.track, speed = g.fix.speed;
+  if (!std::isfinite(track) || track < 0 || track > 360 || !std::isfinite(speed) ||
+      speed < kMinSpeedMps) {
+    return std::nullopt;
+  }
+  return track >= 360 ? 0.0 : track;
 }
 
 }  // namespace
@@ -166,6 +180,16 @@ GpsdClient::ReadStatus GpsdClient::read_available(Micros now, std::vector<GnssRe
         horizontal_error_m_.reset();
       }
       p.horizontal_error_m = horizontal_error_m_;
+      // The track comes with the RMC's TPV only: the GGA's takes the latest within 2 s, and a
+      // TPV saying the bike stands still clears it.
+      if (const auto heading = heading_deg(g)) {
+        heading_deg_ = heading;
+        heading_at_ = now;
+      } else if (((g.set & SPEED_SET) && std::isfinite(g.fix.speed)) ||
+                 (heading_deg_ && now - heading_at_ > kHorizontalErrorMaxAge)) {
+        heading_deg_.reset();
+      }
+      p.heading_deg = heading_deg_;
       if (g.set & TIME_SET) {
         p.fixed_at =
             Micros(static_cast<int64_t>(g.fix.time.tv_sec) * 1'000'000 + g.fix.time.tv_nsec / 1000);

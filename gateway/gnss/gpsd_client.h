@@ -14,7 +14,10 @@
 //    untrusted: non-finite or out-of-range coordinates are dropped as "no fix". A fix carries
 //    the horizontal error of the latest TPV that had one (eph, else epx and epy) if it came
 //    within 2 s (gpsd sends it with some of a cycle's TPVs only), and the hdop and satellites of
-//    the latest SKY report, if one came (position.h: never one derived from the other).
+//    the latest SKY report, if one came (position.h: never one derived from the other). Its
+//    heading is the latest TPV track reported with a speed of at least 1 km/h within 2 s, the
+//    same way (gpsd sends the track with the RMC's TPV, not the GGA's); a TPV with a lower speed
+//    clears it (issue 27).
 //  * A read error or EOF closes the connection (connected() turns false) and is reported once
 //    through the return value; the owner reconnects on its own schedule.
 #pragma once
@@ -65,6 +68,8 @@ class GpsdClient {
   std::optional<double> hdop_;                // SKY reports arrive apart from the TPV fixes
   std::optional<double> horizontal_error_m_;  // the latest TPV eph, at horizontal_error_at_
   Micros horizontal_error_at_{0};
+  std::optional<double> heading_deg_;  // the latest TPV track while moving, at heading_at_
+  Micros heading_at_{0};
   int satellites_ = 0;
 };
 

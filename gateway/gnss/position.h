@@ -31,6 +31,9 @@ struct Position {
   // gpsd's estimate of the horizontal position error (TPV eph), metres. Its confidence is not
   // stated by gpsd; for an NMEA receiver it is GGA's HDOP times gpsd's fixed range error.
   std::optional<double> horizontal_error_m;
+  // Course over ground, degrees clockwise from true north in [0, 360) (TPV track; issue 27);
+  // absent when gpsd reported none or the fix moved slower than 1 km/h (noise at a standstill).
+  std::optional<double> heading_deg;
   bool three_d = false;
   Micros fixed_at{0};
   Micros received_at{0};

@@ -7,7 +7,8 @@
 // every operating area raises the outside_operating_area Alarm, re-entering one clears it. Lock
 // commands ask the no-parking zones first (CommandService::set_lock_guard): reported, or refused
 // as no_parking_zone when configured; a lock made on the bike (a lock event from the bus) is
-// judged after the fact and reported. Bundles come from the stored file at start-up and from the
+// judged after the fact and reported; unlock commands ask the no-start zones (issue 27) and
+// are refused as no_start_zone. Bundles come from the stored file at start-up and from the
 // retained zone topics (Uplink::take_zone_bundles), judged and enforced here, on the loop.
 #include <spdlog/spdlog.h>
 
@@ -35,7 +36,8 @@ storage::ZoneEventRecord zone_record(const geofence::ZoneEvent& e) {
     r.lat_deg = e.position->lat_deg;
     r.lon_deg = e.position->lon_deg;
   }
-  if (e.kind == geofence::ZoneKind::kSlow) r.speed_limit_kmh = e.speed_limit_kmh;
+  // Slow zones, and GBFS rules zones with a limit (issue 27).
+  if (e.speed_limit_kmh > 0) r.speed_limit_kmh = e.speed_limit_kmh;
   return r;
 }
 
@@ -118,6 +120,7 @@ void Pipeline::start_zones(const config::Config& config) {
   zc.engine.restore_ramp = std::chrono::milliseconds(g.restore_ramp_ms);
   zc.engine.unrestricted_kmh = g.own_limit_kmh;
   zc.engine.refuse_ride_ending_locks = g.refuse_ride_ending_locks;
+  zc.engine.vehicle_type_id = config.vehicle.type_id;  // GBFS rules for this bike's type (issue 27)
   zc.enforcer.own_limit_kmh = g.own_limit_kmh;
   // One authority for the speed limit (issue 24): the zones' demand and the operator's cap
   // (from speed-limit commands) meet in the command service's, which outlives zones_.
@@ -141,6 +144,17 @@ void Pipeline::start_zones(const config::Config& config) {
     if (verdict.event) record_zone_event(*verdict.event);
     if (!verdict.refuse) return std::nullopt;
     return fmt::format("will not end the ride inside the no-parking zone '{}'",
+                       verdict.event ? verdict.event->zone_id : std::string("?"));
+  });
+  // No-start zones (issue 27) judge unlock commands the same way: a ride is not started
+  // clearly inside one; an unknown position never refuses.
+  commands_->set_unlock_guard([this](bool ride_starting, Micros) -> std::optional<std::string> {
+    std::optional<gnss::Position> fix;
+    if (gnss_) fix = gnss_->state().current(gnss_->wall_now());
+    const auto verdict = zones_->starting(fix ? &*fix : nullptr, ride_starting, system_now());
+    if (verdict.event) record_zone_event(*verdict.event);
+    if (!verdict.refuse) return std::nullopt;
+    return fmt::format("will not start a ride inside the no-start zone '{}'",
                        verdict.event ? verdict.event->zone_id : std::string("?"));
   });
   // A lock made on the bike is only noted here (the recorder is mid-message); settle() judges.
@@ -252,7 +266,15 @@ void Pipeline::tick_zones() {
   if (const auto limit = core_.live().speed_limit_kmh)
     mc.speed_limit_kmh = static_cast<int>(std::lround(*limit));
   mc.busy = zone_write_running_ || commands_->busy();
-  const auto write = zones_->tick(wall, mc);
+  // A zone's time window opening or closing around the bike is an event (issue 27).
+  std::vector<geofence::ZoneEvent> events;
+  const auto write = zones_->tick(wall, mc, events);
+  for (const auto& e : events) record_zone_event(e);
+  if (!events.empty()) {
+    std::optional<gnss::Position> fix;
+    if (gnss_) fix = gnss_->state().current(gnss_->wall_now());
+    update_area_alarm(wall, fix);
+  }
   if (!write) return;
   command::McRequest request;
   std::string what;

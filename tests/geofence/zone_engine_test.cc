@@ -18,7 +18,7 @@ using std::chrono::seconds;
 const Micros t0 = seconds(1'790'000'000);
 
 Zone make_zone(std::string id, ZoneKind kind, std::vector<Ring> rings, int limit = 0) {
-  return Zone{id, "zone " + id, kind, limit, ZonePolygon::build(rings)};
+  return Zone{id, "zone " + id, kind, limit, ZonePolygon::build(rings), {}, Micros(0), Micros(0)};
 }
 
 std::shared_ptr<const ZoneSet> set_of(std::vector<Zone> zones, std::uint64_t version = 1) {

@@ -74,8 +74,8 @@ TEST(ZonesGeojson, MalformedInputIsRefusedSayingWhere) {
   EXPECT_EQ(one(R"({"id":"a","kind":"slow","speed_limit_kmh":15})"), "accepted");
   EXPECT_EQ(one(R"({"kind":"slow"})"), "feature 0: no string \"id\" in its properties");
   EXPECT_EQ(one(R"({"id":"a","kind":"fast"})"),
-            "feature 0 ('a'): \"kind\" must be \"operating_area\", \"slow\", \"no_ride\" or "
-            "\"no_parking\"");
+            "feature 0 ('a'): \"kind\" must be \"operating_area\", \"slow\", \"no_ride\", "
+            "\"no_parking\" or \"no_start\"");
   EXPECT_EQ(one(R"({"id":"a","kind":"slow","speed_limit_kmh":-3})"),
             "feature 0 ('a'): \"speed_limit_kmh\" must be a whole number of km/h in 0..255");
   // A non-finite coordinate: JSON cannot even carry one (1e999 overflows a double).
