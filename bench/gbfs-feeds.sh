@@ -16,7 +16,7 @@ BUILD=$(realpath "${1:?usage: bench/gbfs-feeds.sh BUILD_DIR [VEHICLES] [SECONDS]
 N=${2:-10000}
 SECS=${3:-5}
 CLIENTS=${4:-4}
-FLEETGW=$BUILD/gateway/app/fleetgw
+FLEETGW=$BUILD/gateway/app/fleetgw-serve  # ingest-lib.sh checks it and fleetgw-ingest beside it
 SERVE=$BUILD/gateway/app/fleetgw-serve
 [[ -x $SERVE ]] || { echo "gbfs bench: no $SERVE" >&2; exit 1; }
 source "$(dirname "$0")/ingest-lib.sh"

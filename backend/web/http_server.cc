@@ -15,6 +15,7 @@
 #include "backend/web/command_hub.h"
 #include "backend/web/command_signer.h"
 #include "backend/web/fleet_api.h"
+#include "backend/web/registry_routes.h"
 #include "backend/web/route_context.h"
 #include "backend/web/secrets.h"
 
@@ -404,6 +405,14 @@ void WebServer::Impl::routes() {
         [this](const httplib::Request& req, httplib::Response& res) { events(req, res); });
   add_command_routes(s, ctx);
   add_admin_routes(s, ctx);
+  // GBFS, MDS and the vehicle registry (issue 27).
+  mount_standards_routes(s, pool, auth, o.standards, tls,
+                         [this](const httplib::Request& req, httplib::Response& res, Role r,
+                                std::string_view action) -> std::optional<std::string> {
+                           const auto session = authorise(req, res, r, action);
+                           if (!session) return std::nullopt;
+                           return session->operator_name;
+                         });
   // Anything else under /api/ is a JSON 404, not the static file handler's.
   s.Get(R"(/api/.*)", [](const httplib::Request&, httplib::Response& res) {
     error(res, 404, "no such API path");

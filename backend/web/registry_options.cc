@@ -79,7 +79,8 @@ void add_standards_options(CLI::App& app, StandardsOptions& o) {
 }
 
 int run_standards_admin(const std::string& pg, const StandardsOptions& o) {
-  PgPool pool(pg, 1);
+  // Two connections: the work's, and the audit's (Auth leases its own).
+  PgPool pool(pg, 2);
   auto c = pool.lease();
   migrate_console_schema(*c);
   Auth auth(pool);

@@ -28,13 +28,16 @@ void standards_json(httplib::Response& res, int status, const json& body,
   res.set_content(to_json_text(body), std::string(type).c_str());
 }
 
-// One feed's latest build. A mutex per feed: a slow build holds back requests for that feed
-// only, and concurrent requests after the window share one rebuild.
+// One feed's latest build. A request finding it older than the feed's window starts one
+// rebuild and is answered from the previous build meanwhile (so is every request during the
+// rebuild): the database sees at most one build per feed per window per instance, and a slow
+// build never holds requests back. Only the very first requests wait for the first build.
 struct FeedSlot {
   std::mutex mu;
-  std::string body;
+  std::shared_ptr<const std::string> body;
   std::string etag;
   std::int64_t built_us = 0;
+  bool building = false;
 };
 
 struct StandardsState {
@@ -85,31 +88,63 @@ bool etag_matches(const std::string& header, const std::string& etag) {
   return false;
 }
 
+// The feed's body and its ETag, built now.
+std::pair<std::string, std::string> build_feed(StandardsState& st, const std::string& name,
+                                               int ttl_s, std::int64_t t) {
+  json data;
+  if (name == "system_information") {
+    data = gbfs_system_information_data(st.o);
+  } else {
+    auto c = st.pool.lease();
+    if (name == "vehicle_types") data = gbfs_vehicle_types_data(*c, st.o);
+    if (name == "vehicle_status") data = gbfs_vehicle_status_data(*c, st.o, t);
+    if (name == "geofencing_zones") data = gbfs_geofencing_zones_data(*c, st.o);
+  }
+  // Weak: equal data is the same feed whatever its last_updated says.
+  std::string etag = "W/\"" + sha256_hex(to_json_text(data)).substr(0, 32) + "\"";
+  return {to_json_text(gbfs_document(data, ttl_s, t)), std::move(etag)};
+}
+
 void serve_feed(StandardsState& st, const std::string& name, int ttl_s, std::int64_t window_us,
                 const httplib::Request& req, httplib::Response& res) {
   FeedSlot& slot = *st.feeds.at(name);
-  std::string body;
+  std::shared_ptr<const std::string> body;
   std::string etag;
+  bool rebuild = false;
   {
-    std::lock_guard lock(slot.mu);
+    std::unique_lock lock(slot.mu);
     const std::int64_t t = now_us();
-    if (slot.body.empty() || t - slot.built_us >= window_us) {
-      json data;
-      if (name == "system_information") {
-        data = gbfs_system_information_data(st.o);
-      } else {
-        auto c = st.pool.lease();
-        if (name == "vehicle_types") data = gbfs_vehicle_types_data(*c, st.o);
-        if (name == "vehicle_status") data = gbfs_vehicle_status_data(*c, st.o, t);
-        if (name == "geofencing_zones") data = gbfs_geofencing_zones_data(*c, st.o);
-      }
-      // Weak: equal data is the same feed whatever its last_updated says.
-      slot.etag = "W/\"" + sha256_hex(to_json_text(data)).substr(0, 32) + "\"";
-      slot.body = to_json_text(gbfs_document(data, ttl_s, t));
+    if (!slot.body) {
+      // The first build: every request waits for it (under the lock).
+      auto [b, e] = build_feed(st, name, ttl_s, t);
+      slot.body = std::make_shared<const std::string>(std::move(b));
+      slot.etag = std::move(e);
       slot.built_us = t;
+    } else if (t - slot.built_us >= window_us && !slot.building) {
+      slot.building = true;
+      rebuild = true;
     }
     body = slot.body;
     etag = slot.etag;
+  }
+  if (rebuild) {
+    // This request builds (it waits for it; everyone else is answered from the old build).
+    struct Done {
+      FeedSlot& s;
+      ~Done() {
+        std::lock_guard l(s.mu);
+        s.building = false;
+      }
+    } done{slot};
+    const std::int64_t t = now_us();
+    auto [b, e] = build_feed(st, name, ttl_s, t);
+    auto fresh = std::make_shared<const std::string>(std::move(b));
+    std::lock_guard lock(slot.mu);
+    slot.body = fresh;
+    slot.etag = e;
+    slot.built_us = t;
+    body = std::move(fresh);
+    etag = std::move(e);
   }
   res.set_header("ETag", etag);
   res.set_header("Cache-Control", "public, max-age=" + std::to_string(ttl_s));
@@ -120,7 +155,7 @@ void serve_feed(StandardsState& st, const std::string& name, int ttl_s, std::int
     return;
   }
   res.status = 200;
-  res.set_content(body, "application/json");
+  res.set_content(*body, "application/json");
 }
 
 // Accept negotiation: true when 2.0 may be served.
@@ -238,7 +273,11 @@ void serve_mds(StandardsState& st, const httplib::Request& req, httplib::Respons
   json items;
   {
     auto c = st.pool.lease();
+    PgTransaction tx(*c);
+    // JIT compiles these plans for longer than they run (gbfs_feeds.cc measured it).
+    c->exec("SET LOCAL jit = off", "mds jit off");
     items = call->fetch(*c, {offset, st.o.mds_page_size}, &more);
+    tx.commit();
   }
   json body = {{"version", "2.0.0"}, {call->key, items}};
   json next = nullptr;

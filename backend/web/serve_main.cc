@@ -89,6 +89,10 @@ int main(int argc, char** argv) {
   if (o.static_dir.empty()) o.static_dir = default_static_dir();
 
   try {
+    // The vehicle registry, MDS agencies and zone bundles (issue 27), like --add-operator.
+    if (o.standards.admin_requested()) {
+      return fleetgw::web::run_standards_admin(o.pg, o.standards);
+    }
     if (!o.add_operator.empty() || !o.remove_operator.empty()) return administer(o);
 
     // SIGINT/SIGTERM are taken with sigwait below; blocked before any thread starts, so every

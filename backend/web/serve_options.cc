@@ -63,6 +63,7 @@ void add_serve_options(CLI::App& app, ServeOptions& o) {
                  "a command expires this long after it is signed")
       ->check(CLI::Range(5, 3600))
       ->capture_default_str();
+  add_standards_options(app, o.standards);
   app.add_option("--add-operator", o.add_operator,
                  "create or update the operator NAME (password: first line of stdin) and exit");
   app.add_option("--role", o.role, "role of --add-operator: viewer, operator or admin")

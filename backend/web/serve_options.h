@@ -4,6 +4,8 @@
 #include <cstdint>
 #include <string>
 
+#include "backend/web/registry_options.h"
+
 namespace fleetgw::web {
 
 struct ServeOptions {
@@ -34,6 +36,7 @@ struct ServeOptions {
   std::string delegation;   // serialized fleetgw.v1.SignedDelegation ("": a plain trusted key)
   std::string key_id;       // without a delegation: the key id (default: the key file's stem)
   int command_ttl_s = 60;   // a command's validity: expires_at = issued_at + this
+  StandardsOptions standards;  // GBFS, MDS and the vehicle registry (issue 27)
   // One-off administration instead of serving:
   std::string add_operator;  // with role; the password is read from stdin
   std::string role;
