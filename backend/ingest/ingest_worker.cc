@@ -5,15 +5,21 @@
 #include <malloc.h>
 #include <poll.h>
 #include <spdlog/spdlog.h>
+#include <sys/eventfd.h>
 #include <sys/signalfd.h>
 #include <unistd.h>
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
+#include <condition_variable>
 #include <csignal>
 #include <cstdlib>
 #include <iostream>
 #include <map>
+#include <memory>
+#include <mutex>
+#include <thread>
 #include <variant>
 #include <vector>
 
@@ -79,16 +85,25 @@ std::optional<BatchPoint> crash_point() {
   return std::nullopt;
 }
 
-class Worker {
+// A batch handed to the database thread, and what came of it.
+struct Job {
+  std::uint64_t generation = 0;  // its sessions' seal (MqttSessions::seal)
+  std::vector<Item> items;
+  bool large = false;
+  // Results, set by the database thread.
+  bool committed = false;  // false: given up at a stop while PostgreSQL refused it
+  WriteStats stats;
+  std::int64_t records = 0;
+  std::vector<RejectRow> rejects;  // decoder's and database's, stored (topics point into items)
+};
+
+// The database thread: writes one Job at a time, retrying a transient failure with back-off
+// (100 ms .. 5 s) until it commits or the worker gives it up at a stop. Meanwhile the loop
+// reads the next batch from the sessions this one does not hold (mqtt_sessions.h, seal()).
+class Writer {
  public:
-  Worker(const IngestOptions& o, IngestStore& store, const std::string& client_id, int sigfd)
-      : o_(o),
-        store_(store),
-        sessions_(o, client_id,
-                  [this](std::size_t i, std::string_view topic, std::string_view payload) {
-                    add(i, topic, payload);
-                  }),
-        sigfd_(sigfd) {
+  Writer(IngestStore& store, const IngestOptions& o) : store_(store), o_(o) {
+    done_fd_ = ::eventfd(0, EFD_NONBLOCK | EFD_CLOEXEC);
     if (const auto point = crash_point()) {
       const char* n = std::getenv("FLEETGW_INGEST_CRASH_BATCH");
       const long crash_batch = n != nullptr ? std::max(1L, std::atol(n)) : 1;
@@ -96,7 +111,174 @@ class Worker {
         if (p == *point && record_batches_ == crash_batch) ::kill(::getpid(), SIGKILL);
       });
     }
+    thread_ = std::thread([this] { loop(); });
   }
+  ~Writer() {
+    {
+      std::lock_guard lock(mu_);
+      quit_ = true;
+      abort_ = true;
+    }
+    cv_.notify_all();
+    thread_.join();
+    ::close(done_fd_);
+  }
+  Writer(const Writer&) = delete;
+  Writer& operator=(const Writer&) = delete;
+
+  int done_fd() const { return done_fd_; }
+  bool busy() const { return busy_; }  // loop thread only
+  void submit(std::unique_ptr<Job> job) {
+    busy_ = true;
+    {
+      std::lock_guard lock(mu_);
+      job_ = std::move(job);
+    }
+    cv_.notify_all();
+  }
+  // The finished job, once done_fd() was readable (nullptr: not finished yet).
+  std::unique_ptr<Job> take() {
+    std::uint64_t n = 0;
+    [[maybe_unused]] const auto r = ::read(done_fd_, &n, sizeof n);
+    std::lock_guard lock(mu_);
+    if (!done_) return nullptr;
+    busy_ = false;
+    return std::move(done_);
+  }
+  // At a stop: a job PostgreSQL keeps refusing is given up (not committed, not acknowledged).
+  void abort_retries() {
+    {
+      std::lock_guard lock(mu_);
+      abort_ = true;
+    }
+    cv_.notify_all();
+  }
+  bool failing() const { return failing_.load(); }
+  void request_maintenance() {
+    {
+      std::lock_guard lock(mu_);
+      maintain_ = true;
+    }
+    cv_.notify_all();
+  }
+  void maintain() {
+    try {
+      const int dropped = store_.maintain_partitions(o_.partition_days_ahead, o_.retention_days);
+      if (dropped > 0) spdlog::info("ingest: dropped {} telemetry partition(s)", dropped);
+    } catch (const PgError& e) {
+      spdlog::warn("ingest: telemetry partitions: {}", e.what());
+    }
+  }
+
+ private:
+  void loop() {
+    std::unique_lock lock(mu_);
+    for (;;) {
+      cv_.wait(lock, [&] { return quit_ || job_ != nullptr || maintain_; });
+      if (job_ != nullptr) {
+        std::unique_ptr<Job> job = std::move(job_);
+        lock.unlock();
+        write(*job);
+        lock.lock();
+        done_ = std::move(job);
+        const std::uint64_t one = 1;
+        [[maybe_unused]] const auto r = ::write(done_fd_, &one, sizeof one);
+      } else if (maintain_) {
+        maintain_ = false;
+        lock.unlock();
+        maintain();
+        lock.lock();
+      } else if (quit_) {
+        return;
+      }
+    }
+  }
+
+  void write(Job& job) {
+    std::vector<const Decoded*> messages;
+    std::vector<std::size_t> message_items;
+    std::vector<RejectRow> rejects;
+    std::int64_t records = 0;
+    for (std::size_t i = 0; i < job.items.size(); ++i) {
+      const Item& it = job.items[i];
+      if (const auto* d = std::get_if<Decoded>(&it.decoded)) {
+        messages.push_back(d);
+        message_items.push_back(i);
+        records += static_cast<std::int64_t>(d->records);
+      } else {
+        rejects.push_back({it.topic, std::get<Reject>(it.decoded), it.bytes});
+      }
+    }
+    if (records > 0) ++record_batches_;
+    auto backoff = std::chrono::milliseconds(100);
+    for (;;) {
+      try {
+        const auto started = Clock::now();
+        const BatchResult r = store_.write_batch(messages, rejects);
+        spdlog::debug(
+            "ingest: batch of {} messages in {} ms", job.items.size(),
+            std::chrono::duration_cast<std::chrono::milliseconds>(Clock::now() - started).count());
+        std::vector<RejectRow> refused;
+        for (std::size_t m = 0; m < messages.size(); ++m) {
+          if (!r.refused[m]) continue;
+          const Item& it = job.items[message_items[m]];
+          refused.push_back({it.topic, *r.refused[m], it.bytes});
+          records -= static_cast<std::int64_t>(messages[m]->records);
+        }
+        if (!refused.empty()) store_.write_batch({}, refused);
+        if (failing_) spdlog::info("ingest: PostgreSQL writes succeed again");
+        failing_ = false;
+        job.stats = r.stats;
+        job.records = records;
+        rejects.insert(rejects.end(), refused.begin(), refused.end());
+        job.rejects = std::move(rejects);
+        job.committed = true;
+        return;
+      } catch (const PgError& e) {
+        if (!is_transient(e)) {
+          // Only the rejected-message rows can fail so: the messages cannot be stored anyway.
+          spdlog::error("ingest: could not record rejected messages: {}", e.what());
+          job.committed = true;
+          return;
+        }
+        if (!failing_) {
+          spdlog::warn("ingest: {} (the batch's {} message(s) stay unacknowledged; retrying)",
+                       e.what(), job.items.size());
+        }
+        failing_ = true;
+      }
+      std::unique_lock lock(mu_);
+      if (cv_.wait_for(lock, backoff, [&] { return abort_; })) return;  // not committed
+      backoff = std::min(backoff * 2, std::chrono::milliseconds(5000));
+    }
+  }
+
+  IngestStore& store_;
+  const IngestOptions& o_;
+  int done_fd_ = -1;
+  bool busy_ = false;  // loop thread only
+  std::atomic<bool> failing_{false};
+  long record_batches_ = 0;  // database thread only (and its crash hook)
+  std::mutex mu_;
+  std::condition_variable cv_;
+  std::unique_ptr<Job> job_;   // submitted, not yet taken by the database thread
+  std::unique_ptr<Job> done_;  // finished, not yet taken by the loop
+  bool maintain_ = false;
+  bool abort_ = false;
+  bool quit_ = false;
+  std::thread thread_;  // last: started once every member above is ready
+};
+
+class Worker {
+ public:
+  Worker(const IngestOptions& o, IngestStore& store, const std::string& client_id, int sigfd)
+      : o_(o),
+        sessions_(o, client_id,
+                  [this](std::size_t i, std::string_view topic, std::string_view payload) {
+                    add(i, topic, payload);
+                  }),
+        sigfd_(sigfd),
+        writer_(store, o) {}
 
   bool connect(std::string& error) { return sessions_.connect(error); }
 
@@ -106,19 +288,28 @@ class Worker {
     auto next_maintenance = start + 1h;
     bool announced = false;
     int status = 0;
+    bool given_up = false;
     const auto k = static_cast<long>(sessions_.size());
+    const int fds[] = {sigfd_, writer_.done_fd()};
     for (;;) {
       const auto now = Clock::now();
-      // No message is read while a batch waits for PostgreSQL or is full: the broker keeps
-      // the rest (back-pressure), memory stays bounded.
-      const bool reading = !stopping_ && !retrying_ && !full();
+      // Reading stops while the batch being filled is full (the one being written holds its
+      // own sessions sealed): the broker keeps the rest, at most two batches are in memory.
+      const bool reading = !stopping_ && !full();
       auto wake = now + 200ms;
-      if (!batch_.empty()) wake = std::min(wake, std::max(retry_at_, first_at_ + delay()));
+      if (!batch_.empty() && !writer_.busy()) wake = std::min(wake, first_at_ + delay());
       const auto timeout = std::chrono::duration_cast<std::chrono::milliseconds>(wake - now);
-      if (sessions_.poll(std::max(timeout, 0ms), sigfd_, reading, [this] { return !full(); })) {
+      const unsigned ready =
+          sessions_.poll(std::max(timeout, 0ms), fds, reading, [this] { return !full(); });
+      if ((ready & 1u) != 0) {
         signalfd_siginfo info{};
         while (::read(sigfd_, &info, sizeof info) == sizeof info) {
           if (info.ssi_signo == SIGINT || info.ssi_signo == SIGTERM) stopping_ = true;
+        }
+      }
+      if ((ready & 2u) != 0) {
+        if (std::unique_ptr<Job> job = writer_.take()) {
+          if (!finish(*job)) given_up = true;
         }
       }
       if (!announced && sessions_.subscribed() == sessions_.size()) {
@@ -138,7 +329,7 @@ class Worker {
         status = 1;
         stopping_ = true;
       }
-      if (should_flush(Clock::now())) flush();
+      if (!given_up && should_hand_off(Clock::now())) hand_off();
       if (!stopping_ && o_.duration_s > 0 &&
           Clock::now() - start >= std::chrono::duration<double>(o_.duration_s)) {
         stopping_ = true;
@@ -149,13 +340,16 @@ class Worker {
       }
       if (Clock::now() >= next_maintenance) {
         next_maintenance += 1h;
-        maintain();
+        writer_.request_maintenance();
       }
-      // Stopping: once the batch in hand is committed, or at once while PostgreSQL refuses
-      // it (its messages are left to the broker: nothing of them was acknowledged).
-      if (stopping_ && (batch_.empty() || retrying_)) break;
+      if (stopping_) {
+        // A batch PostgreSQL keeps refusing is given up: its messages, and those of the batch
+        // being filled, are left to the broker (nothing of them acknowledged).
+        if (writer_.busy() && writer_.failing()) writer_.abort_retries();
+        if (!writer_.busy() && (batch_.empty() || given_up)) break;
+      }
     }
-    const bool committed = batch_.empty();
+    const bool committed = batch_.empty() && !given_up;
     not_committed_ += static_cast<std::int64_t>(batch_.size());
     sessions_.close(committed);
     if (not_committed_ > 0) {
@@ -169,14 +363,7 @@ class Worker {
     return status;
   }
 
-  void maintain() {
-    try {
-      const int dropped = store_.maintain_partitions(o_.partition_days_ahead, o_.retention_days);
-      if (dropped > 0) spdlog::info("ingest: dropped {} telemetry partition(s)", dropped);
-    } catch (const PgError& e) {
-      spdlog::warn("ingest: telemetry partitions: {}", e.what());
-    }
-  }
+  void maintain() { writer_.maintain(); }
 
  private:
   std::chrono::milliseconds delay() const { return std::chrono::milliseconds(o_.batch_delay_ms); }
@@ -195,84 +382,45 @@ class Worker {
     batch_.push_back(std::move(item));
   }
 
-  bool should_flush(Clock::time_point now) const {
-    if (batch_.empty() || now < retry_at_) return false;
-    // Every session at its receive maximum: nothing more can arrive before this commits.
-    const bool capped = sessions_.held() >= sessions_.size() * o_.inflight;
-    return stopping_ || full() || capped || now >= first_at_ + delay();
+  bool should_hand_off(Clock::time_point now) const {
+    if (batch_.empty() || writer_.busy()) return false;
+    // Every session sealed or at its receive maximum: nothing more can arrive.
+    return stopping_ || full() || sessions_.saturated() || now >= first_at_ + delay();
   }
 
-  void flush() {
-    std::vector<const Decoded*> messages;
-    std::vector<std::size_t> message_items;
-    std::vector<RejectRow> rejects;
-    std::int64_t records = 0;
-    for (std::size_t i = 0; i < batch_.size(); ++i) {
-      const Item& it = batch_[i];
-      if (const auto* d = std::get_if<Decoded>(&it.decoded)) {
-        messages.push_back(d);
-        message_items.push_back(i);
-        records += static_cast<std::int64_t>(d->records);
-      } else {
-        rejects.push_back({it.topic, std::get<Reject>(it.decoded), it.bytes});
-      }
-    }
-    if (records > 0 && !retrying_) ++record_batches_;
-    try {
-      const auto started = Clock::now();
-      const BatchResult r = store_.write_batch(messages, rejects);
-      spdlog::debug(
-          "ingest: batch of {} messages, {} rows in {} ms", batch_.size(), rows_,
-          std::chrono::duration_cast<std::chrono::milliseconds>(Clock::now() - started).count());
-      std::vector<RejectRow> refused;
-      for (std::size_t m = 0; m < messages.size(); ++m) {
-        if (!r.refused[m]) continue;
-        const Item& it = batch_[message_items[m]];
-        refused.push_back({it.topic, *r.refused[m], it.bytes});
-        records -= static_cast<std::int64_t>(messages[m]->records);
-      }
-      if (!refused.empty()) store_.write_batch({}, refused);
-      if (db_failing_) spdlog::info("ingest: PostgreSQL writes succeed again");
-      db_failing_ = false;
-      counters_.rows += r.stats;
-      counters_.records += records;
-      ++counters_.batches;
-      rejects.insert(rejects.end(), refused.begin(), refused.end());
-      for (const RejectRow& rr : rejects) log_reject(rr);
-    } catch (const PgError& e) {
-      if (is_transient(e)) {
-        retry_later(e);
-        return;
-      }
-      // Only the rejected-message rows can fail so: the messages cannot be stored anyway.
-      spdlog::error("ingest: could not record rejected messages: {}", e.what());
-    }
-    counters_.messages += static_cast<std::int64_t>(batch_.size());
-    // Every message received so far is in this batch (none is read while one is written):
-    // their PUBACKs go now.
-    sessions_.acknowledge();
-    batch_.clear();
+  void hand_off() {
+    auto job = std::make_unique<Job>();
+    job->generation = ++generation_;
+    // The sessions holding this batch's messages: not read again until it is committed.
+    sessions_.seal(job->generation);
+    job->items = std::move(batch_);
+    job->large = large_;
+    batch_ = {};
     rows_ = 0;
     bytes_ = 0;
-    retrying_ = false;
-    backoff_ = 100ms;
-    retry_at_ = {};
-    if (large_) {
-      large_ = false;
-      std::vector<Item>().swap(batch_);
-      ::malloc_trim(0);
-    }
+    large_ = false;
+    writer_.submit(std::move(job));
   }
 
-  void retry_later(const PgError& e) {
-    if (!db_failing_) {
-      spdlog::warn("ingest: {} (the batch's {} message(s) stay unacknowledged; retrying)", e.what(),
-                   batch_.size());
+  // A job back from the database thread; false when it was given up (not committed).
+  bool finish(Job& job) {
+    if (!job.committed) {
+      not_committed_ += static_cast<std::int64_t>(job.items.size());
+      return false;
     }
-    db_failing_ = true;
-    retrying_ = true;
-    retry_at_ = Clock::now() + backoff_;
-    backoff_ = std::min(backoff_ * 2, std::chrono::milliseconds(5000));
+    counters_.rows += job.stats;
+    counters_.records += job.records;
+    ++counters_.batches;
+    for (const RejectRow& rr : job.rejects) log_reject(rr);
+    counters_.messages += static_cast<std::int64_t>(job.items.size());
+    // The PUBACKs of exactly this batch's messages go now.
+    sessions_.acknowledge(job.generation);
+    if (job.large) {
+      job.items.clear();
+      job.items.shrink_to_fit();
+      ::malloc_trim(0);
+    }
+    return true;
   }
 
   void log_reject(const RejectRow& r) {
@@ -290,22 +438,18 @@ class Worker {
   }
 
   const IngestOptions& o_;
-  IngestStore& store_;
   MqttSessions sessions_;
   int sigfd_;
-  std::vector<Item> batch_;
+  std::vector<Item> batch_;  // being filled
   std::size_t rows_ = 0;
   std::size_t bytes_ = 0;
   bool large_ = false;
   Clock::time_point first_at_{};
-  Clock::time_point retry_at_{};
-  std::chrono::milliseconds backoff_{100};
-  bool db_failing_ = false;
-  bool retrying_ = false;
   bool stopping_ = false;
-  long record_batches_ = 0;
+  std::uint64_t generation_ = 0;
   std::int64_t not_committed_ = 0;
   Counters counters_;
+  Writer writer_;  // last: its thread stops (joined) before the members above go
 };
 
 int print_gaps(IngestStore& store) {
@@ -325,6 +469,14 @@ int run_ingest(const IngestOptions& o) {
     std::cerr << "fleetgw ingest: --pg CONNINFO is required\n";
     return 2;
   }
+  // Stop signals are read from a signalfd (no handler runs anywhere), blocked from the start
+  // (before the migrations, which may take a while): a SIGTERM then is a clean stop, not a
+  // death. Every thread started later inherits the mask.
+  sigset_t signals;
+  sigemptyset(&signals);
+  sigaddset(&signals, SIGINT);
+  sigaddset(&signals, SIGTERM);
+  if (!o.gaps) ::sigprocmask(SIG_BLOCK, &signals, nullptr);
   IngestStore store(o.pg);
   try {
     const int applied = store.connect();
@@ -335,12 +487,6 @@ int run_ingest(const IngestOptions& o) {
   }
   if (o.gaps) return print_gaps(store);
 
-  // Stop signals are read from a signalfd: no handler runs anywhere.
-  sigset_t signals;
-  sigemptyset(&signals);
-  sigaddset(&signals, SIGINT);
-  sigaddset(&signals, SIGTERM);
-  ::sigprocmask(SIG_BLOCK, &signals, nullptr);
   const int sigfd = ::signalfd(-1, &signals, SFD_NONBLOCK | SFD_CLOEXEC);
 
   const std::string client_id = o.client_id.empty() ? default_client_id(o.group) : o.client_id;

@@ -4,12 +4,13 @@
 // only after the transaction holding its rows committed.
 //
 // How the acknowledgements wait for a batch (docs/backend.md, "Exactly once"): the worker is
-// ONE process and thread holding K MQTT sessions of the group (--sessions, mqtt_sessions.h),
-// each allowed --inflight unacknowledged messages by the broker (MQTT 5 receive maximum). The
-// library queues each message's PUBACK without writing it; the worker decodes, batches (closed
-// at --batch rows, 32 MiB, every session at its receive maximum, or --batch-delay-ms after its
-// first message), writes the batch in one transaction, and only then writes the sessions'
-// queues. No message is read while a batch is being written or retried.
+// ONE process holding K MQTT sessions of the group (--sessions, mqtt_sessions.h), each allowed
+// --inflight unacknowledged messages by the broker (MQTT 5 receive maximum). The library queues
+// each message's PUBACK without writing it. The loop thread reads and decodes into a batch
+// (closed at --batch rows, 32 MiB, every session at its receive maximum, or --batch-delay-ms
+// after its first message) and hands it to the database thread, sealing the sessions holding
+// its messages: they are not read again until that batch committed, when their queues (the
+// PUBACKs of exactly that batch) are written. Meanwhile the other sessions fill the next batch.
 //
 // Contract:
 //  * run_ingest() returns the process exit status: 0 after SIGINT/SIGTERM or `duration_s` once
@@ -23,9 +24,10 @@
 //    acknowledged (it would come back for ever otherwise) once stored in rejected_messages in
 //    the batch's transaction, counted by reason, and logged once per reason with its topic
 //    (later ones at debug level); the rest of its batch commits.
-//  * PostgreSQL unavailable: the batch is retried with back-off (100 ms .. 5 s) from the poll
-//    loop (no library callback sleeps), its messages stay unacknowledged; no message is read
-//    until it commits, so at most one batch is in memory whatever the backlog.
+//  * PostgreSQL unavailable: the batch is retried with back-off (100 ms .. 5 s) by the
+//    database thread (no library callback sleeps), its messages stay unacknowledged; the next
+//    batch fills and then nothing more is read, so at most two batches are in memory whatever
+//    the backlog.
 //  * Memory: one message's rows are bounded by decode_message (kMaxSamples, the broker's
 //    packet limit); after a message over 64 KiB, freed memory is given back (malloc_trim).
 //  * Test hook: FLEETGW_INGEST_CRASH_AT=before_copy (the batch's transaction open, no row sent)

@@ -33,7 +33,8 @@ struct MqttSessions::Session {
   bool ever_connected = false;
   bool resumed = false;
   std::size_t held = 0;
-  bool closing = false;  // its DISCONNECT is ours: not a lost connection
+  std::uint64_t generation = 0;  // sealed with a batch being written (0: not sealed)
+  bool closing = false;          // its DISCONNECT is ours: not a lost connection
   std::string refused;
   Clock::time_point retry_at{};
   Clock::time_point next_misc{};
@@ -124,6 +125,7 @@ void session_lost(mosquitto*, void* obj, int rc, const mosquitto_property*) {
   // The PUBACKs queued on that connection die with it (the library clears its queue when it
   // connects again); the messages stay in the batch and are delivered again, DUP set.
   s.held = 0;
+  s.generation = 0;
   s.retry_at = Clock::now() + s.backoff;
   s.backoff = std::min<std::chrono::milliseconds>(s.backoff * 2, 30s);
 }
@@ -247,8 +249,8 @@ bool MqttSessions::connect(std::string& error) {
   return true;
 }
 
-bool MqttSessions::poll(std::chrono::milliseconds timeout, int extra_fd, bool reading,
-                        const std::function<bool()>& want_more) {
+unsigned MqttSessions::poll(std::chrono::milliseconds timeout, std::span<const int> extra,
+                            bool reading, const std::function<bool()>& want_more) {
   const auto now = Clock::now();
   for (auto& s : sessions_) {
     if (!s->mosq || mosquitto_socket(s->mosq.get()) < 0) {
@@ -271,23 +273,24 @@ bool MqttSessions::poll(std::chrono::milliseconds timeout, int extra_fd, bool re
     }
   }
   std::vector<pollfd> fds;
-  fds.reserve(sessions_.size() + 1);
-  fds.push_back({extra_fd, POLLIN, 0});
+  fds.reserve(sessions_.size() + extra.size());
   for (auto& s : sessions_) {
     const int sock = s->mosq ? mosquitto_socket(s->mosq.get()) : -1;
     short events = 0;
-    if (reading) events |= POLLIN;
+    if (reading && s->generation == 0) events |= POLLIN;
     if (s->held == 0 && mosquitto_want_write(s->mosq.get())) events |= POLLOUT;
     fds.push_back({events != 0 ? sock : -1, events, 0});
   }
+  for (const int fd : extra) fds.push_back({fd, POLLIN, 0});
   ::poll(fds.data(), fds.size(), static_cast<int>(std::max<long long>(0, timeout.count())));
   for (std::size_t i = 0; i < sessions_.size(); ++i) {
     Session& s = *sessions_[i];
-    const short rev = fds[i + 1].revents;
-    if (rev == 0 || fds[i + 1].fd < 0) continue;
+    const short rev = fds[i].revents;
+    if (rev == 0 || fds[i].fd < 0) continue;
     mosquitto* m = s.mosq.get();
     if ((rev & POLLOUT) != 0 && s.held == 0) mosquitto_loop_write(m, 1);
-    if (reading && (rev & (POLLIN | POLLHUP | POLLERR)) != 0 && mosquitto_socket(m) >= 0) {
+    if (reading && s.generation == 0 && (rev & (POLLIN | POLLHUP | POLLERR)) != 0 &&
+        mosquitto_socket(m) >= 0) {
       // One packet per call (the library reads a packet's header and body separately), while
       // the socket has bytes and the batch wants more; bounded so no session starves others.
       for (int k = 0; k < 4096 && want_more(); ++k) {
@@ -299,14 +302,44 @@ bool MqttSessions::poll(std::chrono::milliseconds timeout, int extra_fd, bool re
     }
     if (s.held == 0) write_queue(s);  // e.g. the SUBSCRIBE after a CONNACK
   }
-  return extra_fd >= 0 && (fds[0].revents & POLLIN) != 0;
+  unsigned ready = 0;
+  for (std::size_t i = 0; i < extra.size(); ++i) {
+    if ((fds[sessions_.size() + i].revents & POLLIN) != 0) ready |= 1u << i;
+  }
+  return ready;
+}
+
+std::size_t MqttSessions::seal(std::uint64_t generation) {
+  std::size_t n = 0;
+  for (auto& s : sessions_) {
+    if (s->held > 0 && s->generation == 0) {
+      s->generation = generation;
+      ++n;
+    }
+  }
+  return n;
+}
+
+void MqttSessions::acknowledge(std::uint64_t generation) {
+  for (auto& s : sessions_) {
+    if (s->generation != generation) continue;
+    s->generation = 0;
+    s->held = 0;
+    write_queue(*s);
+  }
 }
 
 void MqttSessions::acknowledge() {
   for (auto& s : sessions_) {
+    s->generation = 0;
     s->held = 0;
     write_queue(*s);
   }
+}
+
+bool MqttSessions::saturated() const {
+  return std::all_of(sessions_.begin(), sessions_.end(),
+                     [&](const auto& s) { return s->generation != 0 || s->held >= o_.inflight; });
 }
 
 void MqttSessions::close(bool committed) {

@@ -33,8 +33,10 @@
 
 #include <chrono>
 #include <cstddef>
+#include <cstdint>
 #include <functional>
 #include <memory>
+#include <span>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -58,13 +60,22 @@ class MqttSessions {
   // broker cannot be reached or its URI is not understood.
   bool connect(std::string& error);
 
-  // One turn: waits up to `timeout` for the sessions' sockets and `extra_fd` (-1: none); when
-  // `reading`, reads messages into the sink while `want_more()` is true; writes the queues of
-  // sessions that hold nothing; keep-alive and reconnects. True when extra_fd is readable.
-  bool poll(std::chrono::milliseconds timeout, int extra_fd, bool reading,
-            const std::function<bool()>& want_more);
+  // One turn: waits up to `timeout` for the sessions' sockets and the `extra` descriptors; when
+  // `reading`, reads messages from sessions not sealed into the sink while `want_more()` is
+  // true; writes the queues of sessions that hold nothing; keep-alive and reconnects. Returns
+  // a bit per readable extra descriptor (bit i: extra[i]).
+  unsigned poll(std::chrono::milliseconds timeout, std::span<const int> extra, bool reading,
+                const std::function<bool()>& want_more);
 
-  // Every message received so far is committed: write the PUBACKs.
+  // Seals the sessions holding messages received since the last seal as `generation` (> 0):
+  // they are not read again until acknowledge(generation), so their queues hold the PUBACKs of
+  // that generation's messages only. Returns how many sessions it sealed.
+  std::size_t seal(std::uint64_t generation);
+  // The messages of `generation` are committed: write those sessions' PUBACKs, read them again.
+  // A session whose connection was lost meanwhile is no longer of the generation (its PUBACKs
+  // died with the connection).
+  void acknowledge(std::uint64_t generation);
+  // Every message received so far is committed: write every session's PUBACKs.
   void acknowledge();
   void close(bool committed);
 
@@ -73,6 +84,9 @@ class MqttSessions {
   std::size_t connected() const;
   std::size_t resumed() const;  // sessions the broker still had at their first connection
   std::size_t held() const;     // messages received, not yet acknowledged
+  // No session can deliver more before an acknowledgement: each is sealed or holds its
+  // receive maximum.
+  bool saturated() const;
   // A session refused by the broker (bad credentials, not authorised): the reason, else "".
   std::string refused() const;
 

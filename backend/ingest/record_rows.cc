@@ -426,8 +426,8 @@ void state_rows(const v1::Envelope& e, RowBuilder& b) {
   b.opt_i64(s.has_position() && p.fixed_at_us() != 0, p.fixed_at_us());
   b.opt_u32("state.position.horizontal_error_dm", s.has_position() && p.has_horizontal_error_dm(),
             p.horizontal_error_dm());
-  // heading_ddeg: Position field 8 (issue 27); NULL until this ingest is built against it.
-  b.null();
+  b.opt_u32("state.position.heading_ddeg", s.has_position() && p.has_heading_ddeg(),
+            p.heading_ddeg());
 }
 
 void status_history_rows(const v1::Envelope& e, Decoded& d) {

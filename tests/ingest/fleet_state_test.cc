@@ -103,6 +103,7 @@ v1::Envelope full_state() {
   s->mutable_position()->set_lon_e7(134'050'000);
   s->mutable_position()->set_fixed_at_us(1'699'999'999'000'000);
   s->mutable_position()->set_horizontal_error_dm(171);
+  s->mutable_position()->set_heading_ddeg(2705);
   return e;
 }
 
@@ -133,6 +134,7 @@ TEST_F(FleetStateTest, VehicleStateStoresEveryFieldTheConsoleReads) {
   EXPECT_EQ(col("lat_e7"), "525200000");
   EXPECT_EQ(col("position_fixed_at_us"), "1699999999000000");
   EXPECT_EQ(col("horizontal_error_dm"), "171");
+  EXPECT_EQ(col("heading_ddeg"), "2705");
 
   // A state without a position, a speed limit or locks: NULLs and empty arrays, not zeros.
   v1::Envelope bare;
@@ -143,6 +145,7 @@ TEST_F(FleetStateTest, VehicleStateStoresEveryFieldTheConsoleReads) {
   EXPECT_EQ(col("speed_limit_dkmh"), "<null>");
   EXPECT_EQ(col("lat_e7"), "<null>");
   EXPECT_EQ(col("position_fixed_at_us"), "<null>");
+  EXPECT_EQ(col("heading_ddeg"), "<null>");
   EXPECT_EQ(col("bus_state"), "BUS_STATE_UNSPECIFIED");
 }
 
@@ -192,6 +195,23 @@ TEST_F(FleetStateTest, StatusHistoryKeepsEachConnectionChangeOnce) {
   EXPECT_EQ(text("SELECT event_at_us FROM status_history WHERE created_at_us = 9000"), "9000");
   // The latest status is still one row per vehicle.
   EXPECT_EQ(text("SELECT count(*) FROM status"), "1");
+}
+
+// Record tables are written by COPY: a received string with a tab, newline, carriage return or
+// backslash (COPY's own separators and escape) is stored as sent, and a redelivery of the same
+// record (the COPY refused: the ON CONFLICT statement instead) adds nothing.
+TEST_F(FleetStateTest, RecordTextWithCopySeparatorsIsStoredAsSent) {
+  const std::string name = "tab\there\nnew line\r\\N back\\slash \\.";
+  v1::Envelope e;
+  e.set_vehicle_id("bike-1");
+  e.set_store_id("store-1");
+  e.set_sequence(1);
+  e.mutable_fault()->set_node("mc");
+  e.mutable_fault()->set_name(name);
+  write(e, "fault");
+  write(e, "fault");
+  EXPECT_EQ(text("SELECT count(*) FROM fault_events"), "1");
+  EXPECT_EQ(text("SELECT name FROM fault_events"), name);
 }
 
 // A version-3 database with a vehicle's state and status gains the new columns (NULL in the

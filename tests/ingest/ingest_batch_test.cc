@@ -174,11 +174,15 @@ class IngestBatch : public ::testing::Test {
 };
 
 TEST_F(IngestBatch, KilledAtEveryPointOfABatchEveryRecordLandsOnce) {
+  std::size_t starts = 0;
   for (const std::string point : {"before_copy", "after_copy", "after_commit"}) {
     SCOPED_TRACE(point);
     const std::string vehicle = "crash-" + point;
-    auto w = worker("crasher", {"FLEETGW_INGEST_CRASH_AT=" + point});
-    ASSERT_TRUE(subscribed(*w)) << w->log();
+    // One client id (its sessions, the only members of the group) and one log for every
+    // start: each start adds a "subscribed to" line to it.
+    const std::string name = "crasher";
+    auto w = worker(name, {"FLEETGW_INGEST_CRASH_AT=" + point});
+    ASSERT_TRUE(subscribed(*w, ++starts)) << w->log();
     std::vector<std::pair<std::string, std::string>> msgs;
     for (std::uint64_t seq = 1; seq <= 40; ++seq) {
       msgs.emplace_back("fleet/v1/" + vehicle + "/fault", fault(vehicle, seq, "overheat"));
@@ -196,8 +200,8 @@ TEST_F(IngestBatch, KilledAtEveryPointOfABatchEveryRecordLandsOnce) {
       EXPECT_EQ(at_crash, 0) << "nothing of an uncommitted batch is visible";
     }
     // Restarted on the same sessions: the unacknowledged messages come again.
-    w = worker("crasher");
-    ASSERT_TRUE(subscribed(*w)) << w->log();
+    w = worker(name);
+    ASSERT_TRUE(subscribed(*w, ++starts)) << w->log();
     EXPECT_TRUE(wait_until([&] { return accounted(vehicle) >= 40; }, 60s))
         << accounted(vehicle) << " of 40\n"
         << w->log();
@@ -234,7 +238,7 @@ TEST_F(IngestBatch, StopDuringADatabaseOutageAcknowledgesNothingUncommitted) {
   EXPECT_TRUE(w->log_contains("not acknowledged, the broker delivers them again")) << w->log();
   pg_->start();
   w = worker("outage");
-  ASSERT_TRUE(subscribed(*w)) << w->log();
+  ASSERT_TRUE(subscribed(*w, 2)) << w->log();
   EXPECT_TRUE(wait_until([&] { return accounted("outage-bike") >= 12; }, 60s)) << w->log();
   EXPECT_EQ(pg_count("SELECT count(*) FROM fault_events WHERE vehicle_id = 'outage-bike'"), 12);
   EXPECT_EQ(gaps_exit_code(), 0);
@@ -253,7 +257,7 @@ TEST_F(IngestBatch, BacklogIsWrittenInBatchesOfHundreds) {
   }
   publish(msgs);
   w = worker("backlog", {}, "2");
-  ASSERT_TRUE(subscribed(*w)) << w->log();
+  ASSERT_TRUE(subscribed(*w, 2)) << w->log();
   EXPECT_TRUE(wait_until([&] { return accounted("backlog-bike") >= 2000; }, 60s)) << w->log();
   EXPECT_EQ(pg_count("SELECT count(*) FROM fault_events"), 2000);
   ASSERT_EQ(w->stop(20s), 0) << w->log();
@@ -301,7 +305,7 @@ TEST_F(IngestBatch, DatabaseOutageHoldsOneBatchAndAcknowledgesNothing) {
   EXPECT_TRUE(w->wait_exit(10s).has_value());
   pg_->start();
   w = worker("outage-batch");
-  ASSERT_TRUE(subscribed(*w)) << w->log();
+  ASSERT_TRUE(subscribed(*w, 2)) << w->log();
   EXPECT_TRUE(wait_until([&] { return accounted("outage-batch") >= 600; }, 60s)) << w->log();
   EXPECT_EQ(pg_count("SELECT count(*) FROM fault_events WHERE vehicle_id = 'outage-batch'"), 600);
   EXPECT_EQ(gaps_exit_code(), 0);
