@@ -170,6 +170,10 @@ json mds_vehicles_status(PgConnection& c, const StandardsOptions& o,
                                   {"trip_ids", nullptr},
                                   {"journey_id", nullptr},
                                   {"location", mds_gps(last.place)}};
+      // The state's fix carries what telemetry samples do not store: heading and accuracy.
+      json& loc = status["last_telemetry"]["location"];
+      if (t.heading_deg) loc["heading"] = *t.heading_deg;
+      if (t.horizontal_error_m) loc["horizontal_accuracy"] = *t.horizontal_error_m;
     }
     out.push_back(std::move(status));
   }

@@ -82,7 +82,8 @@ std::map<std::string, MdsTimeline> mds_timelines(PgConnection& c, const Standard
     const PgParam p[] = {vs};
     const PgResult r = c.query(
         "SELECT v.id, s.lat_e7, s.lon_e7, s.soc_pct, greatest(s.received_at_us, "
-        "st.received_at_us), s.mode = 'VEHICLE_MODE_RIDING', s.updated_at_us "
+        "st.received_at_us), s.mode = 'VEHICLE_MODE_RIDING', s.updated_at_us, "
+        "s.heading_ddeg, s.horizontal_error_dm "
         "FROM unnest($1::text[]) AS v(id) LEFT JOIN vehicle_state s ON "
         "s.vehicle_id = v.id LEFT JOIN status st ON st.vehicle_id = v.id",
         p, "mds latest state");
@@ -92,6 +93,9 @@ std::map<std::string, MdsTimeline> mds_timelines(PgConnection& c, const Standard
       t.last_report_us = r.int64_or_null(i, 4);
       t.riding_now = r.boolean(i, 5);
       t.state_updated_us = r.int64_or_null(i, 6).value_or(0);
+      if (const auto v = r.int64_or_null(i, 7)) t.heading_deg = static_cast<double>(*v) / 10.0;
+      if (const auto v = r.int64_or_null(i, 8))
+        t.horizontal_error_m = static_cast<double>(*v) / 10.0;
       // Silence: no report for offline_after_s (a status_history row below may say more).
       if (t.last_report_us) {
         const std::int64_t silent = *t.last_report_us + std::int64_t{o.offline_after_s} * 1'000'000;

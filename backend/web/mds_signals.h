@@ -34,6 +34,8 @@ struct MdsTimeline {
   std::optional<std::int64_t> last_report_us;
   bool riding_now = false;  // the latest state says riding
   std::int64_t state_updated_us = 0;
+  std::optional<double> heading_deg;  // the latest state's fix (ingest migration 4)
+  std::optional<double> horizontal_error_m;
 };
 
 // Registered vehicles ordered by vehicle id; device_id: that one only.

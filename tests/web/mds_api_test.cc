@@ -109,6 +109,11 @@ class MdsApi : public ::testing::Test {
     stack_->insert_vehicle(
         {.id = "mds-riding", .lat = 48.17, .lon = 11.57, .mode = "VEHICLE_MODE_RIDING"});
     stack_->insert_vehicle({.id = kHostileId, .lat = 48.18, .lon = 11.58});
+    // The riding bike's latest fix: heading 123.4 degrees, 4.5 m horizontal error (migration 4).
+    stack_->db().exec(
+        "UPDATE vehicle_state SET heading_ddeg = 1234, horizontal_error_dm = 45 WHERE "
+        "vehicle_id = 'mds-riding'",
+        "fix quality");
     // A ride that leaves the operating area and comes back, its track in telemetry.
     insert_ride(*stack_, {.vehicle = "mds-walk",
                           .ride_id = "walk-ride",
@@ -312,6 +317,8 @@ TEST_F(MdsApi, VehicleStatusShowsTheRideInProgressAndTheLostConnection) {
     if (s["device_id"] == device("mds-riding")) {
       EXPECT_EQ(s["last_event"]["vehicle_state"], "on_trip");
       EXPECT_EQ(s["last_event"]["event_types"], json::array({"trip_start"}));
+      EXPECT_DOUBLE_EQ(s["last_telemetry"]["location"].value("heading", 0.0), 123.4);
+      EXPECT_DOUBLE_EQ(s["last_telemetry"]["location"].value("horizontal_accuracy", 0.0), 4.5);
     }
     if (s["device_id"] == device("mds-walk")) {
       EXPECT_EQ(s["last_event"]["vehicle_state"], "available");
