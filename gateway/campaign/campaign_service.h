@@ -14,6 +14,9 @@
 //  * Results: storage::UplinkMessage of kind kCampaign at OutboxPriority::kCampaign (below
 //    telemetry): through the same outbox, exactly once, never ahead of a fault or alarm.
 //  * Refusals are logged once per distinct reason and counted; the latest is in status().
+//  * `wall_now` is the clock a campaign's start and end (expired, ended) are judged on; the
+//    pipeline passes the bus clock, the one its windows run on (the system clock on a bike, the
+//    log's in a replay).
 #pragma once
 
 #include <nlohmann/json.hpp>

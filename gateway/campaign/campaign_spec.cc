@@ -12,8 +12,6 @@
 namespace fleetgw::campaign {
 namespace {
 
-using Result = std::variant<CompiledCampaign, std::string>;
-
 std::string spec_quoted(std::string_view received) {
   return "'" + common::untrusted_excerpt(received, 80) + "'";
 }

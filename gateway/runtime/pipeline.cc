@@ -287,7 +287,7 @@ void Pipeline::settle() {
         for (const auto& bundle : uplink_->take_zone_bundles()) {
           if (campaigns_ && campaigns_->handles(bundle.topic)) {
             campaigns_->on_payload(bundle.topic, bundle.payload, bundle.oversized_bytes,
-                                   system_now(), bus_now());
+                                   bus_now(), bus_now());
           } else if (zones_) {
             on_zone_bundle(bundle);
           }
