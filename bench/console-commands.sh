@@ -21,10 +21,16 @@ FLEETGW_CONSOLE_CLICKS=$n "$bin" \
 }
 python3 - "$log" "$n" <<'PY'
 import json, sys
-line = next(l for l in open(sys.argv[1]) if l.startswith('{"click_to_result_ms"'))
-t = sorted(json.loads(line)['click_to_result_ms'])
-def pct(p):
+line = json.loads(next(l for l in open(sys.argv[1]) if l.startswith('{"click_to_result_ms"')))
+def pct(t, p):
     return t[min(len(t) - 1, max(0, int(round(p / 100 * len(t) + 0.5)) - 1))]
-print(f'{len(t)} clicks (unlock/lock alternating), click to "succeeded" on screen: '
-      f'p50 {pct(50)} ms, p90 {pct(90)} ms, p99 {pct(99)} ms, max {t[-1]} ms, min {t[0]} ms')
+def show(name, values):
+    t = sorted(values)
+    print(f'{name}: p50 {pct(t, 50)} ms, p90 {pct(t, 90)} ms, p99 {pct(t, 99)} ms, '
+          f'max {t[-1]} ms, min {t[0]} ms')
+clicks, bike = line['click_to_result_ms'], line['bike_duration_ms']
+print(f'{len(clicks)} clicks (whole-vehicle unlock/lock alternating)')
+show('click to "succeeded" on screen', clicks)
+show('the bike\'s own time (receipt to result)', bike)
+show('the rest (browser, fleetgw serve, broker, both ways)', [c - b for c, b in zip(clicks, bike)])
 PY

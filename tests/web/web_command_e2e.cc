@@ -1,6 +1,7 @@
 // The console's command rig (web_command_e2e.h).
 #include "tests/web/web_command_e2e.h"
 
+#include <fstream>
 #include <stdexcept>
 
 #include "tests/support/gateway_config.h"
@@ -12,12 +13,31 @@ namespace fleetgw::testing {
 namespace fs = std::filesystem;
 using namespace std::chrono_literals;
 
-CommandRig::CommandRig(const std::string& vehicle) {
+CommandRig::CommandRig(const std::string& vehicle, std::optional<RigDelegation> delegation) {
   broker.start();
   const fs::path key = dir.path() / "console-1.pem";
-  make_key(key, fs::perms::owner_read | fs::perms::owner_write);
-  stack = std::make_unique<ServeStack>(
-      std::vector<std::string>{"--broker", broker.uri(), "--signing-key", key.string()});
+  const auto mode = fs::perms::owner_read | fs::perms::owner_write;
+  make_key(key, mode);
+  std::vector<std::string> args = {"--broker", broker.uri(), "--signing-key", key.string()};
+  const fs::path root = dir.path() / "root-1.pem";
+  if (delegation) {
+    make_key(root, mode);
+    v1::Delegation d;
+    d.set_serial(7);
+    d.set_key_id("console-1");
+    d.set_public_key(public_key(key));
+    for (const auto& a : delegation->actions) d.add_actions(a);
+    for (const auto& v : delegation->vehicle_ids) d.add_vehicle_ids(v);
+    for (const auto& g : delegation->groups) d.add_groups(g);
+    d.set_not_before_us(now_us() - 3'600'000'000LL);
+    d.set_not_after_us(now_us() + 3'600'000'000LL);
+    d.set_issued_at_us(now_us());
+    d.set_holder("console e2e");
+    const fs::path file = dir.path() / "console-1.delegation";
+    std::ofstream(file, std::ios::binary) << sign_delegation(root, "root-1", d);
+    args.insert(args.end(), {"--delegation", file.string()});
+  }
+  stack = std::make_unique<ServeStack>(args);
   if (stack->add_operator("olga", "operator", "operator-password") != 0 ||
       stack->add_operator("vera", "viewer", "viewer-password") != 0) {
     throw std::runtime_error("--add-operator failed");
@@ -27,7 +47,11 @@ CommandRig::CommandRig(const std::string& vehicle) {
   GatewayConfig c(vehicle, dir.path() / "fleetgw.db");
   c.sim(std::string(FLEETGW_SOURCE_DIR) + "/config/scenarios/parked.toml", 1);
   c.mqtt(broker.uri());
-  c.add_line("command.trusted_keys", "console-1 = \"" + public_key_b64(key) + "\"");
+  if (delegation) {
+    c.add_line("command.root_keys", "root-1 = \"" + public_key_b64(root) + "\"");
+  } else {
+    c.add_line("command.trusted_keys", "console-1 = \"" + public_key_b64(key) + "\"");
+  }
   gateway = std::make_unique<GatewayProcess>(FLEETGW_BINARY, c.write(dir.path() / "fleetgw.toml"),
                                              std::vector<std::string>{"--duration", "300"});
   const bool ready = wait_until(

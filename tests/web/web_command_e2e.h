@@ -3,6 +3,8 @@
 // a real `fleetgw run` (parked scenario, real time) trusting that key.
 //
 // Contract:
+//  * With a RigDelegation the bike trusts only a root key (root-1) and the server runs with
+//    --delegation (serial 7, key id console-1, valid from an hour ago to an hour ahead).
 //  * CommandRig(vehicle) starts everything and returns once the gateway has subscribed to its
 //    cmd topic and heard its locks; std::runtime_error with the logs otherwise. Operators:
 //    olga (operator, "operator-password"), vera (viewer, "viewer-password"). The vehicle has a
@@ -11,7 +13,9 @@
 #pragma once
 
 #include <memory>
+#include <optional>
 #include <string>
+#include <vector>
 
 #include "tests/support/mosquitto_fixture.h"
 #include "tests/support/process.h"
@@ -20,8 +24,17 @@
 
 namespace fleetgw::testing {
 
+// How the bike trusts the console's key: listed in [command.trusted_keys], or delegated by a
+// fleet root listed in [command.root_keys] (actions, vehicle ids, groups of the delegation).
+struct RigDelegation {
+  std::vector<std::string> actions;
+  std::vector<std::string> vehicle_ids;
+  std::vector<std::string> groups;
+};
+
 struct CommandRig {
-  explicit CommandRig(const std::string& vehicle);
+  explicit CommandRig(const std::string& vehicle,
+                      std::optional<RigDelegation> delegation = std::nullopt);
   ~CommandRig();
   std::string logs() const;
 

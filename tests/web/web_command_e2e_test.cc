@@ -61,5 +61,45 @@ TEST(WebCommandE2E, OperatorUnlocksAndLocksARealGatewaysBike) {
       << refused.dump();
 }
 
+// The same through a root and a delegation (the bike trusts only the root key): the lock
+// succeeds; a delegation scoped by a group the bike is not in passes the server (which cannot
+// know the bike's groups) and the bike's refusal comes back to the console with its reason.
+TEST(WebCommandE2E, DelegatedKeyLocksAndTheBikesScopeRefusalComesBack) {
+  if (postgres_bin_dir().empty()) GTEST_SKIP() << "PostgreSQL server binaries not installed";
+  for (const bool in_scope : {true, false}) {
+    RigDelegation d{.actions = {"lock", "unlock"}};
+    if (in_scope) {
+      d.vehicle_ids = {"deleg-bike"};
+    } else {
+      d.groups = {"berlin"};
+    }
+    CommandRig rig("deleg-bike", d);
+    const LoginResult olga = rig.stack->login("olga", "operator-password");
+    auto res = rig.stack->client().Post("/api/vehicles/deleg-bike/commands",
+                                        {{"Cookie", olga.cookie}, {"X-CSRF-Token", olga.csrf}},
+                                        json{{"action", "lock"}}.dump(), "application/json");
+    ASSERT_TRUE(res);
+    ASSERT_EQ(res->status, 202) << res->body;
+    const std::string id = json::parse(res->body)["command_id"];
+    json c;
+    ASSERT_TRUE(wait_until(
+        [&] {
+          auto r = rig.stack->client().Get("/api/commands?ids=" + id, {{"Cookie", olga.cookie}});
+          if (!r || r->status != 200) return false;
+          c = json::parse(r->body)["commands"][0];
+          return !c["result"].is_null();
+        },
+        30s, 20ms))
+        << rig.logs();
+    if (in_scope) {
+      EXPECT_EQ(c["result"], "succeeded") << c.dump() << rig.logs();
+      EXPECT_EQ(c["result_operator"], "olga");
+    } else {
+      EXPECT_EQ(c["result"], "rejected") << c.dump();
+      EXPECT_EQ(c.value("reason", "").rfind("out_of_scope", 0), 0u) << c.dump();
+    }
+  }
+}
+
 }  // namespace
 }  // namespace fleetgw::testing

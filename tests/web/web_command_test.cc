@@ -131,10 +131,15 @@ TEST_F(WebCommands, LockIsSignedOverItsExactBytesNamesTheOperatorAndItsResultIsS
                    "action = 'command' AND target = $1",
                    {"bike-1/" + id}),
       (std::vector<std::vector<std::string>>{{"olga", "127.0.0.1", "published", "bike-1/" + id}}));
-  EXPECT_EQ(stack_->rows("SELECT result FROM console_audit WHERE action = 'command_result' AND "
-                         "target = $1",
-                         {"bike-1/" + id}),
-            (std::vector<std::vector<std::string>>{{"succeeded"}}));
+  // The result's audit row follows the stored result (another connection): wait for it.
+  const auto audited = [&] {
+    return stack_->rows(
+        "SELECT result FROM console_audit WHERE action = 'command_result' AND "
+        "target = $1",
+        {"bike-1/" + id});
+  };
+  EXPECT_TRUE(wait_until([&] { return !audited().empty(); }, 10s));
+  EXPECT_EQ(audited(), (std::vector<std::vector<std::string>>{{"succeeded"}}));
 }
 
 TEST_F(WebCommands, TheBikesRefusalReasonIsShownAsItCame) {

@@ -103,6 +103,7 @@ try {
   await op.goto(`${spec.url}/#vehicle/${encodeURIComponent(spec.vehicle)}`);
   await op.waitForSelector('#v-buttons button.cmd[data-action="lock"]', { visible: true });
   const times = [];
+  const bikeTimes = [];
   const clicks = spec.clicks ?? 2;
   for (let i = 0; i < clicks; i += 1) {
     const action = i % 2 === 0 ? 'unlock' : 'lock';
@@ -116,6 +117,10 @@ try {
     }, { polling: 'mutation', timeout: 30000 }, before);
     const result = await handle.jsonValue();
     times.push(Date.now() - t0);
+    // The bike's own time for it (receipt to result), to tell the console's share apart.
+    const id = await op.$eval('#v-last-result', (e) => e.dataset.command);
+    bikeTimes.push(await op.evaluate(async (cid) => (await (await fetch(
+      `/api/commands?ids=${encodeURIComponent(cid)}`)).json()).commands[0].duration_ms, id));
     if (result !== 'succeeded') {
       fail(`${action}: ${result}: ${await op.$eval('#v-last-result', (e) => e.textContent)}`);
     }
@@ -151,7 +156,7 @@ try {
   if (asViewer !== 403) fail(`a viewer's POST: ${asViewer}`);
 
   if (problems.length) fail(problems.join('\n'));
-  console.log(JSON.stringify({ click_to_result_ms: times }));
+  console.log(JSON.stringify({ click_to_result_ms: times, bike_duration_ms: bikeTimes }));
 } catch (e) {
   console.error(`console command test failed: ${e.message}`);
   if (problems.length) console.error(problems.join('\n'));
