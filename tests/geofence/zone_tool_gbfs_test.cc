@@ -26,7 +26,7 @@ std::string read_all(const std::filesystem::path& p) {
 
 class ZonesToolGbfs : public ::testing::Test {
  protected:
-  testing::TempDir dir;
+  ::fleetgw::testing::TempDir dir;
   command::Ed25519PrivateKey key = command::Ed25519PrivateKey::generate();
   std::filesystem::path city =
       std::string(FLEETGW_SOURCE_DIR) + "/tests/geofence/data/ljubljana_geofencing_zones.json";
