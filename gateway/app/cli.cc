@@ -13,6 +13,7 @@
 #include "gateway/app/command_tool.h"
 #include "gateway/app/completion.h"
 #include "gateway/app/db_command.h"
+#include "gateway/app/keys_cli.h"
 #include "backend/app/ingest_command.h"
 #include "gateway/app/logging.h"
 #include "gateway/app/ride_command.h"
@@ -393,6 +394,7 @@ int run_cli(int argc, char** argv) {
 
   // command
   campaign::CampaignCli campaign_cli(app);  // signals, campaign sign|check (issue 29)
+  KeysCli keys_cli(app);                    // keys root|delegate|revoke|show|... (issue 28)
   auto* command_cmd = app.add_subcommand(
       "command",
       "sign and send a remote command (lock/unlock, speed limit, assist, lights, "
@@ -417,7 +419,12 @@ int run_cli(int argc, char** argv) {
   command_cmd->add_flag("--power-off", cmd_options.power_off,
                         "power the bike off (refused while it or a lock moves)");
   command_cmd->add_option("--key", cmd_options.key, "Ed25519 private key (PEM)")->required();
-  command_cmd->add_option("--key-id", cmd_options.key_id, "key id (default: the key file's stem)");
+  command_cmd->add_option("--key-id", cmd_options.key_id,
+                          "key id (default: the delegation's, else the key file's stem)");
+  command_cmd->add_option("--delegation", cmd_options.delegation,
+                          "the key's signed delegation (fleetgw keys delegate), sent along");
+  command_cmd->add_option("--operator", cmd_options.operator_id,
+                          "who asks: Command.operator_id, echoed in the result");
   command_cmd->add_option("--broker", cmd_options.broker, "broker URI")->required();
   command_cmd->add_option("--ca-file", cmd_options.ca_file, "CA bundle (TLS)");
   command_cmd->add_option("--cert-file", cmd_options.cert_file, "client certificate (mutual TLS)");
@@ -526,6 +533,7 @@ int run_cli(int argc, char** argv) {
       return run_status(status_options, status_format, std::cout, std::cerr);
     }
     if (const auto status = campaign_cli.run()) return *status;
+    if (const auto status = keys_cli.run()) return *status;
     if (keygen_cmd->parsed()) return command::run_keygen(keygen_prefix, std::cout);
     if (zones_sign_cmd->parsed()) {
       zones_sign.issued_at = std::chrono::duration_cast<std::chrono::microseconds>(

@@ -69,6 +69,9 @@ nlohmann::json to_json(const v1::CommandResult& r, std::string_view vehicle, Mic
   j["duration_ms"] = r.duration_ms();
   j["command_sha256"] = to_hex(r.command_sha256());
   j["stored"] = r.stored();
+  // Issue 28: who the gateway says asked (escaped by the gateway; only for a delegated or
+  // console-signed command that named an operator).
+  if (!r.operator_id().empty()) j["operator_id"] = common::valid_utf8(r.operator_id());
   j["round_trip_ms"] = round_trip.count() / 1000;
   nlohmann::json locks = nlohmann::json::array();
   for (const auto& l : r.locks()) {
@@ -234,8 +237,34 @@ int run_command_tool(const CommandToolOptions& o) {
   }
   const auto protocol =
       o.mqtt_version == "5" ? uplink::MqttProtocol::kV5 : uplink::MqttProtocol::kV311;
-  std::string key_id = o.key_id.empty() ? o.key.stem().string() : o.key_id;
+  std::string delegation;  // serialized SignedDelegation, or empty
+  std::string delegated_key_id;
+  if (!o.delegation.empty()) {
+    std::ifstream in(o.delegation, std::ios::binary);
+    delegation.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+    v1::SignedDelegation sd;
+    v1::Delegation d;
+    if (!in.good() && !in.eof()) return usage("--delegation: cannot read " + o.delegation.string());
+    if (delegation.empty() || !sd.ParseFromString(delegation) || sd.delegation().empty() ||
+        !d.ParseFromString(sd.delegation()) || d.key_id().empty()) {
+      return usage("--delegation: " + o.delegation.string() +
+                   " is not a signed delegation (fleetgw keys delegate)");
+    }
+    delegated_key_id = d.key_id();
+  }
+  std::string key_id = !o.key_id.empty()           ? o.key_id
+                       : !delegated_key_id.empty() ? delegated_key_id
+                                                   : o.key.stem().string();
   if (!is_valid_tool_id(key_id)) return usage("--key-id: 1..64 characters of [A-Za-z0-9._-]");
+  if (!delegated_key_id.empty() && delegated_key_id != key_id) {
+    return usage("--delegation: it delegates key '" +
+                 common::untrusted_excerpt(delegated_key_id, 64) + "', not the signing key '" +
+                 key_id + "'");
+  }
+  const bool operator_ok =
+      o.operator_id.size() <= 64 && std::all_of(o.operator_id.begin(), o.operator_id.end(),
+                                                [](char c) { return c > ' ' && c <= '~'; });
+  if (!operator_ok) return usage("--operator: 1..64 printable ASCII characters, no space");
   std::optional<Ed25519PrivateKey> key;
   try {
     key = Ed25519PrivateKey::load_pem(o.key);
@@ -309,7 +338,9 @@ int run_command_tool(const CommandToolOptions& o) {
     const auto cmd = mc_action.empty()
                          ? make_command(o.vehicle, o.lock, o.action, now, expires, id)
                          : make_mc_command(o.vehicle, mc_action, mc_value, now, expires, id);
-    const SentCommand sent = sign_for_sending(*cmd, *key, key_id);
+    auto signed_cmd = *cmd;
+    if (!o.operator_id.empty()) signed_cmd.set_operator_id(o.operator_id);
+    const SentCommand sent = sign_for_sending(signed_cmd, *key, key_id, delegation);
     const std::string& payload = sent.payload;
     auto msg = mqtt::make_message(cmd_topic, payload.data(), payload.size(), 1, false);
     if (protocol == uplink::MqttProtocol::kV5) {

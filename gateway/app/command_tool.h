@@ -31,6 +31,9 @@
 //    broker refuses (PUBACK reason code >= 0x80, e.g. an ACL) is reported with its reason code
 //    and name, exit 3. Under 3.1.1 neither exists: a stale command reaches the gateway, which
 //    rejects it as expired.
+//  * --delegation (issue 28): the file must hold a SignedDelegation whose key id is the signing
+//    key's (else exit 2 naming both); it travels in SignedCommand.delegation, outside the signed
+//    bytes. --operator sets Command.operator_id inside them.
 //  * This is an edge tool, not a gateway component: it reads the system clock (issued_at,
 //    expiry, its own deadline) unless `wall_clock` is given.
 #pragma once
@@ -62,13 +65,18 @@ struct CommandToolOptions {
   std::string lock;     // --lock seat|battery|frame|...|vehicle
   std::string action;   // --action lock|unlock
   // MC actions (issue 13); exactly one action per command, lock/unlock included.
-  std::optional<int> speed_limit_kmh;        // --speed-limit KMH
-  std::string assist;                        // --assist eco|norm|...
-  std::string lights;                        // --lights on|off
-  bool clear_trip = false;                   // --clear-trip
-  bool power_off = false;                    // --power-off
-  std::filesystem::path key;                 // --key KEY.pem (Ed25519 private key)
-  std::string key_id;                        // --key-id ID; default: the key file's stem
+  std::optional<int> speed_limit_kmh;  // --speed-limit KMH
+  std::string assist;                  // --assist eco|norm|...
+  std::string lights;                  // --lights on|off
+  bool clear_trip = false;             // --clear-trip
+  bool power_off = false;              // --power-off
+  std::filesystem::path key;           // --key KEY.pem (Ed25519 private key)
+  std::string key_id;  // --key-id ID; default: the delegation's key id, else the key file's stem
+  // Issue 28: --delegation FILE (a SignedDelegation from `fleetgw keys delegate`) sent with the
+  // command, for a key that is not in the gateways' [command.trusted_keys]; --operator NAME
+  // goes into Command.operator_id (1..64 printable characters) and comes back in the result.
+  std::filesystem::path delegation;
+  std::string operator_id;
   std::string broker;                        // --broker tcp://host:1883 | ssl://host:8883
   std::string ca_file;                       // --ca-file
   std::string cert_file;                     // --cert-file (client certificate, mutual TLS)

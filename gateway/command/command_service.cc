@@ -5,6 +5,7 @@
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
+#include <chrono>
 #include <stdexcept>
 
 #include "gateway/command/command_service_impl.h"
@@ -15,6 +16,9 @@ namespace fleetgw::command {
 namespace {
 
 constexpr Micros kClockSyncEpoch{1'704'067'200'000'000};  // 2024-01-01T00:00:00Z
+// The revocation lists in force (Revocations::persisted(): one base64 SignedRevocationList per
+// line), in the store's meta table beside the speed cap.
+constexpr std::string_view kRevocationsKey = "command.revocations";
 
 InterlockSettings interlock_settings(const CommandServiceConfig& c) {
   return {.rules = c.interlocks,
@@ -118,6 +122,20 @@ CommandService::Impl::Impl(CommandServiceConfig c, CommandContext ctx)
   }
   if (!context.clock_synchronised) context.clock_synchronised = default_clock_synchronised;
   tokens = config.unauthenticated_results_per_minute;
+  // Revocations are enforced offline: the lists stored by an earlier run are in force before
+  // the first payload (each re-verified against today's root keys).
+  try {
+    if (const auto stored = context.store.meta(kRevocationsKey)) {
+      for (const auto& problem : verifier.restore_revocations(*stored)) {
+        spdlog::error("command: {}; not in force", problem);
+      }
+      if (const auto v = verifier.revocations().version()) {
+        spdlog::info("command: revocation list version {} restored", v);
+      }
+    }
+  } catch (const std::exception& e) {
+    spdlog::error("command: reading the stored revocation lists failed: {}", e.what());
+  }
 }
 
 void CommandService::Impl::remember(const VerifiedCommand& c, Micros keep_until) {
@@ -244,6 +262,57 @@ void CommandService::set_lock_guard(LockGuard guard) {
 
 void CommandService::set_unlock_guard(LockGuard guard) {
   impl_->unlock_guard = std::move(guard);
+}
+
+RevocationVerdict CommandService::on_revocations(std::span<const std::uint8_t> payload,
+                                                 Micros now) {
+  Impl& s = *impl_;
+  RevocationVerdict verdict = s.verifier.offer_revocations(payload);
+  if (!verdict.accepted()) {
+    if (verdict.outcome == RevocationOutcome::kRefused) {
+      spdlog::warn("command: revocation list refused: {}: {}", verdict.reason, verdict.detail);
+    }
+    return verdict;
+  }
+  spdlog::info("command: revocation list {}", verdict.detail);
+  storage::Batch b;
+  b.now_us = now.count();
+  b.meta.emplace_back(std::string(kRevocationsKey), s.verifier.revocations().persisted());
+  if (const auto error = write_batch(s.context.store, b)) {
+    // Enforced all the same: a withdrawn key must not wait for a healthy disk.
+    spdlog::error("command: revocation list version {} in force but not stored: {}",
+                  verdict.version, *error);
+  }
+  return verdict;
+}
+
+std::uint64_t CommandService::revocation_version() const {
+  return impl_->verifier.revocations().version();
+}
+
+CommandService::DelegatedDocumentCheck CommandService::delegated_document_check(
+    std::string action) const {
+  std::weak_ptr<Impl> weak = impl_;
+  return [weak, action = std::move(action)](
+             const v1::SignedDelegation& delegation, std::string_view signer_key_id,
+             std::span<const std::uint8_t> signed_bytes,
+             std::span<const std::uint8_t> signature) -> DelegatedCheck {
+    const auto impl = weak.lock();
+    if (!impl) {
+      DelegatedCheck gone;
+      gone.problem = DelegationProblem{DelegationRefusal::kInvalid, "the gateway is stopping"};
+      return gone;
+    }
+    // Documents arrive outside the bus timeline: judged by the wall clock (the system's when
+    // the runtime gave none).
+    const Micros now = impl->context.wall_clock
+                           ? impl->context.wall_clock()
+                           : std::chrono::duration_cast<Micros>(
+                                 std::chrono::system_clock::now().time_since_epoch());
+    return check_delegated(delegation, signer_key_id, signed_bytes, signature, action,
+                           impl->verifier.identity(), now, impl->context.clock_synchronised(now),
+                           impl->verifier.root_keys(), impl->verifier.revocations());
+  };
 }
 
 bool CommandService::busy() const {

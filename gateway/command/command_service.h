@@ -98,7 +98,8 @@ class Store;
 }
 namespace fleetgw::v1 {
 class CommandResult;
-}
+class SignedDelegation;
+}  // namespace fleetgw::v1
 
 namespace fleetgw::command {
 
@@ -249,6 +250,20 @@ class CommandService {
   // operator's cap restored from the store; the zone enforcer shares it. Lives as long as the
   // service.
   geofence::SpeedAuthority& speed_authority();
+  // Issue 28: a payload of <prefix>/<vehicle>/revocations (a serialized SignedRevocationList).
+  // Judged by the verifier (delegation.h Revocations::offer); an accepted list is in force at
+  // once and stored in the store's meta table ("command.revocations"), so it is enforced after
+  // a restart without the broker. A store failure is logged; the list is enforced all the same.
+  RevocationVerdict on_revocations(std::span<const std::uint8_t> payload, Micros now);
+  // The highest revocation list version in force (0: none), for `fleetgw status`.
+  std::uint64_t revocation_version() const;
+  // Issue 28: the check of a zone bundle (or another document) signed under a delegation, with
+  // this service's root keys, vehicle identity, revocation lists and wall clock; `action` is the
+  // delegation action the document needs ("zones"). Valid while the service lives.
+  using DelegatedDocumentCheck = std::function<DelegatedCheck(
+      const v1::SignedDelegation& delegation, std::string_view signer_key_id,
+      std::span<const std::uint8_t> signed_bytes, std::span<const std::uint8_t> signature)>;
+  DelegatedDocumentCheck delegated_document_check(std::string action) const;
   // Results the store refused that still wait for their journal write.
   std::size_t unjournaled() const;
   const CommandStats& stats() const;

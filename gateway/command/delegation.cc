@@ -95,6 +95,42 @@ std::string_view known_delegation_actions() {
          "diagnostics, zones, campaign";
 }
 
+std::optional<std::string> delegation_content_problem(const v1::Delegation& d) {
+  const std::string serial = "delegation " + std::to_string(d.serial());
+  if (d.serial() == 0) return "delegation serial 0 (must be > 0)";
+  if (!is_valid_tool_id(d.key_id())) {
+    return std::optional<std::string>(serial + ": key id " + quote_delegation_text(d.key_id()) +
+                                      " is not 1..64 characters of [A-Za-z0-9._-]");
+  }
+  if (d.public_key().size() != kEd25519PublicKeyBytes ||
+      !Ed25519PublicKey::from_raw(bytes_of_text(d.public_key()))) {
+    return serial + ": public_key is not a raw Ed25519 key (32 bytes)";
+  }
+  if (d.actions().empty()) return serial + " grants no action";
+  if (d.vehicle_ids().empty() && d.groups().empty() && !d.all_vehicles()) {
+    return serial + " names no vehicle, group or all_vehicles";
+  }
+  for (const auto& v : d.vehicle_ids()) {
+    if (!is_valid_tool_id(v)) {
+      return std::optional<std::string>(serial + ": vehicle id " + quote_delegation_text(v) +
+                                        " is invalid");
+    }
+  }
+  for (const auto& g : d.groups()) {
+    if (!is_valid_tool_id(g)) {
+      return serial + ": group " + quote_delegation_text(g) + " is invalid";
+    }
+  }
+  if (d.not_before_us() <= 0 || d.not_after_us() <= d.not_before_us()) {
+    return serial + ": needs 0 < not_before_us < not_after_us";
+  }
+  if (d.holder().size() > kMaxHolderBytes) {
+    return std::optional<std::string>(serial + ": holder over " + std::to_string(kMaxHolderBytes) +
+                                      " bytes");
+  }
+  return std::nullopt;
+}
+
 RootKeys::RootKeys(const std::map<std::string, std::string>& config) {
   for (const auto& [id, text] : config) {
     if (!is_valid_tool_id(id)) {
@@ -133,40 +169,14 @@ std::variant<OpenedDelegation, DelegationProblem> RootKeys::open(
   if (!d.ParseFromString(sd.delegation())) {
     return invalid_delegation("delegation bytes are not a fleetgw.v1.Delegation");
   }
-  const std::string serial = "delegation " + std::to_string(d.serial());
-  if (d.serial() == 0) return invalid_delegation("delegation serial 0 (must be > 0)");
-  if (!is_valid_tool_id(d.key_id())) {
-    return invalid_delegation(serial + ": key id " + quote_delegation_text(d.key_id()) +
-                              " is not 1..64 characters of [A-Za-z0-9._-]");
-  }
+  if (auto problem = delegation_content_problem(d)) return invalid_delegation(std::move(*problem));
   if (d.key_id() != signer_key_id) {
-    return invalid_delegation(serial + " is for key " + quote_delegation_text(d.key_id()) +
-                              ", not for the signing key " + quote_delegation_text(signer_key_id));
+    return invalid_delegation("delegation " + std::to_string(d.serial()) + " is for key " +
+                              quote_delegation_text(d.key_id()) + ", not for the signing key " +
+                              quote_delegation_text(signer_key_id));
   }
   auto key = Ed25519PublicKey::from_raw(bytes_of_text(d.public_key()));
-  if (!key) return invalid_delegation(serial + ": public_key is not a raw Ed25519 key (32 bytes)");
-  if (d.actions().empty()) return invalid_delegation(serial + " grants no action");
-  if (d.vehicle_ids().empty() && d.groups().empty() && !d.all_vehicles()) {
-    return invalid_delegation(serial + " names no vehicle, group or all_vehicles");
-  }
-  for (const auto& v : d.vehicle_ids()) {
-    if (!is_valid_tool_id(v)) {
-      return invalid_delegation(serial + ": vehicle id " + quote_delegation_text(v) +
-                                " is invalid");
-    }
-  }
-  for (const auto& g : d.groups()) {
-    if (!is_valid_tool_id(g)) {
-      return invalid_delegation(serial + ": group " + quote_delegation_text(g) + " is invalid");
-    }
-  }
-  if (d.not_before_us() <= 0 || d.not_after_us() <= d.not_before_us()) {
-    return invalid_delegation(serial + ": needs 0 < not_before_us < not_after_us");
-  }
-  if (d.holder().size() > kMaxHolderBytes) {
-    return invalid_delegation(serial + ": holder over " + std::to_string(kMaxHolderBytes) +
-                              " bytes");
-  }
+  if (!key) return invalid_delegation("public_key is not a raw Ed25519 key (32 bytes)");
   OpenedDelegation out{Grant{}, std::move(*key)};
   Grant& g = out.grant;
   g.root_key_id = sd.root_key_id();

@@ -171,6 +171,10 @@ DelegatedCheck check_delegated(const v1::SignedDelegation& signed_delegation,
                                const VehicleIdentity& vehicle, Micros now, bool clock_synchronised,
                                const RootKeys& roots, const Revocations& revocations);
 
+// The content rules of RootKeys::open() alone (serial, key id, public key, actions, scope, ids,
+// window, holder): what `fleetgw keys show` checks without the root's public key.
+std::optional<std::string> delegation_content_problem(const v1::Delegation& delegation);
+
 // Issuing (`fleetgw keys`, the tests): the message serialized ONCE and signed over exactly
 // those bytes by the root; serialized SignedDelegation / SignedRevocationList.
 std::string sign_delegation(const v1::Delegation& delegation, const Ed25519PrivateKey& root,

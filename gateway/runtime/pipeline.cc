@@ -123,6 +123,11 @@ Pipeline::Pipeline(asio::io_context& io, const config::Config& config, BusTransp
         uplink_config.max_zone_bundle_bytes = max_bundle_bytes_;
       }
       add_campaign_topics(config, uplink_config);
+      // Issue 28: the root's revocation list, retained; judged by the command service.
+      if (!config.command.root_keys.empty()) {
+        revocations_topic_ = uplink::Topics(config.mqtt.topic_prefix, config.vehicle.id).revocations;
+        uplink_config.zone_topics.push_back(revocations_topic_);
+      }
       uplink_ = std::make_unique<uplink::Uplink>(std::move(uplink_config), outbox_);
     } catch (const std::exception& e) {
       throw PipelineError(std::string("invalid [mqtt] configuration: ") + e.what());
@@ -285,7 +290,12 @@ void Pipeline::settle() {
         }
         // Zone bundles: judged here, on the loop, like commands (Paho only queued them).
         for (const auto& bundle : uplink_->take_zone_bundles()) {
-          if (campaigns_ && campaigns_->handles(bundle.topic)) {
+          if (!revocations_topic_.empty() && bundle.topic == revocations_topic_) {
+            commands_->on_revocations(
+                {reinterpret_cast<const std::uint8_t*>(bundle.payload.data()),
+                 bundle.payload.size()},
+                system_now());
+          } else if (campaigns_ && campaigns_->handles(bundle.topic)) {
             campaigns_->on_payload(bundle.topic, bundle.payload, bundle.oversized_bytes,
                                    bus_now(), bus_now());
           } else if (zones_) {

@@ -204,6 +204,7 @@ class Pipeline {
   Micros area_alarm_since_{0};           // when it was raised
   std::string zone_refusal_;  // the last reason a zone write could not start (logged once)
   std::vector<std::string> zone_topics_;  // the bundle topics subscribed to
+  std::string revocations_topic_;         // issue 28: subscribed when root keys are configured
   std::string zone_bundle_file_;
   std::size_t max_bundle_bytes_ = 0;
   std::string bundle_refusal_logged_;  // the last bundle refusal logged (each distinct once)

@@ -34,6 +34,7 @@ struct Topics {
   std::string campaign;         // campaign samples (issue 29)
   std::string campaigns;        // subscribed: this vehicle's campaigns (<base>/campaigns)
   std::string fleet_campaigns;  // subscribed: the fleet-wide campaigns (<prefix>/campaigns)
+  std::string revocations;      // subscribed: the root's revocation list (issue 28), retained
 };
 
 enum class TopicDirection { kPublish, kSubscribe };
@@ -48,7 +49,7 @@ struct TopicSpec {
 
 // The record kinds are spelled out (not taken from outbox_source.h) to keep this header free of
 // the outbox; test_topic_acl.cc checks every route of envelope_writer.cc lands on its own entry.
-inline constexpr std::array<TopicSpec, 18> kTopicTable{{
+inline constexpr std::array<TopicSpec, 19> kTopicTable{{
     {"telemetry", TopicDirection::kPublish, false, &Topics::telemetry, "telemetry"},
     {"ride", TopicDirection::kPublish, false, &Topics::ride, "ride"},
     {"fault", TopicDirection::kPublish, false, &Topics::fault, "fault"},
@@ -67,6 +68,7 @@ inline constexpr std::array<TopicSpec, 18> kTopicTable{{
     {"campaign", TopicDirection::kPublish, false, &Topics::campaign, "campaign"},
     {"campaigns", TopicDirection::kSubscribe, false, &Topics::campaigns, ""},
     {"campaigns", TopicDirection::kSubscribe, true, &Topics::fleet_campaigns, ""},
+    {"revocations", TopicDirection::kSubscribe, false, &Topics::revocations, ""},
 }};
 
 // The entry whose full name in `topics` is `*topic` (compared by address: Topics' own members);
