@@ -37,7 +37,7 @@ pg_cpu_s() {
   for pid in $PGPID $(pgrep -P "$PGPID"); do total=$(echo "$total + $(cpu_s "$pid")" | bc -l); done
   echo "$total"
 }
-# The same over a process and its descendants (a worker and its session processes).
+# The same over a process and its descendants (a worker, or a program and the processes it starts).
 tree_cpu_s() {
   local total c
   total=$(cpu_s "$1")

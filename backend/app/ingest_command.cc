@@ -21,7 +21,7 @@ void add_ingest_options(CLI::App& app, ingest::IngestOptions& o) {
                  "libpq connection string, e.g. \"host=/run/postgresql dbname=fleet\" (passwords "
                  "belong in ~/.pgpass or PGPASSWORD, not here)")
       ->required();
-  app.add_option("--sessions", o.sessions, "MQTT sessions of this worker (one process, one thread)")
+  app.add_option("--sessions", o.sessions, "MQTT sessions of this worker (all in its one process)")
       ->check(CLI::Range(1, 256))
       ->capture_default_str();
   app.add_option("--inflight", o.inflight,
