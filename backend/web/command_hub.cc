@@ -114,9 +114,16 @@ void CommandHub::Impl::on_message(const mqtt::const_message_ptr& m) {
     const PgResult u = c->query(
         "UPDATE console_commands SET result = $5, reason = $6, result_operator = $7, "
         "duration_ms = $8::bigint, final_state = $9, limit_in_force = $10, "
-        "result_at_us = $11::bigint WHERE vehicle_id = $1 AND result IS NULL AND "
-        "((command_id = $2 AND command_sha256 = $3) OR (payload_sha256 = $4 AND $4 <> '')) "
-        "RETURNING command_id, operator, address",
+        "result_at_us = $11::bigint WHERE vehicle_id = $1 AND result IS NULL AND " +
+            // By the primary key when the result names the command; a payload the bike could
+            // not authenticate may come without an id: then among the vehicle's commands of
+            // the last day (the by-vehicle index), by the whole payload's digest.
+            std::string(r.command_id().empty()
+                            ? "payload_sha256 = $4 AND $4 <> '' AND issued_at_us > $11::bigint - "
+                              "86400000000 AND $2 = '' AND $3 = '' "
+                            : "command_id = $2 AND (command_sha256 = $3 OR (payload_sha256 = $4 "
+                              "AND $4 <> '')) ") +
+            "RETURNING command_id, operator, address",
         p, "command result");
     if (u.rows() == 0) return;
     auth.audit(u.str(0, 1), u.str(0, 2), "command_result", vehicle + "/" + u.str(0, 0), result,

@@ -53,7 +53,7 @@ CommandRig::CommandRig(const std::string& vehicle, std::optional<RigDelegation> 
     c.add_line("command.trusted_keys", "console-1 = \"" + public_key_b64(key) + "\"");
   }
   gateway = std::make_unique<GatewayProcess>(FLEETGW_BINARY, c.write(dir.path() / "fleetgw.toml"),
-                                             std::vector<std::string>{"--duration", "300"});
+                                             std::vector<std::string>{"--duration", "1800"});
   const bool ready = wait_until(
       [&] {
         return !gateway->running() || broker.log().find(vehicle + "/cmd") != std::string::npos;

@@ -163,6 +163,31 @@ TEST_F(WebCommands, TheBikesRefusalReasonIsShownAsItCame) {
   EXPECT_EQ(command(olga, id)["reason"], "revoked: delegation 7 of key 'console-1' is revoked");
 }
 
+// A bike that cannot authenticate the payload (e.g. it does not know the key) answers bound to
+// the whole payload's digest, possibly without a command id: the console still shows it.
+TEST_F(WebCommands, ARefusalBoundToThePayloadIsShownToo) {
+  TopicClient bike(broker_->uri(), "fleet/v1/bike-3/cmd");
+  const LoginResult olga = stack_->login("olga", "operator-password");
+  auto res = post(olga, "/api/vehicles/bike-3/commands", {{"action", "clear_trip"}});
+  ASSERT_TRUE(res);
+  ASSERT_EQ(res->status, 202) << res->body;
+  const std::string id = json::parse(res->body)["command_id"];
+  const std::string payload = published(bike, id);
+  ASSERT_FALSE(payload.empty());
+  v1::Envelope env;
+  env.set_vehicle_id("bike-3");
+  auto* r = env.mutable_command_result();
+  r->set_result(v1::COMMAND_RESULT_CODE_REJECTED);
+  r->set_reason("unknown_key: console-1");
+  r->set_payload_sha256(sha256_raw(payload + "x"));  // another payload's: ignored
+  bike.publish("fleet/v1/bike-3/cmd/result", env.SerializeAsString());
+  r->set_payload_sha256(sha256_raw(payload));
+  bike.publish("fleet/v1/bike-3/cmd/result", env.SerializeAsString());
+  ASSERT_TRUE(wait_until([&] { return command(olga, id)["result"] == "rejected"; }, 10s))
+      << command(olga, id).dump();
+  EXPECT_EQ(command(olga, id)["reason"], "unknown_key: console-1");
+}
+
 TEST_F(WebCommands, ViewerGets403AndNothingIsPublished) {
   TopicClient bike(broker_->uri(), "fleet/v1/+/cmd");
   const LoginResult vera = stack_->login("vera", "viewer-password");
@@ -297,6 +322,33 @@ TEST_F(WebCommands, AnAlarmIsResolvedWithWhoAndWhenAndStopsBeingActive) {
   const LoginResult vera = stack_->login("vera", "viewer-password");
   auto denied = post(vera, "/api/alarms/" + id + "/resolve", json::object());
   EXPECT_EQ(denied->status, 403);
+}
+
+// The vehicle page shows what the bike reports of itself (the ingest's migration 4 columns) and
+// the console's commands with who sent each.
+TEST_F(WebCommands, TheVehiclePageCarriesTheReportedStateAndWhoSentEachCommand) {
+  stack_->db().exec(
+      "UPDATE vehicle_state SET speed_limit_dkmh = 150, assist_name = 'eco', bus_state = "
+      "'BUS_STATE_ACTIVE', active_alarms = '{ALARM_KIND_LOCK_FORCED}', locks = "
+      "'[{\"node\": \"lock1\", \"kind\": \"seat\", \"state_name\": \"locked\"}]', "
+      "faults = '[{\"node\": \"mc\", \"name\": \"<b>hall</b>\"}]' "
+      "WHERE vehicle_id = 'bike-2'",
+      "reported state");
+  const LoginResult olga = stack_->login("olga", "operator-password");
+  auto sent = post(olga, "/api/vehicles/bike-2/commands", {{"action", "headlight"}, {"on", true}});
+  ASSERT_TRUE(sent);
+  ASSERT_EQ(sent->status, 202);
+  auto res = stack_->client().Get("/api/vehicles/bike-2", {{"Cookie", olga.cookie}});
+  ASSERT_TRUE(res);
+  const json v = json::parse(res->body);
+  EXPECT_EQ(v["reported"]["speed_limit_dkmh"], 150);
+  EXPECT_EQ(v["reported"]["assist_name"], "eco");
+  EXPECT_EQ(v["reported"]["locks"][0]["state_name"], "locked");
+  EXPECT_EQ(v["reported"]["faults"][0]["name"], "<b>hall</b>");
+  EXPECT_EQ(v["reported"]["active_alarms"], json({"ALARM_KIND_LOCK_FORCED"}));
+  ASSERT_FALSE(v["console_commands"].empty());
+  EXPECT_EQ(v["console_commands"][0]["operator"], "olga");
+  EXPECT_EQ(v["console_commands"][0]["params"], "headlight on");
 }
 
 TEST_F(WebCommands, ASigningKeyOthersCanReadIsRefusedAtStart) {

@@ -1,0 +1,33 @@
+// The console's first load (issue 28's figure): log in, then time from navigating to the
+// console to every bike drawn on the map, and the bytes the browser received.
+//   node console_load.mjs '{"url": ..., "name": ..., "password": ..., "vehicles": N}'
+// Prints {"vehicles", "map_drawn_ms", "bytes"}. Used by bench/console-load.sh.
+import puppeteer from 'puppeteer-core';
+
+const spec = JSON.parse(process.argv[2]);
+const browser = await puppeteer.launch({ executablePath: '/usr/bin/chromium', headless: true,
+  args: ['--no-sandbox', '--disable-gpu', '--disable-dev-shm-usage'] });
+try {
+  const page = await browser.newPage();
+  page.setDefaultTimeout(120000);
+  await page.setViewport({ width: 1280, height: 800 });
+  // Log in through the API so the measured load is the console's own (session cookie set).
+  await page.goto(`${spec.url}/`, { waitUntil: 'load' });
+  await page.evaluate(async (n, p) => {
+    await fetch('/api/login', { method: 'POST', headers: { 'Content-Type': 'application/json' },
+      body: JSON.stringify({ name: n, password: p }) });
+  }, spec.name, spec.password);
+  const cdp = await page.createCDPSession();
+  await cdp.send('Network.enable');
+  await cdp.send('Network.setCacheDisabled', { cacheDisabled: true });
+  let bytes = 0;
+  cdp.on('Network.loadingFinished', (e) => { bytes += e.encodedDataLength; });
+  const t0 = Date.now();
+  await page.goto(`${spec.url}/#map`, { waitUntil: 'domcontentloaded' });
+  await page.waitForFunction((n) => document.querySelectorAll('#map path[data-vehicle]').length >= n,
+    { polling: 100 }, spec.vehicles);
+  const ms = Date.now() - t0;
+  console.log(JSON.stringify({ vehicles: spec.vehicles, map_drawn_ms: ms, bytes }));
+} finally {
+  await browser.close();
+}
