@@ -19,8 +19,8 @@ class Envelope;
 
 namespace fleetgw::ingest {
 
-// A gateway cuts a record at 256 samples; 10 times that is surely not one of ours.
-constexpr std::size_t kMaxCampaignSamples = 2560;
+// A gateway cuts a record at 1024 samples; 10 times that is surely not one of ours.
+constexpr std::size_t kMaxCampaignSamples = 10240;
 
 extern const TableSpec kCampaignSamplesTable;
 

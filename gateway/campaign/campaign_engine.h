@@ -20,7 +20,7 @@
 //    samples of [event - before, event] and samples live until event + after (a later event
 //    extends it); outside windows samples go to the ring (before/period + 1 per signal, oldest
 //    overwritten).
-//  * Records: a campaign's samples are cut into a record at 256 samples, 10 s of bus time after
+//  * Records: a campaign's samples are cut into a record at 1024 samples, 30 s of bus time after
 //    its first sample, at the end of a window (trigger_at_us set), and when the campaign ends
 //    or is removed. Each record counts against the campaign's disk budget until release() says
 //    it left the store; a sample that would not fit is dropped and counted (the next record's
@@ -104,6 +104,7 @@ class CampaignEngine {
     CampaignRunner* runner;
     int slot;  // signal index in the campaign, -1: its condition
     const motinova::Signal* signal;
+    std::size_t value_at = 0;  // where its field was in the message's values last time
   };
   std::unordered_map<const motinova::MessageDesc*, std::vector<Hook>> index_;
   std::map<motinova::Node, std::string> firmware_;  // fw seen on the bus per node

@@ -166,7 +166,7 @@ TEST(CampaignEndToEnd, ATimeWindowRunsOfflineAndItsSamplesArriveOnceAfterTheReco
   // The broker goes down before the window opens; the window runs and closes offline.
   broker.stop();
   ASSERT_LT(wall_us(), start) << "too slow a start: the window opened with the broker up";
-  // Its records are cut 10 s of bus time after their first sample: wait for them.
+  // Its records are cut 30 s of bus time after their first sample: wait for them.
   nlohmann::json offline;
   ASSERT_TRUE(wait_until(
       [&] {

@@ -56,19 +56,19 @@ TEST(CampaignService, AnAcceptedCampaignIsStoredAndRunsAfterARestartOffline) {
   motinova::DecodedMessage m;
   motinova::decode(frame, cat, options, m);
   service.on_message(kDay0 + 2 * kSecond, m);
-  service.tick(kDay0 + 2 * kSecond, kDay0 + 20 * kSecond);  // 10 s after its first sample
+  service.tick(kDay0 + 2 * kSecond, kDay0 + 40 * kSecond);  // 30 s after its first sample
   const auto messages = service.take_messages();
   ASSERT_EQ(messages.size(), 1u);
   EXPECT_EQ(messages[0].kind, storage::OutboxKind::kCampaign);
   EXPECT_EQ(messages[0].priority, static_cast<int>(storage::OutboxPriority::kCampaign));
-  const auto status = service.status(kDay0 + 20 * kSecond);
+  const auto status = service.status(kDay0 + 40 * kSecond);
   EXPECT_EQ(status["in_force"], 1);
   EXPECT_EQ(status["campaigns"][0]["state"], "running");
   EXPECT_EQ(status["campaigns"][0]["max_bytes_per_hour"], 3600u * 27u);
 
   // Into the outbox behind telemetry (and so behind faults and alarms).
   storage::Batch batch;
-  batch.now_us = (kDay0 + 20 * kSecond).count();
+  batch.now_us = (kDay0 + 40 * kSecond).count();
   batch.messages.push_back(messages[0]);
   batch.messages.push_back({storage::OutboxKind::kInfo, storage::kLowestPriority, {1, 2}});
   ASSERT_TRUE(store.write(batch).ok());
