@@ -354,6 +354,18 @@ std::string_view bundle_refusal_name(BundleRefusal reason) {
       return "invalid_zones";
     case BundleRefusal::kWrongVehicle:
       return "wrong_vehicle";
+    case BundleRefusal::kDelegationInvalid:
+      return "delegation_invalid";
+    case BundleRefusal::kRevoked:
+      return "revoked";
+    case BundleRefusal::kOutOfScope:
+      return "out_of_scope";
+    case BundleRefusal::kClockUnsynchronised:
+      return "clock_unsynchronised";
+    case BundleRefusal::kDelegationNotYetValid:
+      return "delegation_not_yet_valid";
+    case BundleRefusal::kDelegationExpired:
+      return "delegation_expired";
   }
   return "unknown";
 }
@@ -397,15 +409,35 @@ BundleVerdict ZoneAuthority::offer(std::span<const std::uint8_t> payload, Bundle
     return refused(BundleRefusal::kMalformed, "no key id", 0, in_force_);
   }
   const auto key = keys_.find(signed_bundle.key_id());
-  if (key == keys_.end()) {
+  const auto* msg = reinterpret_cast<const std::uint8_t*>(signed_bundle.bundle().data());
+  const auto* sig = reinterpret_cast<const std::uint8_t*>(signed_bundle.signature().data());
+  if (key == keys_.end() && signed_bundle.has_delegation() && delegated_check_) {
+    // Issue 28: a delegated key, judged like a command's (docs/commands.md "Delegations").
+    const auto check = delegated_check_(signed_bundle.delegation(), signed_bundle.key_id(),
+                                        {msg, signed_bundle.bundle().size()},
+                                        {sig, signed_bundle.signature().size()});
+    if (check.signature_invalid) {
+      return refused(BundleRefusal::kBadSignature,
+                     "Ed25519 signature does not verify with delegated key " +
+                         quote_zone_text(signed_bundle.key_id()),
+                     0, in_force_);
+    }
+    if (check.problem) {
+      static constexpr BundleRefusal kByReason[] = {BundleRefusal::kDelegationInvalid,
+                                                    BundleRefusal::kRevoked,
+                                                    BundleRefusal::kOutOfScope,
+                                                    BundleRefusal::kClockUnsynchronised,
+                                                    BundleRefusal::kDelegationNotYetValid,
+                                                    BundleRefusal::kDelegationExpired};
+      return refused(kByReason[static_cast<std::size_t>(check.problem->reason)],
+                     check.problem->detail, 0, in_force_);
+    }
+  } else if (key == keys_.end()) {
     return refused(BundleRefusal::kUnknownKey,
                    "key id " + quote_zone_text(signed_bundle.key_id()) + " is not trusted", 0,
                    in_force_);
-  }
-  const auto* msg = reinterpret_cast<const std::uint8_t*>(signed_bundle.bundle().data());
-  const auto* sig = reinterpret_cast<const std::uint8_t*>(signed_bundle.signature().data());
-  if (!key->second.verify({msg, signed_bundle.bundle().size()},
-                          {sig, signed_bundle.signature().size()})) {
+  } else if (!key->second.verify({msg, signed_bundle.bundle().size()},
+                                 {sig, signed_bundle.signature().size()})) {
     return refused(BundleRefusal::kBadSignature,
                    "Ed25519 signature does not verify with key " + quote_zone_text(key->first), 0,
                    in_force_);

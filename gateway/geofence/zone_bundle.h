@@ -49,6 +49,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <map>
 #include <memory>
 #include <optional>
@@ -57,6 +58,7 @@
 #include <string_view>
 #include <variant>
 
+#include "gateway/command/delegation.h"
 #include "gateway/command/ed25519.h"
 #include "gateway/geofence/zone_engine.h"
 
@@ -93,6 +95,13 @@ enum class BundleRefusal : std::uint8_t {
   kVersionConflict,
   kInvalidZones,
   kWrongVehicle,
+  // Issue 28: a key delegated by a root (set_delegated_check); names as for commands.
+  kDelegationInvalid,
+  kRevoked,
+  kOutOfScope,
+  kClockUnsynchronised,
+  kDelegationNotYetValid,
+  kDelegationExpired,
 };
 // Where a bundle came from: the fleet-wide topic (or the stored file, or an operator's check),
 // or the vehicle's own topic, which accepts only bundles signed for this vehicle.
@@ -132,6 +141,13 @@ class ZoneAuthority {
                       BundleTopic topic = BundleTopic::kFleet);
   BundleVerdict offer(std::string_view payload, BundleTopic topic = BundleTopic::kFleet);
   const std::optional<BundleInForce>& in_force() const { return in_force_; }
+  // Issue 28: how a bundle whose key id is not trusted but carries SignedZoneBundle.delegation
+  // is judged (command::check_delegated with the action "zones": root, scope, window,
+  // revocations); unset: such a bundle is unknown_key as before.
+  using DelegatedCheck = std::function<command::DelegatedCheck(
+      const v1::SignedDelegation&, std::string_view key_id,
+      std::span<const std::uint8_t> signed_bytes, std::span<const std::uint8_t> signature)>;
+  void set_delegated_check(DelegatedCheck check) { delegated_check_ = std::move(check); }
 
  private:
   // Why a bundle naming `named` and received on `topic` is not for this vehicle, if it is not.
@@ -141,6 +157,7 @@ class ZoneAuthority {
   std::string vehicle_id_;
   std::map<std::string, command::Ed25519PublicKey, std::less<>> keys_;
   std::optional<BundleInForce> in_force_;
+  DelegatedCheck delegated_check_;
 };
 
 // Serialized SignedZoneBundle over `bundle` serialized once.

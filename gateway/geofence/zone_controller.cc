@@ -8,7 +8,9 @@ ZoneController::ZoneController(ZoneControllerConfig config)
     : config_(std::move(config)),
       authority_(config_.trusted_keys, config_.limits, config_.vehicle_id),
       engine_(config_.engine),
-      enforcer_(config_.enforcer) {}
+      enforcer_(config_.enforcer) {
+  authority_.set_delegated_check(config_.delegated_check);  // issue 28
+}
 
 std::optional<BundleVerdict> ZoneController::restore(Micros now, std::string& error,
                                                      std::vector<ZoneEvent>& events) {

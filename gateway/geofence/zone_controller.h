@@ -51,6 +51,7 @@ struct ZoneControllerConfig {
   EnforcerConfig enforcer;
   BundleLimits limits;
   std::map<std::string, std::string> trusted_keys;  // [command.trusted_keys]
+  ZoneAuthority::DelegatedCheck delegated_check;     // issue 28: bundles of delegated keys
   std::string vehicle_id;             // [vehicle] id: bundles naming another are refused
   std::filesystem::path bundle_file;  // empty: not persisted
 };

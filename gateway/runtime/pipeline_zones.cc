@@ -129,6 +129,10 @@ void Pipeline::start_zones(const config::Config& config) {
   zc.enforcer.speed = &speed;
   zc.enforcer.assist_levels = enforcer_assist_levels(config.protocol);
   zc.trusted_keys = config.command.trusted_keys;
+  // Issue 28: a bundle signed under a root's delegation with the action "zones".
+  if (!config.command.root_keys.empty()) {
+    zc.delegated_check = commands_->delegated_document_check("zones");
+  }
   zc.vehicle_id = config.vehicle.id;  // a bundle signed for another vehicle is refused
   zc.bundle_file = g.bundle_file;
   zone_bundle_file_ = g.bundle_file;

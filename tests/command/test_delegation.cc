@@ -9,17 +9,19 @@
 
 #include "fleetgw/v1/command.pb.h"
 #include "fleetgw/v1/keys.pb.h"
+#include "fleetgw/v1/zones.pb.h"
 #include "gateway/command/delegation.h"
 #include "gateway/command/ed25519.h"
 #include "gateway/command/signing.h"
 #include "gateway/command/verifier.h"
+#include "gateway/geofence/zone_bundle.h"
 
 namespace fleetgw::command {
 namespace {
 
 using namespace std::chrono_literals;
 
-constexpr Micros kNow{1'800'000'000'000'000};  // 2027-01-15, synchronised
+constexpr Micros kDelegationNow{1'800'000'000'000'000};  // 2027-01-15, synchronised
 
 struct DelegationRig {
   Ed25519PrivateKey root = Ed25519PrivateKey::generate();
@@ -37,7 +39,8 @@ struct DelegationRig {
     return c;
   }
 
-  // A delegation of `delegate` as "console-1" for lock/unlock on bike-0042, valid around kNow.
+  // A delegation of `delegate` as "console-1" for lock/unlock on bike-0042, valid around
+  // kDelegationNow.
   v1::Delegation grant() const {
     v1::Delegation d;
     d.set_serial(7);
@@ -47,16 +50,17 @@ struct DelegationRig {
     d.add_actions("lock");
     d.add_actions("unlock");
     d.add_vehicle_ids("bike-0042");
-    d.set_not_before_us((kNow - 1h).count());
-    d.set_not_after_us((kNow + 1h).count());
-    d.set_issued_at_us((kNow - 2h).count());
+    d.set_not_before_us((kDelegationNow - 1h).count());
+    d.set_not_after_us((kDelegationNow + 1h).count());
+    d.set_issued_at_us((kDelegationNow - 2h).count());
     d.set_holder("console-berlin");
     return d;
   }
 
   v1::Command command(std::string_view action = "unlock", std::string_view vehicle = "bike-0042",
                       std::string id = "cmd-1") const {
-    auto c = make_command(vehicle, "seat", action, kNow - 1s, kNow + 60s, std::move(id));
+    auto c = make_command(vehicle, "seat", action, kDelegationNow - 1s, kDelegationNow + 60s,
+                          std::move(id));
     c->set_operator_id("alice");
     return *c;
   }
@@ -71,33 +75,33 @@ struct DelegationRig {
   }
 };
 
-VerifyResult run(const CommandVerifier& v, const std::string& payload, Micros now = kNow,
-                 bool synced = true) {
+VerifyResult verify_delegated(const CommandVerifier& v, const std::string& payload,
+                              Micros now = kDelegationNow, bool synced = true) {
   return v.verify({reinterpret_cast<const std::uint8_t*>(payload.data()), payload.size()}, now,
                   synced, nullptr);
 }
 
 // The rejection's "<code>: <detail>" as a result would carry it; "accepted" when verified.
-std::string outcome(const VerifyResult& r) {
+std::string outcome_of(const VerifyResult& r) {
   if (std::holds_alternative<VerifiedCommand>(r)) return "accepted";
   const auto& rej = std::get<Rejection>(r);
   return std::string(reject_reason_name(rej.reason)) + ": " + rej.detail;
 }
 
-std::string reason_of(const VerifyResult& r) {
+std::string reason_of_result(const VerifyResult& r) {
   if (std::holds_alternative<VerifiedCommand>(r)) return "accepted";
   return std::string(reject_reason_name(std::get<Rejection>(r).reason));
 }
 
-std::span<const std::uint8_t> bytes(const std::string& s) {
+std::span<const std::uint8_t> span_of(const std::string& s) {
   return {reinterpret_cast<const std::uint8_t*>(s.data()), s.size()};
 }
 
 TEST(Delegation, CommandUnderAValidDelegationIsAcceptedAndNamesItsOperator) {
   DelegationRig rig;
   CommandVerifier v(rig.config());
-  const auto r = run(v, rig.delegated(rig.grant(), rig.command()));
-  ASSERT_EQ(outcome(r), "accepted");
+  const auto r = verify_delegated(v, rig.delegated(rig.grant(), rig.command()));
+  ASSERT_EQ(outcome_of(r), "accepted");
   const auto& c = std::get<VerifiedCommand>(r);
   EXPECT_EQ(c.key_id, "console-1");
   EXPECT_EQ(c.operator_id, "alice");
@@ -110,36 +114,38 @@ TEST(Delegation, ExpiredDelegationIsRefused) {
   DelegationRig rig;
   CommandVerifier v(rig.config());
   auto d = rig.grant();
-  d.set_not_before_us((kNow - 2h).count());
-  d.set_not_after_us((kNow - 1h).count());
-  const auto r = run(v, rig.delegated(d, rig.command()));
-  EXPECT_EQ(reason_of(r), "delegation_expired") << outcome(r);
-  EXPECT_NE(outcome(r).find("expired at 2027-01-15T"), std::string::npos) << outcome(r);
+  d.set_not_before_us((kDelegationNow - 2h).count());
+  d.set_not_after_us((kDelegationNow - 1h).count());
+  const auto r = verify_delegated(v, rig.delegated(d, rig.command()));
+  EXPECT_EQ(reason_of_result(r), "delegation_expired") << outcome_of(r);
+  EXPECT_NE(outcome_of(r).find("expired at 2027-01-15T"), std::string::npos) << outcome_of(r);
   // The boundary: valid up to, not including, not_after.
-  d.set_not_after_us(kNow.count());
-  EXPECT_EQ(reason_of(run(v, rig.delegated(d, rig.command()))), "delegation_expired");
-  d.set_not_after_us(kNow.count() + 1);
-  EXPECT_EQ(reason_of(run(v, rig.delegated(d, rig.command()))), "accepted");
+  d.set_not_after_us(kDelegationNow.count());
+  EXPECT_EQ(reason_of_result(verify_delegated(v, rig.delegated(d, rig.command()))),
+            "delegation_expired");
+  d.set_not_after_us(kDelegationNow.count() + 1);
+  EXPECT_EQ(reason_of_result(verify_delegated(v, rig.delegated(d, rig.command()))), "accepted");
 }
 
 TEST(Delegation, DelegationNotYetValidIsRefused) {
   DelegationRig rig;
   CommandVerifier v(rig.config());
   auto d = rig.grant();
-  d.set_not_before_us((kNow + 10min).count());
-  d.set_not_after_us((kNow + 1h).count());
-  const auto r = run(v, rig.delegated(d, rig.command()));
-  EXPECT_EQ(reason_of(r), "delegation_not_yet_valid") << outcome(r);
-  d.set_not_before_us(kNow.count());  // valid from not_before on
-  EXPECT_EQ(reason_of(run(v, rig.delegated(d, rig.command()))), "accepted");
+  d.set_not_before_us((kDelegationNow + 10min).count());
+  d.set_not_after_us((kDelegationNow + 1h).count());
+  const auto r = verify_delegated(v, rig.delegated(d, rig.command()));
+  EXPECT_EQ(reason_of_result(r), "delegation_not_yet_valid") << outcome_of(r);
+  d.set_not_before_us(kDelegationNow.count());  // valid from not_before on
+  EXPECT_EQ(reason_of_result(verify_delegated(v, rig.delegated(d, rig.command()))), "accepted");
 }
 
 TEST(Delegation, UnsynchronisedClockCannotJudgeTheWindow) {
   DelegationRig rig;
   CommandVerifier v(rig.config());
-  const auto r = run(v, rig.delegated(rig.grant(), rig.command()), kNow, /*synced=*/false);
-  EXPECT_EQ(reason_of(r), "clock_unsynchronised") << outcome(r);
-  EXPECT_NE(outcome(r).find("window"), std::string::npos) << outcome(r);
+  const auto r = verify_delegated(v, rig.delegated(rig.grant(), rig.command()), kDelegationNow,
+                                  /*synced=*/false);
+  EXPECT_EQ(reason_of_result(r), "clock_unsynchronised") << outcome_of(r);
+  EXPECT_NE(outcome_of(r).find("window"), std::string::npos) << outcome_of(r);
 }
 
 TEST(Delegation, ActionOutsideTheScopeIsRefusedNamingTheAction) {
@@ -148,18 +154,21 @@ TEST(Delegation, ActionOutsideTheScopeIsRefusedNamingTheAction) {
   auto d = rig.grant();
   d.clear_actions();
   d.add_actions("lock");
-  const auto r = run(v, rig.delegated(d, rig.command("unlock")));
-  EXPECT_EQ(reason_of(r), "out_of_scope");
-  EXPECT_NE(outcome(r).find("action 'unlock'"), std::string::npos) << outcome(r);
-  EXPECT_EQ(reason_of(run(v, rig.delegated(d, rig.command("lock")))), "accepted");
+  const auto r = verify_delegated(v, rig.delegated(d, rig.command("unlock")));
+  EXPECT_EQ(reason_of_result(r), "out_of_scope");
+  EXPECT_NE(outcome_of(r).find("action 'unlock'"), std::string::npos) << outcome_of(r);
+  EXPECT_EQ(reason_of_result(verify_delegated(v, rig.delegated(d, rig.command("lock")))),
+            "accepted");
   // An MC action is judged by its own name.
-  auto mc = make_mc_command("bike-0042", "speed_limit", "15", kNow - 1s, kNow + 60s, "mc-1");
-  const auto m = run(v, rig.delegated(d, *mc));
-  EXPECT_EQ(reason_of(m), "out_of_scope");
-  EXPECT_NE(outcome(m).find("action 'speed_limit'"), std::string::npos) << outcome(m);
+  auto mc = make_mc_command("bike-0042", "speed_limit", "15", kDelegationNow - 1s,
+                            kDelegationNow + 60s, "mc-1");
+  const auto m = verify_delegated(v, rig.delegated(d, *mc));
+  EXPECT_EQ(reason_of_result(m), "out_of_scope");
+  EXPECT_NE(outcome_of(m).find("action 'speed_limit'"), std::string::npos) << outcome_of(m);
   // A name this gateway does not know never widens the scope.
   d.add_actions("everything");
-  EXPECT_EQ(reason_of(run(v, rig.delegated(d, rig.command("unlock")))), "out_of_scope");
+  EXPECT_EQ(reason_of_result(verify_delegated(v, rig.delegated(d, rig.command("unlock")))),
+            "out_of_scope");
 }
 
 TEST(Delegation, VehicleOutsideTheScopeIsRefusedNamingTheVehicle) {
@@ -168,9 +177,9 @@ TEST(Delegation, VehicleOutsideTheScopeIsRefusedNamingTheVehicle) {
   auto d = rig.grant();
   d.clear_vehicle_ids();
   d.add_vehicle_ids("bike-0001");
-  const auto r = run(v, rig.delegated(d, rig.command()));
-  EXPECT_EQ(reason_of(r), "out_of_scope");
-  EXPECT_NE(outcome(r).find("vehicle 'bike-0042'"), std::string::npos) << outcome(r);
+  const auto r = verify_delegated(v, rig.delegated(d, rig.command()));
+  EXPECT_EQ(reason_of_result(r), "out_of_scope");
+  EXPECT_NE(outcome_of(r).find("vehicle 'bike-0042'"), std::string::npos) << outcome_of(r);
 }
 
 TEST(Delegation, GroupScopeMatchesOnlyTheVehiclesGroups) {
@@ -179,16 +188,17 @@ TEST(Delegation, GroupScopeMatchesOnlyTheVehiclesGroups) {
   auto d = rig.grant();
   d.clear_vehicle_ids();
   d.add_groups("munich");
-  const auto wrong = run(v, rig.delegated(d, rig.command()));
-  EXPECT_EQ(reason_of(wrong), "out_of_scope");
-  EXPECT_NE(outcome(wrong).find("berlin-north"), std::string::npos) << outcome(wrong);
+  const auto wrong = verify_delegated(v, rig.delegated(d, rig.command()));
+  EXPECT_EQ(reason_of_result(wrong), "out_of_scope");
+  EXPECT_NE(outcome_of(wrong).find("berlin-north"), std::string::npos) << outcome_of(wrong);
   d.add_groups("berlin-north");
-  EXPECT_EQ(reason_of(run(v, rig.delegated(d, rig.command()))), "accepted");
+  EXPECT_EQ(reason_of_result(verify_delegated(v, rig.delegated(d, rig.command()))), "accepted");
   // The same delegation on a gateway without that group.
   auto config = rig.config();
   config.groups = {"ebikes"};
   CommandVerifier other(config);
-  EXPECT_EQ(reason_of(run(other, rig.delegated(d, rig.command()))), "out_of_scope");
+  EXPECT_EQ(reason_of_result(verify_delegated(other, rig.delegated(d, rig.command()))),
+            "out_of_scope");
 }
 
 TEST(Delegation, AllVehiclesCoversEveryVehicleButIsNeverImplied) {
@@ -197,27 +207,28 @@ TEST(Delegation, AllVehiclesCoversEveryVehicleButIsNeverImplied) {
   auto d = rig.grant();
   d.clear_vehicle_ids();
   d.set_all_vehicles(true);
-  EXPECT_EQ(reason_of(run(v, rig.delegated(d, rig.command()))), "accepted");
+  EXPECT_EQ(reason_of_result(verify_delegated(v, rig.delegated(d, rig.command()))), "accepted");
   d.set_all_vehicles(false);  // no scope at all: not "every vehicle"
-  const auto r = run(v, rig.delegated(d, rig.command()));
-  EXPECT_EQ(reason_of(r), "delegation_invalid");
-  EXPECT_NE(outcome(r).find("names no vehicle"), std::string::npos) << outcome(r);
+  const auto r = verify_delegated(v, rig.delegated(d, rig.command()));
+  EXPECT_EQ(reason_of_result(r), "delegation_invalid");
+  EXPECT_NE(outcome_of(r).find("names no vehicle"), std::string::npos) << outcome_of(r);
 }
 
 TEST(Delegation, RevokedSerialIsRefused) {
   DelegationRig rig;
   CommandVerifier v(rig.config());
   const auto payload = rig.delegated(rig.grant(), rig.command());
-  ASSERT_EQ(reason_of(run(v, payload)), "accepted");
+  ASSERT_EQ(reason_of_result(verify_delegated(v, payload)), "accepted");
   v1::RevocationList list;
   list.set_version(1);
-  list.set_issued_at_us(kNow.count());
+  list.set_issued_at_us(kDelegationNow.count());
   list.add_revoked_serials(7);
   ASSERT_TRUE(
-      v.offer_revocations(bytes(sign_revocation_list(list, rig.root, "root-1"))).accepted());
-  const auto r = run(v, payload);
-  EXPECT_EQ(reason_of(r), "revoked");
-  EXPECT_NE(outcome(r).find("delegation 7 of root 'root-1'"), std::string::npos) << outcome(r);
+      v.offer_revocations(span_of(sign_revocation_list(list, rig.root, "root-1"))).accepted());
+  const auto r = verify_delegated(v, payload);
+  EXPECT_EQ(reason_of_result(r), "revoked");
+  EXPECT_NE(outcome_of(r).find("delegation 7 of root 'root-1'"), std::string::npos)
+      << outcome_of(r);
   // Not authentic-and-journaled: bound to the payload, and it still names the operator.
   const auto& rej = std::get<Rejection>(r);
   EXPECT_FALSE(rej.authenticated);
@@ -226,7 +237,7 @@ TEST(Delegation, RevokedSerialIsRefused) {
   // Another serial of the same root is untouched.
   auto d = rig.grant();
   d.set_serial(8);
-  EXPECT_EQ(reason_of(run(v, rig.delegated(d, rig.command()))), "accepted");
+  EXPECT_EQ(reason_of_result(verify_delegated(v, rig.delegated(d, rig.command()))), "accepted");
 }
 
 TEST(Delegation, RevokedKeyIdIsRefusedWhateverItsDelegationAndAsATrustedKey) {
@@ -234,18 +245,19 @@ TEST(Delegation, RevokedKeyIdIsRefusedWhateverItsDelegationAndAsATrustedKey) {
   CommandVerifier v(rig.config());
   v1::RevocationList list;
   list.set_version(3);
-  list.set_issued_at_us(kNow.count());
+  list.set_issued_at_us(kDelegationNow.count());
   list.add_revoked_key_ids("console-1");
   list.add_revoked_key_ids("backend-1");
   ASSERT_TRUE(
-      v.offer_revocations(bytes(sign_revocation_list(list, rig.root, "root-1"))).accepted());
+      v.offer_revocations(span_of(sign_revocation_list(list, rig.root, "root-1"))).accepted());
   auto d = rig.grant();
   d.set_serial(99);  // a fresh delegation of the revoked key
-  const auto r = run(v, rig.delegated(d, rig.command()));
-  EXPECT_EQ(reason_of(r), "revoked");
-  EXPECT_NE(outcome(r).find("key 'console-1'"), std::string::npos) << outcome(r);
-  const auto t = run(v, DelegationRig::payload(rig.command(), rig.trusted, "backend-1", {}));
-  EXPECT_EQ(reason_of(t), "revoked") << outcome(t);
+  const auto r = verify_delegated(v, rig.delegated(d, rig.command()));
+  EXPECT_EQ(reason_of_result(r), "revoked");
+  EXPECT_NE(outcome_of(r).find("key 'console-1'"), std::string::npos) << outcome_of(r);
+  const auto t =
+      verify_delegated(v, DelegationRig::payload(rig.command(), rig.trusted, "backend-1", {}));
+  EXPECT_EQ(reason_of_result(t), "revoked") << outcome_of(t);
 }
 
 TEST(Delegation, ForgedRootSignatureIsInvalid) {
@@ -253,9 +265,10 @@ TEST(Delegation, ForgedRootSignatureIsInvalid) {
   CommandVerifier v(rig.config());
   // Signed by another key that claims to be root-1.
   const auto forged = sign_delegation(rig.grant(), rig.other_root, "root-1");
-  const auto r = run(v, DelegationRig::payload(rig.command(), rig.delegate, "console-1", forged));
-  EXPECT_EQ(reason_of(r), "delegation_invalid");
-  EXPECT_NE(outcome(r).find("root signature"), std::string::npos) << outcome(r);
+  const auto r =
+      verify_delegated(v, DelegationRig::payload(rig.command(), rig.delegate, "console-1", forged));
+  EXPECT_EQ(reason_of_result(r), "delegation_invalid");
+  EXPECT_NE(outcome_of(r).find("root signature"), std::string::npos) << outcome_of(r);
   EXPECT_FALSE(std::get<Rejection>(r).authenticated);
   // A genuine delegation with one byte of it changed (a widened scope, say).
   v1::SignedDelegation sd;
@@ -263,54 +276,59 @@ TEST(Delegation, ForgedRootSignatureIsInvalid) {
   std::string bytes = sd.delegation();
   bytes.back() ^= 1;
   sd.set_delegation(bytes);
-  const auto t = run(
+  const auto t = verify_delegated(
       v, DelegationRig::payload(rig.command(), rig.delegate, "console-1", sd.SerializeAsString()));
-  EXPECT_EQ(reason_of(t), "delegation_invalid") << outcome(t);
+  EXPECT_EQ(reason_of_result(t), "delegation_invalid") << outcome_of(t);
 }
 
 TEST(Delegation, DelegationForAnotherKeyIdIsInvalid) {
   DelegationRig rig;
   CommandVerifier v(rig.config());
   // console-2 presents console-1's delegation (and console-1's public key does not sign for it).
-  const auto r = run(v, DelegationRig::payload(rig.command(), rig.delegate, "console-2",
-                                               sign_delegation(rig.grant(), rig.root, "root-1")));
-  EXPECT_EQ(reason_of(r), "delegation_invalid");
-  EXPECT_NE(outcome(r).find("is for key 'console-1', not for the signing key 'console-2'"),
+  const auto r =
+      verify_delegated(v, DelegationRig::payload(rig.command(), rig.delegate, "console-2",
+                                                 sign_delegation(rig.grant(), rig.root, "root-1")));
+  EXPECT_EQ(reason_of_result(r), "delegation_invalid");
+  EXPECT_NE(outcome_of(r).find("is for key 'console-1', not for the signing key 'console-2'"),
             std::string::npos)
-      << outcome(r);
+      << outcome_of(r);
 }
 
 TEST(Delegation, CommandNotSignedByTheDelegatedKeyIsSignatureInvalid) {
   DelegationRig rig;
   CommandVerifier v(rig.config());
   const auto other = Ed25519PrivateKey::generate();
-  const auto r = run(v, DelegationRig::payload(rig.command(), other, "console-1",
-                                               sign_delegation(rig.grant(), rig.root, "root-1")));
-  EXPECT_EQ(reason_of(r), "signature_invalid");
-  EXPECT_NE(outcome(r).find("delegated key 'console-1'"), std::string::npos) << outcome(r);
+  const auto r =
+      verify_delegated(v, DelegationRig::payload(rig.command(), other, "console-1",
+                                                 sign_delegation(rig.grant(), rig.root, "root-1")));
+  EXPECT_EQ(reason_of_result(r), "signature_invalid");
+  EXPECT_NE(outcome_of(r).find("delegated key 'console-1'"), std::string::npos) << outcome_of(r);
 }
 
 TEST(Delegation, UnknownRootIsInvalid) {
   DelegationRig rig;
   CommandVerifier v(rig.config());
-  const auto r =
-      run(v, DelegationRig::payload(rig.command(), rig.delegate, "console-1",
-                                    sign_delegation(rig.grant(), rig.other_root, "root-9")));
-  EXPECT_EQ(reason_of(r), "delegation_invalid");
-  EXPECT_NE(outcome(r).find("root key 'root-9' is not in [command.root_keys]"), std::string::npos)
-      << outcome(r);
+  const auto r = verify_delegated(
+      v, DelegationRig::payload(rig.command(), rig.delegate, "console-1",
+                                sign_delegation(rig.grant(), rig.other_root, "root-9")));
+  EXPECT_EQ(reason_of_result(r), "delegation_invalid");
+  EXPECT_NE(outcome_of(r).find("root key 'root-9' is not in [command.root_keys]"),
+            std::string::npos)
+      << outcome_of(r);
   // Without any root configured (an old configuration), the same answer.
   auto config = rig.config();
   config.root_keys.clear();
   CommandVerifier old(config);
-  EXPECT_EQ(reason_of(run(old, rig.delegated(rig.grant(), rig.command()))), "delegation_invalid");
+  EXPECT_EQ(reason_of_result(verify_delegated(old, rig.delegated(rig.grant(), rig.command()))),
+            "delegation_invalid");
 }
 
 TEST(Delegation, UnknownKeyWithoutDelegationIsStillUnknownKey) {
   DelegationRig rig;
   CommandVerifier v(rig.config());
-  const auto r = run(v, DelegationRig::payload(rig.command(), rig.delegate, "console-1", {}));
-  EXPECT_EQ(outcome(r), "unknown_key: key id 'console-1' is not trusted");
+  const auto r =
+      verify_delegated(v, DelegationRig::payload(rig.command(), rig.delegate, "console-1", {}));
+  EXPECT_EQ(outcome_of(r), "unknown_key: key id 'console-1' is not trusted");
 }
 
 TEST(Delegation, TrustedKeysKeepTheirUnscopedMeaning) {
@@ -321,8 +339,8 @@ TEST(Delegation, TrustedKeysKeepTheirUnscopedMeaning) {
   CommandVerifier v(config);
   auto c = rig.command("unlock");
   c.clear_operator_id();
-  const auto r = run(v, DelegationRig::payload(c, rig.trusted, "backend-1", {}));
-  ASSERT_EQ(outcome(r), "accepted");
+  const auto r = verify_delegated(v, DelegationRig::payload(c, rig.trusted, "backend-1", {}));
+  ASSERT_EQ(outcome_of(r), "accepted");
   EXPECT_TRUE(std::get<VerifiedCommand>(r).operator_id.empty());
   EXPECT_FALSE(std::get<VerifiedCommand>(r).delegation.has_value());
 }
@@ -332,27 +350,34 @@ TEST(Delegation, ChecksRunInTheDocumentedOrder) {
   CommandVerifier v(rig.config());
   v1::RevocationList list;
   list.set_version(1);
-  list.set_issued_at_us(kNow.count());
+  list.set_issued_at_us(kDelegationNow.count());
   list.add_revoked_serials(7);
   ASSERT_TRUE(
-      v.offer_revocations(bytes(sign_revocation_list(list, rig.root, "root-1"))).accepted());
+      v.offer_revocations(span_of(sign_revocation_list(list, rig.root, "root-1"))).accepted());
   // Revoked AND out of scope AND expired, on an unsynchronised clock: revoked first.
   auto d = rig.grant();
   d.clear_actions();
   d.add_actions("lock");
-  d.set_not_before_us((kNow - 3h).count());
-  d.set_not_after_us((kNow - 2h).count());
-  EXPECT_EQ(reason_of(run(v, rig.delegated(d, rig.command("unlock")), kNow, false)), "revoked");
+  d.set_not_before_us((kDelegationNow - 3h).count());
+  d.set_not_after_us((kDelegationNow - 2h).count());
+  EXPECT_EQ(reason_of_result(verify_delegated(v, rig.delegated(d, rig.command("unlock")),
+                                              kDelegationNow, false)),
+            "revoked");
   // Not revoked: out of scope before the clock.
   d.set_serial(8);
-  EXPECT_EQ(reason_of(run(v, rig.delegated(d, rig.command("unlock")), kNow, false)),
+  EXPECT_EQ(reason_of_result(verify_delegated(v, rig.delegated(d, rig.command("unlock")),
+                                              kDelegationNow, false)),
             "out_of_scope");
   // In scope: the clock, then the window, then the command's own expiry.
-  EXPECT_EQ(reason_of(run(v, rig.delegated(d, rig.command("lock")), kNow, false)),
+  EXPECT_EQ(reason_of_result(
+                verify_delegated(v, rig.delegated(d, rig.command("lock")), kDelegationNow, false)),
             "clock_unsynchronised");
-  EXPECT_EQ(reason_of(run(v, rig.delegated(d, rig.command("lock")))), "delegation_expired");
+  EXPECT_EQ(reason_of_result(verify_delegated(v, rig.delegated(d, rig.command("lock")))),
+            "delegation_expired");
   // wrong_vehicle (check 4) comes before all of them.
-  EXPECT_EQ(reason_of(run(v, rig.delegated(d, rig.command("lock", "bike-0001")))), "wrong_vehicle");
+  EXPECT_EQ(
+      reason_of_result(verify_delegated(v, rig.delegated(d, rig.command("lock", "bike-0001")))),
+      "wrong_vehicle");
 }
 
 TEST(Delegation, OperatorIdIsEscapedAndCut) {
@@ -360,8 +385,8 @@ TEST(Delegation, OperatorIdIsEscapedAndCut) {
   CommandVerifier v(rig.config());
   auto c = rig.command();
   c.set_operator_id("mallory\n[ERROR] forged line " + std::string(100, 'x'));
-  const auto r = run(v, rig.delegated(rig.grant(), c));
-  ASSERT_EQ(outcome(r), "accepted");
+  const auto r = verify_delegated(v, rig.delegated(rig.grant(), c));
+  ASSERT_EQ(outcome_of(r), "accepted");
   const auto& op = std::get<VerifiedCommand>(r).operator_id;
   EXPECT_EQ(op.find('\n'), std::string::npos);
   EXPECT_LE(op.size(), 64u);
@@ -375,27 +400,29 @@ TEST(RevocationList, AcceptedOnlyFromARootWithAGreaterVersion) {
                           std::string_view root_id, std::uint64_t serial = 7) {
     v1::RevocationList list;
     list.set_version(version);
-    list.set_issued_at_us(kNow.count());
+    list.set_issued_at_us(kDelegationNow.count());
     list.add_revoked_serials(serial);
     return sign_revocation_list(list, key, root_id);
   };
-  const auto forged = v.offer_revocations(bytes(list_payload(5, rig.other_root, "root-1")));
+  const auto forged = v.offer_revocations(span_of(list_payload(5, rig.other_root, "root-1")));
   EXPECT_EQ(forged.reason, "signature_invalid");
-  EXPECT_EQ(v.offer_revocations(bytes(list_payload(5, rig.other_root, "root-9"))).reason,
+  EXPECT_EQ(v.offer_revocations(span_of(list_payload(5, rig.other_root, "root-9"))).reason,
             "unknown_key");
-  EXPECT_EQ(v.offer_revocations(bytes(std::string("junk"))).reason, "malformed");
+  EXPECT_EQ(v.offer_revocations(span_of(std::string("junk"))).reason, "malformed");
   EXPECT_EQ(v.revocations().version(), 0u);
 
   const auto v2 = list_payload(2, rig.root, "root-1");
-  EXPECT_TRUE(v.offer_revocations(bytes(v2)).accepted());
-  EXPECT_EQ(v.offer_revocations(bytes(v2)).outcome, RevocationOutcome::kAlreadyInForce);
-  EXPECT_EQ(v.offer_revocations(bytes(list_payload(1, rig.root, "root-1", 8))).reason, "not_newer");
-  EXPECT_EQ(v.offer_revocations(bytes(list_payload(2, rig.root, "root-1", 8))).reason,
+  EXPECT_TRUE(v.offer_revocations(span_of(v2)).accepted());
+  EXPECT_EQ(v.offer_revocations(span_of(v2)).outcome, RevocationOutcome::kAlreadyInForce);
+  EXPECT_EQ(v.offer_revocations(span_of(list_payload(1, rig.root, "root-1", 8))).reason,
+            "not_newer");
+  EXPECT_EQ(v.offer_revocations(span_of(list_payload(2, rig.root, "root-1", 8))).reason,
             "version_conflict");
   EXPECT_EQ(v.revocations().version(), 2u);
   // A newer list replaces the old one: serial 7 is no longer revoked, 8 is.
-  EXPECT_TRUE(v.offer_revocations(bytes(list_payload(3, rig.root, "root-1", 8))).accepted());
-  EXPECT_EQ(reason_of(run(v, rig.delegated(rig.grant(), rig.command()))), "accepted");
+  EXPECT_TRUE(v.offer_revocations(span_of(list_payload(3, rig.root, "root-1", 8))).accepted());
+  EXPECT_EQ(reason_of_result(verify_delegated(v, rig.delegated(rig.grant(), rig.command()))),
+            "accepted");
 
   // Persisted and restored into a fresh verifier (a restart): the same list in force.
   CommandVerifier restarted(rig.config());
@@ -403,11 +430,66 @@ TEST(RevocationList, AcceptedOnlyFromARootWithAGreaterVersion) {
   EXPECT_EQ(restarted.revocations().version(), 3u);
   auto d = rig.grant();
   d.set_serial(8);
-  EXPECT_EQ(reason_of(run(restarted, rig.delegated(d, rig.command()))), "revoked");
+  EXPECT_EQ(reason_of_result(verify_delegated(restarted, rig.delegated(d, rig.command()))),
+            "revoked");
   // A tampered store restores nothing.
   CommandVerifier tampered(rig.config());
   EXPECT_EQ(tampered.restore_revocations("AAAA\n").size(), 1u);
   EXPECT_EQ(tampered.revocations().version(), 0u);
+}
+
+}  // namespace
+}  // namespace fleetgw::command
+
+// Zone bundles signed under a delegation (issue 28): the same rules, with the action "zones".
+namespace fleetgw::command {
+namespace {
+
+std::string delegated_bundle(const DelegationRig& rig, const v1::Delegation& d) {
+  v1::ZoneBundle b;
+  b.set_version(1);
+  b.set_issued_at_us(kDelegationNow.count());
+  auto* z = b.add_zones();
+  z->set_id("area");
+  z->set_kind(v1::ZONE_KIND_OPERATING_AREA);
+  auto* ring = z->add_rings();
+  for (const auto& [lat, lon] : {std::pair{525000000, 134000000}, std::pair{525100000, 134000000},
+                                 std::pair{525100000, 134100000}}) {
+    ring->add_lat_e7(lat);
+    ring->add_lon_e7(lon);
+  }
+  v1::SignedZoneBundle s;
+  s.ParseFromString(geofence::sign_zone_bundle(b, rig.delegate, d.key_id()));
+  s.mutable_delegation()->ParseFromString(sign_delegation(d, rig.root, "root-1"));
+  return s.SerializeAsString();
+}
+
+TEST(DelegationZones, BundleNeedsTheZonesActionAndAValidDelegation) {
+  DelegationRig rig;
+  const RootKeys roots(rig.config().root_keys);
+  const Revocations none;
+  const VehicleIdentity me{"bike-0042", {"berlin-north"}};
+  geofence::ZoneAuthority authority({}, {}, "bike-0042");
+  authority.set_delegated_check([&](const v1::SignedDelegation& sd, std::string_view key_id,
+                                    std::span<const std::uint8_t> bytes,
+                                    std::span<const std::uint8_t> sig) {
+    return check_delegated(sd, key_id, bytes, sig, "zones", me, kDelegationNow, true, roots, none);
+  });
+  auto d = rig.grant();  // lock, unlock: no "zones"
+  const auto refused = authority.offer(delegated_bundle(rig, d));
+  EXPECT_EQ(geofence::bundle_refusal_name(refused.reason), "out_of_scope") << refused.detail;
+  d.add_actions("zones");
+  d.set_not_after_us((kDelegationNow - 1s).count());
+  d.set_not_before_us((kDelegationNow - 2h).count());
+  const auto expired = authority.offer(delegated_bundle(rig, d));
+  EXPECT_EQ(geofence::bundle_refusal_name(expired.reason), "delegation_expired") << expired.detail;
+  d.set_not_after_us((kDelegationNow + 1h).count());
+  const auto ok = authority.offer(delegated_bundle(rig, d));
+  EXPECT_TRUE(ok.accepted()) << geofence::bundle_refusal_name(ok.reason) << ": " << ok.detail;
+  // Without the hook (an old gateway): unknown_key, as before.
+  geofence::ZoneAuthority old({}, {}, "bike-0042");
+  EXPECT_EQ(geofence::bundle_refusal_name(old.offer(delegated_bundle(rig, d)).reason),
+            "unknown_key");
 }
 
 }  // namespace
