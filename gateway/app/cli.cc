@@ -366,6 +366,8 @@ int run_cli(int argc, char** argv) {
   zones_sign_cmd->add_option("--out", zones_sign.out, "signed bundle file to write")->required();
   zones_sign_cmd->add_option("--vehicle", zones_sign.vehicle_id,
                              "sign for this vehicle only (default: fleet-wide)");
+  zones_sign_cmd->add_option("--delegation", zones_sign.delegation,
+                             "the key's signed delegation (fleetgw keys delegate, action zones)");
   zones_sign_cmd->add_option("--mds-geography", zones_sign.mds_geography,
                              "the input is an MDS 2.0 Policy (speed rules); this its Geography");
   auto* zones_check_cmd = zones_cmd->add_subcommand(

@@ -93,7 +93,19 @@ int run_zones_sign(const ZonesSignOptions& options, std::ostream& out, std::ostr
     const auto key = command::Ed25519PrivateKey::load_pem(options.key_pem);
     auto& b = std::get<v1::ZoneBundle>(bundle);
     b.set_vehicle_id(options.vehicle_id);
-    const std::string payload = sign_zone_bundle(b, key, key_id);
+    std::string payload = sign_zone_bundle(b, key, key_id);
+    if (!options.delegation.empty()) {
+      // Issue 28: outside the signed bytes, as the root signed it.
+      const auto delegation = read_zone_file(options.delegation, error, 64 * 1024);
+      v1::SignedZoneBundle s;
+      s.ParseFromString(payload);
+      if (!delegation || !s.mutable_delegation()->ParseFromString(*delegation)) {
+        err << "zones sign: --delegation " << options.delegation.string()
+            << ": not a signed delegation " << error << '\n';
+        return 1;
+      }
+      payload = s.SerializeAsString();
+    }
     if (!write_zone_file(options.out, payload, error)) {
       err << "zones sign: " << error << '\n';
       return 1;

@@ -54,6 +54,9 @@ struct ZonesSignOptions {
   std::string vehicle_id;  // empty: a fleet-wide bundle; else only that vehicle accepts it
   // Issue 27: set, `geojson` is an MDS 2.0 Policy and this its Geography (mds_policy.h).
   std::filesystem::path mds_geography{};
+  // Issue 28: the signing key's SignedDelegation (fleetgw keys delegate, action "zones"), sent in
+  // SignedZoneBundle.delegation for a key the gateways know only through their root keys.
+  std::filesystem::path delegation{};
 };
 int run_zones_sign(const ZonesSignOptions& options, std::ostream& out, std::ostream& err);
 
