@@ -23,9 +23,17 @@ try {
   let bytes = 0;
   cdp.on('Network.loadingFinished', (e) => { bytes += e.encodedDataLength; });
   const t0 = Date.now();
-  await page.goto(`${spec.url}/#map`, { waitUntil: 'domcontentloaded' });
-  await page.waitForFunction((n) => document.querySelectorAll('#map path[data-vehicle]').length >= n,
-    { polling: 100 }, spec.vehicles);
+  // A new document (the query makes it one; a hash change alone would not reload).
+  await page.goto(`${spec.url}/?first-load#map`, { waitUntil: 'domcontentloaded' });
+  try {
+    await page.waitForFunction((n) => document.querySelectorAll('#map path[data-vehicle]').length >= n,
+      { polling: 100 }, spec.vehicles);
+  } catch (e) {
+    const drawn = await page.evaluate(() => ({ markers: document.querySelectorAll('#map path[data-vehicle]').length,
+      paths: document.querySelectorAll('#map path').length, status: document.getElementById('status-line').textContent,
+      login: !document.getElementById('login-view').hidden }));
+    throw new Error(`${e.message}: ${JSON.stringify(drawn)}`);
+  }
   const ms = Date.now() - t0;
   console.log(JSON.stringify({ vehicles: spec.vehicles, map_drawn_ms: ms, bytes }));
 } finally {
