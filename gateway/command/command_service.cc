@@ -129,12 +129,21 @@ CommandService::Impl::Impl(CommandServiceConfig c, CommandContext ctx)
       for (const auto& problem : verifier.restore_revocations(*stored)) {
         spdlog::error("command: {}; not in force", problem);
       }
+      if (verifier.revocations().unknown()) {
+        spdlog::error("command: delegated keys are refused until a root's revocation list is "
+                      "received (the stored lists could not be restored)");
+      }
       if (const auto v = verifier.revocations().version()) {
         spdlog::info("command: revocation list version {} restored", v);
       }
     }
   } catch (const std::exception& e) {
-    spdlog::error("command: reading the stored revocation lists failed: {}", e.what());
+    // Fail closed: a revoked key must not come back because the store could not be read.
+    spdlog::error(
+        "command: reading the stored revocation lists failed: {}; delegated keys are refused "
+        "until a root's list is received",
+        e.what());
+    verifier.revocations_unreadable(e.what());
   }
 }
 

@@ -353,11 +353,16 @@ RevocationVerdict Revocations::offer(std::span<const std::uint8_t> payload, cons
              "' in force: " + std::to_string(e.serials.size()) + " serial(s), " +
              std::to_string(e.key_ids.size()) + " key id(s) revoked";
   lists_[sl.root_key_id()] = std::move(e);
+  unknown_.reset();  // a root's list again: the fail-closed state ends
   return v;
 }
 
 std::optional<std::string> Revocations::revoked(std::string_view root_key_id, std::uint64_t serial,
                                                 std::string_view key_id) const {
+  if (unknown_ && !root_key_id.empty()) {
+    return "the stored revocation lists could not be restored (" + *unknown_ +
+           "): delegated keys are refused until a root's list is received";
+  }
   if (!root_key_id.empty()) {
     if (const auto it = lists_.find(root_key_id);
         it != lists_.end() && it->second.serials.count(serial) != 0) {
@@ -402,12 +407,16 @@ std::vector<std::string> Revocations::restore(std::string_view text, const RootK
     const auto raw = decode_base64(line);
     if (!raw) {
       problems.push_back("stored list " + std::to_string(line_no) + ": not base64");
+      unknown_ = problems.back();
       continue;
     }
     const auto v = offer(*raw, roots);
     if (v.outcome == RevocationOutcome::kRefused) {
       problems.push_back("stored list " + std::to_string(line_no) + ": " + v.reason + ": " +
                          v.detail);
+      // A root removed from the configuration takes its list with it; anything else means the
+      // stored text is not what this gateway wrote.
+      if (v.reason != "unknown_key") unknown_ = problems.back();
     }
   }
   return problems;

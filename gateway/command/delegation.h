@@ -144,10 +144,20 @@ class Revocations {
   // The accepted lists as one text (one base64 SignedRevocationList per line).
   std::string persisted() const;
   // Offers every list of a persisted() text again; returns the problems (one per refused line).
+  // A stored line that is not a list a root of today's configuration signed (not base64,
+  // malformed, a broken signature: the store was damaged or tampered with) leaves the lists
+  // UNKNOWN; a line of a root no longer configured is only dropped.
   std::vector<std::string> restore(std::string_view text, const RootKeys& roots);
+  // The stored lists could not be read at all (an I/O error): unknown as well.
+  void mark_unknown(std::string why) { unknown_ = std::move(why); }
+  // Fail closed: while the lists are unknown, every DELEGATED key counts as revoked (trusted
+  // keys of the configuration keep working, so an operator is never locked out), until a
+  // root's list is accepted again (the broker's retained copy arrives at the next connect).
+  const std::optional<std::string>& unknown() const { return unknown_; }
 
  private:
   std::map<std::string, RevocationEntry, std::less<>> lists_;  // by root key id
+  std::optional<std::string> unknown_;  // why the stored lists could not be restored
 };
 
 // The delegation's scope, window and revocation judged for `action` on `vehicle` at `now`

@@ -230,6 +230,8 @@ class CommandVerifier {
   // Revocation lists (delegation.h Revocations), judged against the root keys.
   RevocationVerdict offer_revocations(std::span<const std::uint8_t> payload);
   std::vector<std::string> restore_revocations(std::string_view persisted);
+  // The stored lists could not be read: delegated keys are refused until a list arrives.
+  void revocations_unreadable(std::string why) { revocations_.mark_unknown(std::move(why)); }
   const Revocations& revocations() const { return revocations_; }
   const RootKeys& root_keys() const { return roots_; }
   const VehicleIdentity& identity() const { return identity_; }

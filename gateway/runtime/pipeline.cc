@@ -128,6 +128,12 @@ Pipeline::Pipeline(asio::io_context& io, const config::Config& config, BusTransp
         revocations_topic_ = uplink::Topics(config.mqtt.topic_prefix, config.vehicle.id).revocations;
         uplink_config.zone_topics.push_back(revocations_topic_);
       }
+      // Every retained document topic (zones fleet-wide and per vehicle, campaigns, the
+      // revocation list) delivers its message at each connect, in one burst: the queue holds one
+      // per topic and one live update more, so the burst never drops a document. The memory
+      // bound stays (topics + 1) x the largest accepted payload.
+      uplink_config.max_queued_zone_bundles = std::max(uplink_config.max_queued_zone_bundles,
+                                                       uplink_config.zone_topics.size() + 1);
       uplink_ = std::make_unique<uplink::Uplink>(std::move(uplink_config), outbox_);
     } catch (const std::exception& e) {
       throw PipelineError(std::string("invalid [mqtt] configuration: ") + e.what());

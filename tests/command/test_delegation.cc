@@ -10,6 +10,7 @@
 #include "fleetgw/v1/command.pb.h"
 #include "fleetgw/v1/keys.pb.h"
 #include "fleetgw/v1/zones.pb.h"
+#include "gateway/command/base64.h"
 #include "gateway/command/delegation.h"
 #include "gateway/command/ed25519.h"
 #include "gateway/command/signing.h"
@@ -432,10 +433,25 @@ TEST(RevocationList, AcceptedOnlyFromARootWithAGreaterVersion) {
   d.set_serial(8);
   EXPECT_EQ(reason_of_result(verify_delegated(restarted, rig.delegated(d, rig.command()))),
             "revoked");
-  // A tampered store restores nothing.
+  // A tampered store restores nothing, and fails closed: a revoked key must not come back
+  // because its list was damaged. Delegated keys are refused until a root's list arrives.
   CommandVerifier tampered(rig.config());
   EXPECT_EQ(tampered.restore_revocations("AAAA\n").size(), 1u);
   EXPECT_EQ(tampered.revocations().version(), 0u);
+  EXPECT_EQ(reason_of_result(verify_delegated(tampered, rig.delegated(rig.grant(), rig.command()))),
+            "revoked");
+  EXPECT_TRUE(
+      tampered.offer_revocations(span_of(list_payload(4, rig.root, "root-1", 9))).accepted());
+  EXPECT_EQ(reason_of_result(verify_delegated(tampered, rig.delegated(rig.grant(), rig.command()))),
+            "accepted");
+  // A list of a root that is no longer configured is only dropped: nothing else is unknown.
+  CommandVerifier other_roots(rig.config());
+  const auto foreign = list_payload(1, rig.other_root, "root-9");
+  EXPECT_EQ(other_roots.restore_revocations(encode_base64(span_of(foreign)) + "\n").size(), 1u);
+  EXPECT_EQ(other_roots.revocations().unknown(), std::nullopt);
+  EXPECT_EQ(
+      reason_of_result(verify_delegated(other_roots, rig.delegated(rig.grant(), rig.command()))),
+      "accepted");
 }
 
 }  // namespace
