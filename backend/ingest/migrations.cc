@@ -260,6 +260,8 @@ CREATE INDEX fault_events_by_kind ON fault_events (kind, vehicle_id);
 CREATE INDEX device_info_latest ON device_info (vehicle_id, created_at_us DESC);
 )sql";
 
+// Versions 5 and 6 were never used (reserved for work that went into the console's own schema);
+// a database is migrated past every version above its highest, so the next one is 8, never 5.
 const Migration kMigrations[] = {
     {1, "records, latest state, sequence ranges, rejected messages", kV1},
     {2, "zone events, status publish refusals", kV2},
