@@ -48,6 +48,18 @@ std::string_view campaign_refusal_name(CampaignRefusal reason) {
       return "unknown_key";
     case CampaignRefusal::kBadSignature:
       return "signature_invalid";
+    case CampaignRefusal::kDelegationInvalid:
+      return "delegation_invalid";
+    case CampaignRefusal::kRevoked:
+      return "revoked";
+    case CampaignRefusal::kOutOfScope:
+      return "out_of_scope";
+    case CampaignRefusal::kClockUnsynchronised:
+      return "clock_unsynchronised";
+    case CampaignRefusal::kDelegationNotYetValid:
+      return "delegation_not_yet_valid";
+    case CampaignRefusal::kDelegationExpired:
+      return "delegation_expired";
     case CampaignRefusal::kInvalid:
       return "invalid_campaign";
     case CampaignRefusal::kNotForThisVehicle:
@@ -100,14 +112,35 @@ CampaignVerdict CampaignAuthority::offer(std::span<const std::uint8_t> payload, 
     return refused(CampaignRefusal::kMalformed, "no campaign, signature or key_id");
   }
   const auto key = keys_.find(signed_campaign.key_id());
-  if (key == keys_.end()) {
+  const auto signed_bytes = campaign_bytes_of(signed_campaign.campaign());
+  const auto signature = campaign_bytes_of(signed_campaign.signature());
+  if (key == keys_.end() && signed_campaign.has_delegation() && delegated_check_) {
+    // Issue 28: a delegated key, judged like a command's (docs/commands.md "Delegations").
+    const auto check = delegated_check_(signed_campaign.delegation(), signed_campaign.key_id(),
+                                        signed_bytes, signature);
+    if (check.signature_invalid) {
+      return refused(CampaignRefusal::kBadSignature,
+                     "not a signature of the campaign by the delegated key '" +
+                         common::untrusted_excerpt(signed_campaign.key_id()) + "'");
+    }
+    if (check.problem) {
+      static constexpr CampaignRefusal kByReason[] = {CampaignRefusal::kDelegationInvalid,
+                                                      CampaignRefusal::kRevoked,
+                                                      CampaignRefusal::kOutOfScope,
+                                                      CampaignRefusal::kClockUnsynchronised,
+                                                      CampaignRefusal::kDelegationNotYetValid,
+                                                      CampaignRefusal::kDelegationExpired};
+      return refused(kByReason[static_cast<std::size_t>(check.problem->reason)],
+                     check.problem->detail);
+    }
+  } else if (key == keys_.end()) {
     return refused(CampaignRefusal::kUnknownKey,
                    "key '" + common::untrusted_excerpt(signed_campaign.key_id()) +
                        "' is not in [command.trusted_keys]" +
-                       (signed_campaign.has_delegation() ? " (delegated keys: not yet)" : ""));
-  }
-  if (!key->second.verify(campaign_bytes_of(signed_campaign.campaign()),
-                          campaign_bytes_of(signed_campaign.signature()))) {
+                       (signed_campaign.has_delegation()
+                            ? " (a delegation, but no [command.root_keys] to judge it)"
+                            : ""));
+  } else if (!key->second.verify(signed_bytes, signature)) {
     return refused(CampaignRefusal::kBadSignature,
                    "not a signature of the campaign by '" + key->first + "'");
   }
@@ -165,7 +198,7 @@ CampaignVerdict CampaignAuthority::offer(std::span<const std::uint8_t> payload, 
   in_force_[id] = CampaignInForce{
       .payload = std::string(reinterpret_cast<const char*>(payload.data()), payload.size()),
       .campaign_bytes = signed_campaign.campaign(),
-      .key_id = key->first,
+      .key_id = signed_campaign.key_id(),
       .compiled = std::move(c)};
   return v;
 }

@@ -6,8 +6,16 @@
 //    too_large              payload over max_payload_bytes
 //    malformed              not a SignedCampaign, or no signature / key id / campaign bytes, or
 //                           the campaign bytes are not a Campaign
-//    unknown_key            key id not in [command.trusted_keys]
-//    signature_invalid      not an Ed25519 signature of exactly the campaign bytes
+//    unknown_key            key id not in [command.trusted_keys], and no delegation (or no
+//                           delegated check: no [command.root_keys])
+//    signature_invalid      not an Ed25519 signature of exactly the campaign bytes (by the
+//                           trusted key, or by the delegate's key)
+//    delegation_invalid     (issue 28, a delegated key: SignedCampaign.delegation) the
+//    revoked                delegation is not a valid root's signature, or does not delegate
+//    out_of_scope           this key id; its serial is revoked; it lacks the action "campaign"
+//    clock_unsynchronised   or does not cover this vehicle; the wall clock is not synchronised;
+//    delegation_not_yet_valid  its window has not begun; its window has ended
+//    delegation_expired     (command::check_delegated, names as for commands and zone bundles)
 //    invalid_campaign       compile_campaign() refused it (the detail names the field; an
 //                           unknown signal is one)
 //    not_for_this_vehicle   its target names neither this vehicle, nor one of its groups, nor
@@ -20,14 +28,15 @@
 //                           budgets over total_disk_budget, or their bytes an hour over
 //                           max_bytes_per_hour (each campaign's bound, campaign_spec.h)
 //  The same version with the same bytes is kAlreadyInForce (retained messages come again on
-//  every reconnect). A refusal changes nothing. Delegated keys (SignedCampaign.delegation,
-//  action "campaign") are not judged yet: a campaign signed under a delegation is refused as
-//  unknown_key unless its key is also trusted directly (TODO issue 28's document verifier).
+//  every reconnect). A refusal changes nothing. A key in [command.trusted_keys] is judged as
+//  trusted even when the campaign also carries a delegation. Stored campaigns are judged again
+//  at start-up, against the revocation list in force then.
 //  * expire(now) drops the campaigns past their end (their ids, for the caller's store).
 //  * Received strings in a detail go through common::untrusted_excerpt.
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <map>
 #include <optional>
 #include <span>
@@ -36,10 +45,12 @@
 #include <vector>
 
 #include "gateway/campaign/campaign_spec.h"
+#include "gateway/command/delegation.h"
 #include "gateway/command/ed25519.h"
 
 namespace fleetgw::v1 {
 class Campaign;
+class SignedDelegation;
 }  // namespace fleetgw::v1
 
 namespace fleetgw::campaign {
@@ -58,6 +69,13 @@ enum class CampaignRefusal : std::uint8_t {
   kMalformed,
   kUnknownKey,
   kBadSignature,
+  // Issue 28: a key delegated by a root (set_delegated_check); names as for commands.
+  kDelegationInvalid,
+  kRevoked,
+  kOutOfScope,
+  kClockUnsynchronised,
+  kDelegationNotYetValid,
+  kDelegationExpired,
   kInvalid,
   kNotForThisVehicle,
   kExpired,
@@ -101,6 +119,13 @@ class CampaignAuthority {
   std::vector<std::string> expire(Micros now);
   const std::map<std::string, CampaignInForce, std::less<>>& in_force() const { return in_force_; }
   const CampaignLimits& limits() const { return limits_; }
+  // Issue 28: how a campaign whose key id is not trusted but carries SignedCampaign.delegation
+  // is judged (command::check_delegated with the action "campaign": root, scope, window,
+  // revocations); unset: such a campaign is unknown_key.
+  using DelegatedCheck = std::function<command::DelegatedCheck(
+      const v1::SignedDelegation&, std::string_view key_id,
+      std::span<const std::uint8_t> signed_bytes, std::span<const std::uint8_t> signature)>;
+  void set_delegated_check(DelegatedCheck check) { delegated_check_ = std::move(check); }
 
  private:
   std::optional<std::string> not_for_us(const CompiledCampaign& c, CampaignTopic topic) const;
@@ -111,6 +136,7 @@ class CampaignAuthority {
   std::vector<std::string> groups_;
   CampaignLimits limits_;
   std::map<std::string, CampaignInForce, std::less<>> in_force_;
+  DelegatedCheck delegated_check_;
 };
 
 // Serialized SignedCampaign over `campaign` serialized once.

@@ -20,7 +20,9 @@ std::span<const std::uint8_t> service_bytes(std::string_view s) {
 CampaignService::CampaignService(CampaignServiceConfig config, storage::Store& store)
     : config_(std::move(config)),
       store_(store),
-      authority_(config_.trusted_keys, config_.vehicle_id, config_.groups, config_.limits) {}
+      authority_(config_.trusted_keys, config_.vehicle_id, config_.groups, config_.limits) {
+  authority_.set_delegated_check(config_.delegated_check);  // before restore(): issue 28
+}
 
 bool CampaignService::handles(std::string_view topic) const {
   return topic == config_.fleet_topic || topic == config_.vehicle_topic;

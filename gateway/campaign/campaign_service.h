@@ -38,6 +38,9 @@ struct CampaignServiceConfig {
   std::string fleet_topic;    // <prefix>/campaigns
   std::string vehicle_topic;  // <prefix>/<vehicle>/campaigns
   CampaignLimits limits;
+  // Issue 28: campaigns signed under a root's delegation with the action "campaign" (the
+  // command service's check); unset: only trusted keys.
+  CampaignAuthority::DelegatedCheck delegated_check;
 };
 
 class CampaignService {

@@ -1,8 +1,9 @@
 // Collection campaigns in the pipeline (issue 29; docs/campaigns.md): the CampaignService built
-// with the commands' trusted keys and the vehicle's id and groups, its stored campaigns restored
-// at start-up (they run offline from the first frame), its topics subscribed with the zone
-// bundles' (Uplink::take_zone_bundles hands both; settle() routes by topic), fed by the core
-// after the recorder (CampaignFeed), its records queued through the recorder.
+// with the commands' trusted keys (and their roots' delegations, issue 28) and the vehicle's id and
+// groups, its stored campaigns restored at start-up (they run offline from the first frame), its
+// topics subscribed with the zone bundles' (Uplink::take_zone_bundles hands both; settle() routes
+// by topic), fed by the core after the recorder (CampaignFeed), its records queued through the
+// recorder.
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
@@ -15,17 +16,23 @@ namespace fleetgw::runtime {
 
 void Pipeline::add_campaign_topics(const config::Config& config,
                                    uplink::UplinkConfig& uplink_config) {
-  if (config.command.trusted_keys.empty()) return;  // nothing could be verified
+  // Nothing could be verified without a trusted key or a root (issue 28's delegated keys).
+  if (config.command.trusted_keys.empty() && config.command.root_keys.empty()) return;
   const uplink::Topics topics(config.mqtt.topic_prefix, config.vehicle.id);
   uplink_config.zone_topics.push_back(topics.fleet_campaigns);
   uplink_config.zone_topics.push_back(topics.campaigns);
 }
 
 void Pipeline::start_campaigns(const config::Config& config) {
-  if (config.command.trusted_keys.empty()) return;
+  if (config.command.trusted_keys.empty() && config.command.root_keys.empty()) return;
   const uplink::Topics topics(config.mqtt.topic_prefix, config.vehicle.id);
   campaign::CampaignServiceConfig c;
   c.trusted_keys = config.command.trusted_keys;
+  // Issue 28: a campaign signed under a root's delegation with the action "campaign"; set
+  // before restore() so stored campaigns of delegated keys are judged again, not dropped.
+  if (!config.command.root_keys.empty()) {
+    c.delegated_check = commands_->delegated_document_check("campaign");
+  }
   c.vehicle_id = config.vehicle.id;
   c.groups = config.vehicle.groups;
   c.fleet_topic = topics.fleet_campaigns;
