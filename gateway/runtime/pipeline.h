@@ -138,8 +138,11 @@ class Pipeline {
   const PipelineCounters& counters() const { return counters_; }
   // The geofence section of the status; nullopt when [geofence] is disabled.
   std::optional<GeofenceStatus> geofence_status() const;
-  // The campaigns section of the status (issue 29); nullopt without [command.trusted_keys].
+  // The campaigns section of the status (issue 29); nullopt without [command.trusted_keys]
+  // and [command.root_keys].
   std::optional<nlohmann::json> campaign_status() const;
+  // The revocation list version in force (issue 28; 0: none), for the status.
+  std::uint64_t revocation_version() const { return commands_->revocation_version(); }
   // Parked (locked and still) or riding; nullopt before the first evaluation.
   std::optional<bool> parked() const { return parked_ ? parked_->parked() : std::nullopt; }
   // Bus time covered by the frames delivered so far (0 before the first frame).

@@ -186,6 +186,7 @@ int run_service(const config::Config& config, const ServiceOptions& options,
     in.parked = pipeline->parked();
     in.geofence = pipeline->geofence_status();
     in.campaigns = pipeline->campaign_status();
+    if (!config.command.root_keys.empty()) in.revocation_version = pipeline->revocation_version();
     if (const uplink::Uplink* up = pipeline->uplink()) {
       const auto s = up->stats();
       in.uplink_failure =

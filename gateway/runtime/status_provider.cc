@@ -243,6 +243,9 @@ nlohmann::json make_status_json(const StatusInputs& in) {
   }
   if (in.geofence) j["geofence"] = geofence_json(*in.geofence, wall_now);
   if (in.campaigns) j["campaigns"] = *in.campaigns;
+  if (const auto v = in.revocation_version) {
+    j["revocations"] = {{"version", *v > 0 ? json(*v) : json(nullptr)}};
+  }
   return j;
 }
 

@@ -70,6 +70,9 @@ struct StatusInputs {
   std::optional<GeofenceStatus> geofence = std::nullopt;
   // The "campaigns" section (Pipeline::campaign_status(), issue 29); nullopt: none.
   std::optional<nlohmann::json> campaigns = std::nullopt;
+  // The revocation list version in force (CommandService::revocation_version(), issue 28; 0:
+  // none yet); nullopt without [command.root_keys] (no "revocations" section).
+  std::optional<std::uint64_t> revocation_version = std::nullopt;
 };
 
 nlohmann::json make_status_json(const StatusInputs& in);

@@ -356,6 +356,12 @@ std::string format_summary(const json& s, const std::vector<Attention>& findings
     line("geofence", text);
   }
 
+  if (const json* r = member(s, "revocations"); r && r->is_object()) {
+    line("roots", num(*r, "version")
+                      ? fmt::format("revocation list version {} in force", count(*r, "version"))
+                      : std::string("no revocation list in force (none received yet)"));
+  }
+
   out += '\n';
   if (findings.empty()) {
     out += "OK\n";

@@ -46,6 +46,8 @@
 //                "last_refusal": "not_newer: version 1 is older than ...",
 //                "last_refusal_topic": "fleet/v1/zones", "last_refusal_age_s": 2.0 | null,
 //                "outside_operating_area": false}  // optional section ([geofence] enabled)
+//     "revocations": {"version": 4 | null}  // the root's revocation list in force (issue 28);
+//                // null: none received yet; optional section ([command.root_keys] set)
 //   }
 //   Ages are computed by the service on its own clock, so the client needs no clock agreement.
 //   Unknown keys are ignored (newer services may add some).

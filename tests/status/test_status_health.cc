@@ -68,6 +68,7 @@ class ServiceStatus : public ::testing::Test {
     in.storage_health = std::move(health);
     in.uplink_failure = std::move(failure);
     in.wall_now = kWallNow;
+    in.revocation_version = revocation_version_;
     json d = runtime::make_status_json(in);
     for (auto& n : d["nodes"]) n["online"] = true;
     return d;
@@ -82,6 +83,7 @@ class ServiceStatus : public ::testing::Test {
   std::optional<storage::Store> store_;
   uplink::MemoryOutbox outbox_;
   std::optional<uplink::Uplink> uplink_;
+  std::optional<std::uint64_t> revocation_version_;  // nullopt: no [command.root_keys]
 };
 
 storage::StorageHealth disk_full() {
@@ -218,6 +220,30 @@ TEST_F(ServiceStatus, StatusCommandExitsOneOnFailuresAndZeroWhenHealthy) {
   const Served good = serve_and_query(sock, document(ok, std::nullopt, false), false);
   EXPECT_EQ(good.code, kStatusOk) << good.out;
   EXPECT_NE(good.out.find("\nOK\n"), std::string::npos) << good.out;
+}
+
+// Issue 28: the technician sees which revocation list the gateway enforces (a revoked console
+// key still accepted means an old list), in --json and in the text summary alike.
+TEST_F(ServiceStatus, StatusShowsTheRevocationListVersionInForce) {
+  const auto sock = dir_.path() / "status.sock";
+  revocation_version_ = 4;
+  const json d = document(std::nullopt, std::nullopt, /*with_uplink=*/false);
+  ASSERT_TRUE(d.contains("revocations")) << d.dump(2);
+  EXPECT_EQ(d["revocations"]["version"], 4) << d.dump(2);
+  const Served js = serve_and_query(sock, d, true);
+  EXPECT_EQ(json::parse(js.out)["revocations"]["version"], 4) << js.out;
+  const Served text = serve_and_query(sock, d, false);
+  EXPECT_NE(text.out.find("revocation list version 4 in force"), std::string::npos) << text.out;
+
+  revocation_version_ = 0;  // roots configured, no list received yet
+  const json none = document(std::nullopt, std::nullopt, /*with_uplink=*/false);
+  ASSERT_TRUE(none.contains("revocations")) << none.dump(2);
+  EXPECT_EQ(none["revocations"]["version"], nullptr) << none.dump(2);
+  EXPECT_NE(format_summary(none, evaluate(none)).find("no revocation list in force"),
+            std::string::npos);
+
+  revocation_version_.reset();  // no [command.root_keys]: no section
+  EXPECT_FALSE(document(std::nullopt, std::nullopt, false).contains("revocations"));
 }
 
 }  // namespace
