@@ -138,10 +138,14 @@ std::optional<std::string> polygon_from_gbfs(const json& rings, const std::strin
 
 std::optional<std::string> time_from_gbfs(const json& value, const std::string& at,
                                           std::int64_t& out) {
-  const auto us = value.is_string() ? us_from_rfc3339(value.get<std::string>()) : std::nullopt;
-  if (!us) return at + ": " + value.dump() + " is not an RFC 3339 date-time";
-  if (*us <= 0) return at + ": " + value.dump() + " is before 1970";
-  out = *us;
+  // No std::optional copy through a conditional here: gcc 12 at -O3 warns (maybe-uninitialized)
+  // about its payload, and the product tree builds with -Werror.
+  if (!value.is_string()) return at + ": " + value.dump() + " is not an RFC 3339 date-time";
+  const std::optional<std::int64_t> parsed = us_from_rfc3339(value.get<std::string>());
+  if (!parsed.has_value()) return at + ": " + value.dump() + " is not an RFC 3339 date-time";
+  const std::int64_t us = parsed.value();
+  if (us <= 0) return at + ": " + value.dump() + " is before 1970";
+  out = us;
   return std::nullopt;
 }
 

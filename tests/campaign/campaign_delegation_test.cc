@@ -43,7 +43,9 @@ struct CampaignDelegationRig {
     v1::Delegation d;
     d.set_serial(7);
     d.set_key_id("console-1");
-    const auto& raw = delegate.public_key().raw();
+    // public_key() returns by value: keep it alive while its raw bytes are read.
+    const auto public_key = delegate.public_key();
+    const auto& raw = public_key.raw();
     d.set_public_key(std::string(raw.begin(), raw.end()));
     d.add_actions("campaign");
     d.add_vehicle_ids("bike-7");

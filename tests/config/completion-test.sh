@@ -80,7 +80,7 @@ expect "--mc-current-signed --mc-fault-layout --mc-voltage-current --mc-answer-i
 contains "--help" fleetgw db export --
 contains "--version" fleetgw --
 # The hidden subcommand is not offered; the visible ones all are.
-expect "check-config command" fleetgw c
+expect "campaign check-config command" fleetgw c
 # Files where a file goes: the positional of decode, the value of --config.
 touch "$work/ride.log"
 expect "$work/ride.log" fleetgw decode "$work/ri"
