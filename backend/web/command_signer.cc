@@ -16,13 +16,20 @@
 #include "fleetgw/v1/keys.pb.h"
 
 namespace fleetgw::web {
+
+// Named, not anonymous: CommandSigner::Impl (external linkage) holds a key with this deleter,
+// and gcc's -Wsubobject-linkage refuses anonymous-namespace members there in a unity build.
+namespace signer_detail {
+struct PkeyFree {
+  void operator()(EVP_PKEY* k) const { EVP_PKEY_free(k); }
+};
+}  // namespace signer_detail
+using signer_detail::PkeyFree;
+
 namespace {
 
 using nlohmann::json;
 
-struct PkeyFree {
-  void operator()(EVP_PKEY* k) const { EVP_PKEY_free(k); }
-};
 struct MdCtxFree {
   void operator()(EVP_MD_CTX* c) const { EVP_MD_CTX_free(c); }
 };

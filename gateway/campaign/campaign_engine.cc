@@ -6,13 +6,10 @@
 #include "fleetgw/v1/campaign.pb.h"
 
 namespace fleetgw::campaign {
-namespace {
 
-// Few, large records: each is a transaction of the store and a publish (the CPU figure of
-// bench/campaign-cpu.sh), and campaign data is not awaited live.
-constexpr std::size_t kRecordSamples = 1024;
-constexpr Micros kRecordAge{30'000'000};
-constexpr Micros kNever{INT64_MIN / 2};
+// Named, not anonymous: CampaignRunner (declared in the header, so of external linkage) holds
+// them, and gcc's -Wsubobject-linkage refuses anonymous-namespace members there in a unity build.
+namespace engine_detail {
 
 struct Sample {
   std::uint32_t signal = 0;
@@ -27,6 +24,19 @@ struct RingSample {
   double value = 0;
   bool invalid = false;
 };
+
+}  // namespace engine_detail
+using engine_detail::RingSample;
+using engine_detail::Sample;
+
+namespace {
+
+// Few, large records: each is a transaction of the store and a publish (the CPU figure of
+// bench/campaign-cpu.sh), and campaign data is not awaited live.
+constexpr std::size_t kRecordSamples = 1024;
+constexpr Micros kRecordAge{30'000'000};
+constexpr Micros kNever{INT64_MIN / 2};
+
 
 // Values travel as integers times 10^6 (no floating point on the wire); every catalogue value
 // is far inside the range (a 32-bit raw value times its scale).
