@@ -146,6 +146,21 @@ TEST_F(ZoneBundles, MalformedPolygonsAreRefusedNamingZoneRingAndVertex) {
        },
        "zone 3 ('station'), ring 0: all 4 vertices lie on one line (within 0.1 m: the ring "
        "encloses no area)"},
+      {"a ring that doubles back on itself (A-B-C-B): three distinct vertices, no inside",
+       [](v1::ZoneBundle& b) {
+         *b.mutable_zones(3)->mutable_rings(0) =
+             to_proto({vertex_at(0, 0), vertex_at(100, 0), vertex_at(100, 100), vertex_at(100, 0)});
+       },
+       "zone 3 ('station'), ring 0: doubles back on itself: every edge is traced twice, so it "
+       "encloses nothing"},
+      {"a longer ring retracing its way back (A-B-C-D-C-B)",
+       [](v1::ZoneBundle& b) {
+         *b.mutable_zones(3)->mutable_rings(0) =
+             to_proto({vertex_at(0, 0), vertex_at(100, 0), vertex_at(100, 100), vertex_at(0, 100),
+                       vertex_at(100, 100), vertex_at(100, 0)});
+       },
+       "zone 3 ('station'), ring 0: doubles back on itself: every edge is traced twice, so it "
+       "encloses nothing"},
       {"a vehicle id that is not an id", [](v1::ZoneBundle& b) { b.set_vehicle_id("bike 7"); },
        "vehicle_id 'bike 7' must be 1..64 characters of [A-Za-z0-9._-] (or empty: fleet-wide)"},
       {"latitude out of range",
