@@ -268,6 +268,7 @@ const Migration kMigrations[] = {
     {3, "telemetry partitioned by day, analyst indexes", kV3},
     {4, "full vehicle state, status history", migration_v4_sql()},
     {7, "campaign samples", migration_v7_sql()},  // issue 29 (migrations_v7_campaigns.cc)
+    {8, "telemetry heading and accuracy", migration_v8_sql()},  // issue 27 (migrations_v8_*.cc)
 };
 
 // Any constant: the lock only serialises ingest workers migrating the same database.

@@ -31,4 +31,7 @@ int migrate(PgConnection& conn);
 // Migration 4's SQL (migrations_v4.cc): the full vehicle state and the status history.
 std::string_view migration_v4_sql();
 
+// Migration 8's SQL (migrations_v8_telemetry_fix.cc): heading and accuracy per telemetry sample.
+std::string_view migration_v8_sql();
+
 }  // namespace fleetgw::ingest

@@ -27,8 +27,8 @@ const TableSpec kTelemetry{
     "vehicle_id, store_id, sequence, created_at_us, sampled_at_us, speed_dkmh, motor_rpm, "
     "power_w, voltage_mv, current_ma, cadence_rpm, torque_dnm, assist, soc_pct, range_m, odo_m, "
     "trip_m, pcb_temp_c, motor_temp_c, mcu_temp_c, remaining_mah, full_mah, pack_temp_c, lat_e7, "
-    "lon_e7",
-    25, kIgnore};
+    "lon_e7, horizontal_error_dm, heading_ddeg",
+    27, kIgnore};
 const TableSpec kPacks{"pack_snapshots",
                        "vehicle_id, store_id, sequence, created_at_us, gateway_fw_version, "
                        "pack_serial, measured_at_us, voltage_mv, discharge_current_ma, soc_pct, "
@@ -481,6 +481,11 @@ std::optional<Reject> telemetry_rows(const v1::Envelope& e, Decoded& d) {
     b.opt_u32("full_mah", s.has_full_mah(), s.full_mah());
     b.opt_i64(s.has_pack_temp_c(), s.pack_temp_c());
     b.position(s.has_position(), s.position());
+    const v1::Position& fix = s.position();  // migration 8: MDS telemetry's heading, accuracy
+    b.opt_u32("samples.position.horizontal_error_dm",
+              s.has_position() && fix.has_horizontal_error_dm(), fix.horizontal_error_dm());
+    b.opt_u32("samples.position.heading_ddeg", s.has_position() && fix.has_heading_ddeg(),
+              fix.heading_ddeg());
     seqs.push_back(s.sequence());
   }
   if (b.error) return b.error;
