@@ -209,6 +209,8 @@ WriteStats IngestStore::write_all(std::span<const Decoded* const> messages,
         p, "vehicle locks");
   }
   if (hook_) hook_(BatchPoint::kBeforeCopy);
+  // committed_at_us of the batch's COPYs: the database's clock once, as the batch is written.
+  std::string stamp;
   for (const TableSpec* t : kTables) {
     const std::size_t cols = static_cast<std::size_t>(t->column_count);
     std::vector<std::span<const PgParam>> staged_rows;
@@ -240,7 +242,14 @@ WriteStats IngestStore::write_all(std::span<const Decoded* const> messages,
       for (const auto& [vehicle, i] : newest) kept.push_back(staged_rows[i]);
       staged_rows = std::move(kept);
     }
-    if (!t->latest_value && !t->history && copy_rows(c, *t, staged_rows, stats)) continue;
+    if (!t->latest_value && !t->history) {
+      if (t->committed_at && stamp.empty()) {
+        stamp = std::string(c.exec("SELECT fleet_now_us()", "commit stamp").text(0, 0));
+      }
+      if (copy_rows(c, *t, staged_rows, t->committed_at ? stamp : std::string_view(), stats)) {
+        continue;
+      }
+    }
     const std::string& statement = insert_sql(c, *t);
     std::vector<PgParam> columns(cols, std::string("{"));
     for (const auto& row : staged_rows) {
@@ -280,12 +289,14 @@ WriteStats IngestStore::write_all(std::span<const Decoded* const> messages,
 }
 
 bool IngestStore::copy_rows(PgConnection& c, const TableSpec& t,
-                            std::span<const std::span<const PgParam>> rows, WriteStats& stats) {
+                            std::span<const std::span<const PgParam>> rows, std::string_view stamp,
+                            WriteStats& stats) {
   // COPY's text format: a tab between columns, a newline after each row, \N for NULL, and a
   // backslash, tab, newline or carriage return inside a value escaped.
   std::size_t size = 0;
   for (const auto& row : rows) {
     for (const PgParam& v : row) size += (v ? v->size() : 2) + 1;
+    size += stamp.empty() ? 0 : stamp.size() + 1;
   }
   std::string data;
   data.reserve(size + size / 16);
@@ -307,12 +318,17 @@ bool IngestStore::copy_rows(PgConnection& c, const TableSpec& t,
       }
       data.append(v);
     }
+    if (!stamp.empty()) {
+      data += '\t';
+      data.append(stamp);
+    }
     data += '\n';
   }
   c.exec("SAVEPOINT ingest_copy", "savepoint");
   try {
-    const std::int64_t n =
-        c.copy_in(fmt::format("COPY {} ({}) FROM STDIN", t.table, t.columns), data, t.table);
+    const std::int64_t n = c.copy_in(fmt::format("COPY {} ({}{}) FROM STDIN", t.table, t.columns,
+                                                 stamp.empty() ? "" : ", committed_at_us"),
+                                     data, t.table);
     c.exec("RELEASE SAVEPOINT ingest_copy", "savepoint");
     stats.inserted += n;
     return true;

@@ -105,9 +105,12 @@ class IngestStore {
                        std::span<const RejectRow> rejects);
   void insert_reject(PgConnection& c, const RejectRow& r);
   // The fast path of a record table: the batch's rows by one COPY (no array parameters, no
-  // casts from text[]), under a savepoint. False (rolled back) when a row is already there.
+  // casts from text[]), under a savepoint, with committed_at_us = `stamp` when not empty (a
+  // volatile column default would make the server insert row by row). False (rolled back) when
+  // a row is already there.
   bool copy_rows(PgConnection& c, const TableSpec& t,
-                 std::span<const std::span<const PgParam>> rows, WriteStats& stats);
+                 std::span<const std::span<const PgParam>> rows, std::string_view stamp,
+                 WriteStats& stats);
   // The name of t's prepared INSERT on connection c (prepared at its first use).
   const std::string& insert_sql(PgConnection& c, const TableSpec& t);
 

@@ -48,7 +48,7 @@ const TableSpec kResults{"command_results",
 const TableSpec kCommands{"commands",
                           "command_id, vehicle_id, key_id, issued_at_us, expires_at_us, action, "
                           "target",
-                          7, kIgnore};
+                          7, kIgnore, false, false, false};
 const TableSpec kInfo{"device_info",
                       "vehicle_id, store_id, sequence, created_at_us, gateway_fw_version, nodes", 6,
                       kIgnore};

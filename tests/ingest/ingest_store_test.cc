@@ -10,6 +10,8 @@
 #include <limits>
 #include <memory>
 #include <optional>
+#include <string>
+#include <vector>
 
 #include "backend/ingest/migrations.h"
 #include "fleetgw/v1/envelope.pb.h"
@@ -348,6 +350,31 @@ TEST_F(IngestStoreTest, BatchCountsDuplicatesAndOutOfOrderStatesApart) {
   EXPECT_EQ(count("SELECT updated_at_us FROM vehicle_state WHERE vehicle_id = 'b2'"), 2'000);
   EXPECT_EQ(count("SELECT count(*) FROM sequence_ranges"), 1);
   EXPECT_TRUE(s.gaps().empty());
+}
+
+// committed_at_us is the database's clock as the batch is written, one value for all its rows
+// (written by the COPY itself: a per-row volatile default would make the server insert row by
+// row, issue 25), between a reading before the batch and one after its commit.
+TEST_F(IngestStoreTest, BatchRowsCarryOneCommitStampFromTheDatabaseClock) {
+  IngestStore s(cluster_->conninfo());
+  s.connect();
+  std::vector<Decoded> faults;
+  for (std::uint64_t seq = 1; seq <= 300; ++seq) faults.push_back(record("b1", "s1", seq));
+  std::vector<const Decoded*> batch;
+  for (const Decoded& d : faults) batch.push_back(&d);
+  const std::int64_t before = count("SELECT fleet_now_us()");
+  s.write_batch(batch);
+  const std::int64_t after = count("SELECT fleet_now_us()");
+  EXPECT_EQ(count("SELECT count(*) FROM fault_events"), 300);
+  EXPECT_EQ(count("SELECT count(DISTINCT committed_at_us) FROM fault_events"), 1);
+  const std::int64_t stamp = count("SELECT min(committed_at_us) FROM fault_events");
+  EXPECT_GE(stamp, before);
+  EXPECT_LE(stamp, after);
+  // A redelivery takes the ON CONFLICT path: nothing added, the stored stamp kept.
+  EXPECT_EQ(s.write_batch(batch).stats.duplicates, 300);
+  EXPECT_EQ(
+      count("SELECT count(*) FROM fault_events WHERE committed_at_us = " + std::to_string(stamp)),
+      300);
 }
 
 // A database of schema v2 (today's before issue 25) with telemetry over several days, one
