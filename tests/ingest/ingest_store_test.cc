@@ -11,6 +11,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include "backend/ingest/migrations.h"
@@ -350,6 +351,54 @@ TEST_F(IngestStoreTest, BatchCountsDuplicatesAndOutOfOrderStatesApart) {
   EXPECT_EQ(count("SELECT updated_at_us FROM vehicle_state WHERE vehicle_id = 'b2'"), 2'000);
   EXPECT_EQ(count("SELECT count(*) FROM sequence_ranges"), 1);
   EXPECT_TRUE(s.gaps().empty());
+}
+
+// The ranges of a batch that only grow a stored range (updated in place) and those that need
+// the general merge (a new store, a hole left, a range bridging two stored ones, a redelivery
+// inside one) in the same batches: the accounted ranges and the gap report stay exact.
+TEST_F(IngestStoreTest, RangesGrowInPlaceOrMergeAndGapsStayExact) {
+  IngestStore s(cluster_->conninfo());
+  const auto write =
+      [&](const std::vector<std::tuple<std::string, std::uint64_t, std::uint64_t>>& runs) {
+        std::vector<Decoded> records;
+        for (const auto& [vehicle, first, last] : runs) {
+          for (std::uint64_t q = first; q <= last; ++q) records.push_back(record(vehicle, "s1", q));
+        }
+        std::vector<const Decoded*> batch;
+        for (const Decoded& d : records) batch.push_back(&d);
+        return s.write_batch(batch).stats;
+      };
+  const auto ranges = [&] {
+    PgConnection c(cluster_->conninfo());
+    const auto r = c.exec(
+        "SELECT string_agg(vehicle_id || ':' || first_seq || '-' || last_seq, ' ' ORDER BY "
+        "vehicle_id, first_seq) FROM sequence_ranges",
+        "ranges");
+    return std::string(r.text(0, 0));
+  };
+  write({{"b1", 1, 10}, {"b1", 20, 30}, {"b3", 1, 5}});
+  ASSERT_EQ(ranges(), "b1:1-10 b1:20-30 b3:1-5");
+  // Grown in place: b1 11-12 and 31-35; covered: b1 5 (a redelivery); merged: b2 (a new store),
+  // b3 7-8 (a hole at 6).
+  const auto stats =
+      write({{"b1", 5, 5}, {"b1", 11, 12}, {"b1", 31, 35}, {"b2", 1, 3}, {"b3", 7, 8}});
+  EXPECT_EQ(stats.duplicates, 1);
+  EXPECT_EQ(ranges(), "b1:1-12 b1:20-35 b2:1-3 b3:1-5 b3:7-8");
+  auto gaps = s.gaps();
+  ASSERT_EQ(gaps.size(), 2u);
+  EXPECT_EQ(gaps[0].vehicle_id, "b1");
+  EXPECT_EQ(gaps[0].first_missing, 13);
+  EXPECT_EQ(gaps[0].last_missing, 19);
+  EXPECT_EQ(gaps[1].vehicle_id, "b3");
+  EXPECT_EQ(gaps[1].first_missing, 6);
+  // b1 13-19 bridges its two ranges (the general merge), b1 36 grows the result in the same
+  // batch, b3 9 grows 7-8.
+  write({{"b1", 13, 19}, {"b1", 36, 36}, {"b3", 9, 9}});
+  EXPECT_EQ(ranges(), "b1:1-36 b2:1-3 b3:1-5 b3:7-9");
+  gaps = s.gaps();
+  ASSERT_EQ(gaps.size(), 1u);
+  EXPECT_EQ(gaps[0].vehicle_id, "b3");
+  EXPECT_EQ(count("SELECT count(*) FROM fault_events"), 36 + 3 + 9 - 1);
 }
 
 // committed_at_us is the database's clock as the batch is written, one value for all its rows
