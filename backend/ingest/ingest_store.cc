@@ -114,47 +114,6 @@ SELECT vehicle_id, store_id, min(first_seq), max(last_seq) FROM grouped
 GROUP BY vehicle_id, store_id, island
 )sql";
 
-// The common case at a fraction of kMergeRanges' cost (issue 25: the general merge was the
-// server's largest cost per row after the COPYs): a staged range that grows the stored range it
-// starts in or just after, with no other stored range within its reach (a vehicle's next
-// records), moves that range's last_seq in place; a staged range a stored one already covers (a
-// redelivery) needs nothing. Returns the positions (1-based) of both kinds; the others (a new
-// store, a range below or between stored ones, one bridging two) go through kMergeRanges, after
-// this statement, so they see its updates. Each staged range meets at most one stored range
-// here: the stored ones are disjoint and not adjacent, and so are a key's staged ones.
-constexpr std::string_view kGrowRanges = R"sql(
-WITH n AS (
-  SELECT * FROM unnest($1::text[], $2::text[], $3::bigint[], $4::bigint[]) WITH ORDINALITY
-    AS n(vehicle_id, store_id, first_seq, last_seq, ord)),
-grown AS (
-  UPDATE sequence_ranges r SET last_seq = n.last_seq FROM n
-  WHERE r.vehicle_id = n.vehicle_id AND r.store_id = n.store_id AND r.first_seq <= n.first_seq
-    AND n.first_seq - 1 <= r.last_seq AND r.last_seq < n.last_seq
-    AND NOT EXISTS (SELECT 1 FROM sequence_ranges o WHERE o.vehicle_id = n.vehicle_id
-      AND o.store_id = n.store_id AND o.first_seq > r.first_seq AND o.first_seq - 1 <= n.last_seq)
-  RETURNING n.ord)
-SELECT ord FROM grown
-UNION ALL
-SELECT n.ord FROM n JOIN sequence_ranges r ON r.vehicle_id = n.vehicle_id
-  AND r.store_id = n.store_id AND r.first_seq <= n.first_seq AND n.last_seq <= r.last_seq
-)sql";
-
-// The four text[] parameters of kGrowRanges / kMergeRanges for `ranges` (those not `skip`ped).
-std::vector<PgParam> range_columns(
-    const std::vector<std::pair<const RangeKey*, SequenceRange>>& ranges,
-    const std::vector<bool>& skip) {
-  std::vector<PgParam> columns(4, std::string("{"));
-  for (std::size_t i = 0; i < ranges.size(); ++i) {
-    if (skip[i]) continue;
-    const auto& [key, r] = ranges[i];
-    const PgParam row[] = {key->first, key->second, std::to_string(r.first),
-                           std::to_string(r.last)};
-    for (std::size_t k = 0; k < 4; ++k) append_element(*columns[k], row[k]);
-  }
-  for (PgParam& column : columns) *column += '}';
-  return columns;
-}
-
 }  // namespace
 
 bool is_transient(const PgError& e) {
@@ -307,27 +266,20 @@ WriteStats IngestStore::write_all(std::span<const Decoded* const> messages,
     }
   }
   if (!ranges.empty()) {
-    std::vector<std::pair<const RangeKey*, SequenceRange>> staged;
+    std::vector<PgParam> columns(4, std::string("{"));
     for (const auto& [key, v] : ranges) {
-      for (const SequenceRange& r : v) staged.emplace_back(&key, r);
+      for (const SequenceRange& r : v) {
+        const PgParam row[] = {key.first, key.second, std::to_string(r.first),
+                               std::to_string(r.last)};
+        for (std::size_t i = 0; i < 4; ++i) append_element(*columns[i], row[i]);
+      }
     }
+    for (PgParam& column : columns) *column += '}';
     if (!merge_prepared_) {
-      c.prepare("grow_ranges", kGrowRanges, 4, "sequence_ranges");
       c.prepare("merge_ranges", kMergeRanges, 4, "sequence_ranges");
       merge_prepared_ = true;
     }
-    std::vector<bool> done(staged.size(), false);
-    const PgResult grown =
-        c.exec_prepared("grow_ranges", range_columns(staged, done), "sequence_ranges");
-    std::size_t left = staged.size();
-    for (int i = 0; i < grown.rows(); ++i) {
-      const auto at = static_cast<std::size_t>(grown.int64(i, 0) - 1);
-      if (at < done.size() && !done[at]) {
-        done[at] = true;
-        --left;
-      }
-    }
-    if (left > 0) c.exec_prepared("merge_ranges", range_columns(staged, done), "sequence_ranges");
+    c.exec_prepared("merge_ranges", columns, "sequence_ranges");
   }
   for (const RejectRow& r : rejects) insert_reject(c, r);
   if (hook_) hook_(BatchPoint::kAfterCopy);

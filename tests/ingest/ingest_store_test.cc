@@ -353,10 +353,10 @@ TEST_F(IngestStoreTest, BatchCountsDuplicatesAndOutOfOrderStatesApart) {
   EXPECT_TRUE(s.gaps().empty());
 }
 
-// The ranges of a batch that only grow a stored range (updated in place) and those that need
-// the general merge (a new store, a hole left, a range bridging two stored ones, a redelivery
-// inside one) in the same batches: the accounted ranges and the gap report stay exact.
-TEST_F(IngestStoreTest, RangesGrowInPlaceOrMergeAndGapsStayExact) {
+// A batch's ranges that grow a stored range, ones a stored range covers (a redelivery), a new
+// store, a range leaving a hole and one bridging two stored ranges, in the same batches: the
+// accounted ranges and the gap report stay exact (the merge of kMergeRanges, ingest_store.cc).
+TEST_F(IngestStoreTest, MixedRangesOfABatchMergeExactly) {
   IngestStore s(cluster_->conninfo());
   const auto write =
       [&](const std::vector<std::tuple<std::string, std::uint64_t, std::uint64_t>>& runs) {
@@ -378,8 +378,7 @@ TEST_F(IngestStoreTest, RangesGrowInPlaceOrMergeAndGapsStayExact) {
   };
   write({{"b1", 1, 10}, {"b1", 20, 30}, {"b3", 1, 5}});
   ASSERT_EQ(ranges(), "b1:1-10 b1:20-30 b3:1-5");
-  // Grown in place: b1 11-12 and 31-35; covered: b1 5 (a redelivery); merged: b2 (a new store),
-  // b3 7-8 (a hole at 6).
+  // Growing: b1 11-12 and 31-35; covered: b1 5 (a redelivery); a new store: b2; a hole: b3 7-8.
   const auto stats =
       write({{"b1", 5, 5}, {"b1", 11, 12}, {"b1", 31, 35}, {"b2", 1, 3}, {"b3", 7, 8}});
   EXPECT_EQ(stats.duplicates, 1);
@@ -391,8 +390,7 @@ TEST_F(IngestStoreTest, RangesGrowInPlaceOrMergeAndGapsStayExact) {
   EXPECT_EQ(gaps[0].last_missing, 19);
   EXPECT_EQ(gaps[1].vehicle_id, "b3");
   EXPECT_EQ(gaps[1].first_missing, 6);
-  // b1 13-19 bridges its two ranges (the general merge), b1 36 grows the result in the same
-  // batch, b3 9 grows 7-8.
+  // b1 13-19 bridges its two ranges, b1 36 grows the upper one in the same batch, b3 9 grows 7-8.
   write({{"b1", 13, 19}, {"b1", 36, 36}, {"b3", 9, 9}});
   EXPECT_EQ(ranges(), "b1:1-36 b2:1-3 b3:1-5 b3:7-9");
   gaps = s.gaps();
