@@ -142,11 +142,11 @@ RECORD_DELAY=$(pct "SELECT committed_at_us - created_at_us AS d FROM ($RECORDS) 
 STEADY_FROM=$((START_US + (VEHICLES / CONNECT_RATE + 60) * 1000000))
 STEADY_DELAY=$(pct "SELECT committed_at_us - created_at_us AS d FROM ($RECORDS) r WHERE created_at_us > $STEADY_FROM")
 FIRST_DELAY=$(pct "SELECT committed_at_us - created_at_us AS d FROM telemetry_samples")
-read -r RIDING_N PARKED_N RIDE_B PARK_B SIM_S UNACKED CONNECTED MESSAGES RESENT DROPS < <(/usr/bin/python3 -c '
+read -r RIDING_N PARKED_N RIDE_B PARK_B SIM_S UNACKED CONNECTED MESSAGES RESENT DROPS CONNECT_FAILS LAST_CONNACK < <(/usr/bin/python3 -c '
 import json, sys
 r = json.load(open(sys.argv[1]))
 g = lambda k: r.get(k, 0)
-print(g("riding"), g("vehicles") - g("riding"), g("riding_packet_bytes"), g("parked_packet_bytes"), g("duration_s"), g("unacknowledged") + g("failed_processes") + g("failed_sims"), g("connected"), g("messages"), g("resent"), g("disconnects"))' "$WORK/sim.json")
+print(g("riding"), g("vehicles") - g("riding"), g("riding_packet_bytes"), g("parked_packet_bytes"), g("duration_s"), g("unacknowledged") + g("failed_processes") + g("failed_sims"), g("connected"), g("messages"), g("resent"), g("disconnects"), g("connect_failures"), g("last_connack_s"))' "$WORK/sim.json")
 # The workers' own counters: their last "ingest: N messages, ..." line each, summed by field.
 WORKER_COUNTS=$(for f in "$WORK"/worker-*.log; do grep -o 'ingest: [0-9]* messages, .*' "$f" | tail -1; done | /usr/bin/python3 -c '
 import re, sys
@@ -159,6 +159,7 @@ share() { echo "scale=2; 100 * ($1) / $WALL_S" | bc -l; }
 per_hour() { [[ $2 -gt 0 ]] && echo "scale=0; $1 * 3600 / $2 / $SIM_S" | bc -l || echo "-"; }
 
 echo "vehicles connected          $CONNECTED of $VEHICLES ($RIDING_N riding, $PARKED_N parked), unacknowledged publishes $UNACKED"
+echo "connects                    last CONNACK $LAST_CONNACK s after the start, $CONNECT_FAILS connect attempts failed"
 echo "records created / in PG     $EXPECTED / $ROWS rows ($GOT accounted), gaps: $GAPS"
 echo "messages published          $MESSAGES (each once), re-sent after a reconnect $RESENT, sessions lost $DROPS"
 echo "workers' counters           $WORKER_COUNTS"

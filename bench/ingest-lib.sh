@@ -84,8 +84,9 @@ start_postgres() {
   runuser -u postgres -- "$PGBIN/initdb" -D "$WORK/pg" -A trust -U fleet -E UTF8 --locale=C >"$WORK/initdb.log"
   # PG_LISTEN (e.g. 10.99.0.1): TCP for workers in other network namespaces (PG_HBA_NET trusted)
   [[ -n ${PG_LISTEN:-} ]] && echo "host all fleet ${PG_HBA_NET:-10.99.0.0/16} trust" >>"$WORK/pg/pg_hba.conf"
+  # PG_OPTS: more server settings (ingest-drain.sh turns autovacuum off: see there).
   runuser -u postgres -- "$PGBIN/pg_ctl" -D "$WORK/pg" -l "$WORK/sock/pg.log" -w \
-    -o "-k $WORK/sock -p $port -c listen_addresses='${PG_LISTEN:-}'" start >/dev/null
+    -o "-k $WORK/sock -p $port -c listen_addresses='${PG_LISTEN:-}' ${PG_OPTS:-}" start >/dev/null
   PGPID=$(head -1 "$WORK/pg/postmaster.pid")
   CONNINFO="host=$WORK/sock port=$port user=fleet dbname=postgres"
 }
@@ -177,4 +178,31 @@ stop_workers() {  # SIGTERM; SIGKILL after STOP_TIMEOUT_S (60) for a worker that
 expected_records() {
   /usr/bin/python3 -c 'import json,sys; print(sum(s["last_sequence"] for s in json.load(open(sys.argv[1]))["stores"]))' "$1"
 }
-accounted() { psql_q "SELECT coalesce(sum(last_seq - first_seq + 1), 0) FROM sequence_ranges"; }
+accounted() {
+  local q="SELECT coalesce(sum(last_seq - first_seq + 1), 0) FROM sequence_ranges"
+  if [[ -n ${POLLER_PID:-} ]]; then poll_q "$q"; else psql_q "$q"; fi
+}
+
+# A persistent psql session for polling (start_poller; poll_q QUERY prints the one-line answer).
+# A connection per poll would cost PostgreSQL a backend's start-up (milliseconds of CPU) ten
+# times a second, charged to whatever the benchmark measures at the time.
+start_poller() {
+  coproc POLLER { exec psql -X -A -t -q -v ON_ERROR_STOP=1 "$CONNINFO" 2>&1; }
+  PIDS+=("$POLLER_PID")
+  POLLER_BACKEND=$(poll_q "SELECT pg_backend_pid()")
+}
+poll_q() {
+  local line
+  echo "$1;" >&"${POLLER[1]}"
+  IFS= read -r -t "${QUERY_TIMEOUT_S:-600}" line <&"${POLLER[0]}" || { echo "ingest bench: poll query failed" >&2; exit 1; }
+  echo "$line"
+}
+# CPU seconds of PostgreSQL's client backends (the sessions of clients, not the server's own
+# background processes), the poller's excepted.
+pg_backends_cpu_s() {
+  local total=0 pid
+  for pid in $(poll_q "SELECT string_agg(pid::text, ' ') FROM pg_stat_activity WHERE backend_type = 'client backend' AND pid <> pg_backend_pid()"); do
+    total=$(echo "$total + $(cpu_s "$pid")" | bc -l)
+  done
+  echo "$total"
+}
