@@ -4,6 +4,8 @@
 #include <charconv>
 #include <vector>
 
+#include "backend/web/ride_api.h"
+
 namespace fleetgw::web {
 namespace {
 
@@ -128,6 +130,33 @@ json fleet_row(const PgResult& r, int i) {
   return v;
 }
 
+// The same vehicle as fleet_row(), as one array in the order of kCompactFields: what the map and
+// the list show, about a quarter of the bytes (no field names, no mode/online/connection/range,
+// locks as [kind, name] pairs).
+json compact_row(const PgResult& r, int i) {
+  const json full = fleet_row(r, i);
+  json locks = json::array();
+  if (full["locks"].is_array()) {
+    for (const json& l : full["locks"]) {
+      if (!l.is_object()) continue;
+      const json name = l.contains("name") && l["name"].is_string() && !l["name"].empty()
+                            ? l["name"]
+                            : l.value("state", json(nullptr));
+      locks.push_back({l.value("kind", json(nullptr)), name});
+    }
+  }
+  return {full["id"],
+          full["lat"],
+          full["lon"],
+          full["state"],
+          full["soc_pct"],
+          full["speed_kmh"],
+          full["last_seen_us"],
+          std::move(locks),
+          full["alarms"]["active"],
+          full["alarms"]["unacked"]};
+}
+
 json alarm_row(const PgResult& r, int i) {
   json a;
   a["id"] = alarm_id({r.str(i, 0), r.str(i, 1), r.int64_or_null(i, 2).value_or(0)});
@@ -219,6 +248,16 @@ json fleet(PgConnection& c) {
   json out = json::array();
   for (int i = 0; i < r.rows(); ++i) out.push_back(fleet_row(r, i));
   return out;
+}
+
+json fleet_compact(PgConnection& c) {
+  const PgParam p[] = {std::nullopt};
+  const PgResult r = c.query(kFleetSql, p, "fleet");
+  json rows = json::array();
+  for (int i = 0; i < r.rows(); ++i) rows.push_back(compact_row(r, i));
+  json fields = json::array();
+  for (const std::string_view f : kCompactFleetFields) fields.push_back(f);
+  return {{"fields", std::move(fields)}, {"vehicles", std::move(rows)}};
 }
 
 std::optional<json> vehicle(PgConnection& c, std::string_view vehicle_id) {
@@ -328,6 +367,8 @@ std::optional<json> vehicle(PgConnection& c, std::string_view vehicle_id) {
     }
   }
   v["reported"] = reported;
+  // The limit in force and why (ride_api.h): the operator's cap, the slow zones the bike is in.
+  v["speed_limit"] = speed_limit(c, id, reported);
 
   // The console's own commands: who sent each, and the bike's answer.
   const PgResult cc = c.query(

@@ -42,6 +42,13 @@ std::string alarm_id(const AlarmKey& k);
 std::optional<AlarmKey> parse_alarm_id(std::string_view id);
 
 nlohmann::json fleet(PgConnection& c);
+// The fleet for the console's map and list (GET /api/fleet?view=compact): {"fields": [names],
+// "vehicles": [[values in the order of fields], ...]}, the same vehicles and values as fleet()
+// (locks as [kind, name] pairs, alarms as their active and unacknowledged counts).
+inline constexpr std::string_view kCompactFleetFields[] = {
+    "id", "lat", "lon", "state", "soc_pct", "speed_kmh", "last_seen_us", "locks",
+    "alarms_active", "alarms_unacked"};
+nlohmann::json fleet_compact(PgConnection& c);
 std::optional<nlohmann::json> vehicle(PgConnection& c, std::string_view vehicle_id);
 nlohmann::json alarms(PgConnection& c, int limit);
 

@@ -317,11 +317,8 @@ void WebServer::Impl::routes() {
            {"tile_attribution", o.tile_attribution},
            {"commands", signer ? signer->describe() : json(nullptr)}});
   });
-  s.Get("/api/fleet", [this](const httplib::Request& req, httplib::Response& res) {
-    if (!authorise(req, res, Role::Viewer, "fleet")) return;
-    auto c = pool.lease();
-    reply(res, 200, {{"vehicles", fleet(*c)}});
-  });
+  add_fleet_routes(s, ctx);  // before /api/vehicles/(.+), which would match its paths
+  add_campaign_routes(s, ctx);
   s.Get(R"(/api/vehicles/(.+))", [this](const httplib::Request& req, httplib::Response& res) {
     if (!authorise(req, res, Role::Viewer, "vehicle")) return;
     auto c = pool.lease();

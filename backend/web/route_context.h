@@ -47,5 +47,9 @@ inline void send_error(httplib::Response& res, int status, std::string_view mess
 void add_command_routes(httplib::Server& s, RouteContext& ctx);
 // Alarm resolve, API tokens.
 void add_admin_routes(httplib::Server& s, RouteContext& ctx);
+// GET /api/fleet (cached, ETag, compact view) and GET /api/rides (fleet_routes.cc).
+void add_fleet_routes(httplib::Server& s, RouteContext& ctx);
+// GET /api/campaigns... (campaign_routes.cc): the campaign page.
+void add_campaign_routes(httplib::Server& s, RouteContext& ctx);
 
 }  // namespace fleetgw::web

@@ -1,8 +1,10 @@
 #!/usr/bin/env python3
 # Requests per second of GET /api/fleet against a running fleetgw serve, and the server's CPU time.
-# Usage: fleet_list_rate.py PORT SERVER_PID CLIENTS SECONDS NAME PASSWORD (docs/console.md).
+# Usage: fleet_list_rate.py PORT SERVER_PID CLIENTS SECONDS NAME PASSWORD [PATH] (docs/console.md);
+# PATH defaults to /api/fleet.
 import http.client, json, sys, threading, time, os
 port, pid, clients, seconds = int(sys.argv[1]), int(sys.argv[2]), int(sys.argv[3]), float(sys.argv[4])
+path = sys.argv[7] if len(sys.argv) > 7 else '/api/fleet'
 c = http.client.HTTPConnection('127.0.0.1', port)
 c.request('POST', '/api/login', json.dumps({'name': sys.argv[5], 'password': sys.argv[6]}), {'Content-Type': 'application/json'})
 r = c.getresponse(); r.read()
@@ -15,7 +17,7 @@ def run(i):
     conn = http.client.HTTPConnection('127.0.0.1', port)
     end = time.time() + seconds
     while time.time() < end:
-        conn.request('GET', '/api/fleet', headers={'Cookie': cookie})
+        conn.request('GET', path, headers={'Cookie': cookie})
         resp = conn.getresponse(); body = resp.read()
         assert resp.status == 200
         size[0] = len(body); counts[i] += 1

@@ -3,22 +3,30 @@
 // only through textContent or attribute values, never through innerHTML, and Leaflet tooltips
 // get DOM nodes, not strings (Leaflet would parse a string as HTML).
 import { el, clear, ago, when, fmt } from './dom.js';
-import { FleetMap, VehicleMap, STATES } from './maps.js';
-import { Commands, resultText, renderHistory } from './commands.js';
+import { FleetMap, STATES } from './maps.js';
+import { Commands, resultText } from './commands.js';
+import { VehiclePage, shortKind, shortTransition, locksText } from './vehicle.js';
+import { CampaignPage } from './campaigns.js';
 
 const app = {
   session: null, // {name, role, csrf_token}
   config: null,
   fleet: [],
   alarms: [],
+  fleetEtag: null, // the ETag of app.fleet: the next fetch answers 304 when nothing changed
   fleetMap: null,
-  vehicleMap: null,
+  vehiclePage: null, // vehicle.js
+  campaignPage: null, // campaigns.js
   events: null,
   view: '',
   selected: new Set(), // vehicle ids ticked in the list (commands to several bikes)
-  buttonsFor: null, // the vehicle whose command buttons are on the page
   commands: null,
+  listStale: true, // the list's table is built when it is shown, not on every fleet update
 };
+
+// The list shows at most this many rows (a search or filter narrows it): 10,000 rows of DOM
+// cost more than the map.
+const LIST_ROWS = 1000;
 
 const ROLE_RANK = { viewer: 0, operator: 1, admin: 2 };
 const can = (role) => app.session && ROLE_RANK[app.session.role] >= ROLE_RANK[role];
@@ -27,8 +35,8 @@ class ApiError extends Error {
   constructor(status, message) { super(message); this.status = status; }
 }
 
-async function api(path, { method = 'GET', body } = {}) {
-  const headers = {};
+async function api(path, { method = 'GET', body, headers: extra = {}, raw = false } = {}) {
+  const headers = { ...extra };
   if (method !== 'GET') {
     headers['Content-Type'] = 'application/json';
     if (app.session) headers['X-CSRF-Token'] = app.session.csrf_token;
@@ -37,6 +45,7 @@ async function api(path, { method = 'GET', body } = {}) {
     method, headers, credentials: 'same-origin',
     body: method === 'GET' ? undefined : JSON.stringify(body ?? {}),
   });
+  if (raw && res.status === 304) return res;
   let data = null;
   try { data = await res.json(); } catch { data = null; }
   if (res.status === 401 && path !== '/api/login') {
@@ -44,6 +53,7 @@ async function api(path, { method = 'GET', body } = {}) {
     throw new ApiError(401, 'login required');
   }
   if (!res.ok) throw new ApiError(res.status, (data && data.error) || res.statusText);
+  if (raw) return { status: res.status, etag: res.headers.get('ETag'), data };
   return data;
 }
 
@@ -88,10 +98,29 @@ async function onLogout() {
 }
 
 // --- data and live updates -----------------------------------------------------------------
+// The compact list (GET /api/fleet?view=compact: arrays in the order of `fields`) as the
+// objects the map and the list use. The browser keeps no copy (no-store): the console sends the
+// ETag it has and a 304 keeps app.fleet as it is.
+function fleetObjects(compact) {
+  const f = Object.fromEntries(compact.fields.map((name, i) => [name, i]));
+  return compact.vehicles.map((r) => ({
+    id: r[f.id], lat: r[f.lat], lon: r[f.lon], state: r[f.state], soc_pct: r[f.soc_pct],
+    speed_kmh: r[f.speed_kmh], last_seen_us: r[f.last_seen_us],
+    locks: (r[f.locks] || []).map(([kind, name]) => ({ kind, name })),
+    alarms: { active: r[f.alarms_active], unacked: r[f.alarms_unacked] },
+  }));
+}
+
 async function loadFleet() {
-  app.fleet = (await api('/api/fleet')).vehicles;
-  if (app.fleetMap) app.fleetMap.update(app.fleet);
-  renderList();
+  const headers = app.fleetEtag ? { 'If-None-Match': app.fleetEtag } : {};
+  const r = await api('/api/fleet?view=compact', { headers, raw: true });
+  if (r.status !== 304) {
+    app.fleet = fleetObjects(r.data);
+    app.fleetEtag = r.etag;
+    if (app.fleetMap) app.fleetMap.update(app.fleet);
+    app.listStale = true;
+    if (app.view === 'list') renderList();
+  }
   status(`${app.fleet.length} vehicles · updated ${new Date().toLocaleTimeString()}`);
 }
 
@@ -109,14 +138,14 @@ function listen() {
   // Server-sent events say *that* something changed; the data comes from the API as usual.
   const fleetChanged = debounce(async () => {
     await loadFleet();
-    if (app.view === 'vehicle') await renderVehicle(currentVehicleId());
+    if (app.view === 'vehicle') await app.vehiclePage.render(currentVehicleId());
   }, 300);
   const alarmsChanged = debounce(loadAlarms, 300);
   // A command result: the commands this page waits for, at once (no debounce: the operator is
   // watching), and the vehicle page's history.
   const commandsChanged = async () => {
     await app.commands.refresh();
-    if (app.view === 'vehicle') await loadHistory(currentVehicleId());
+    if (app.view === 'vehicle') await app.vehiclePage.loadHistory(currentVehicleId());
   };
   app.events = new EventSource('/api/events');
   app.events.addEventListener('commands', () => commandsChanged().catch(() => {}));
@@ -145,10 +174,6 @@ function passesFilters(v) {
 
 function stateCell(state) {
   return el('td', {}, el('span', { className: `dot s-${state}` }, STATES[state] || state));
-}
-
-function locksText(locks) {
-  return (locks || []).map((l) => `${l.kind || 'lock'}: ${l.name || l.state}`).join(', ');
 }
 
 function pickCell(v) {
@@ -185,6 +210,7 @@ function bulkSent(out) {
 }
 
 function renderList() {
+  app.listStale = false;
   const body = document.querySelector('#fleet-table tbody');
   clear(body);
   const picking = Boolean(app.commands.enabled());
@@ -192,6 +218,7 @@ function renderList() {
   for (const v of app.fleet) {
     if (!passesFilters(v)) continue;
     n += 1;
+    if (n > LIST_ROWS) continue; // counted, not drawn
     const row = el('tr', { className: 'link', dataset: { vehicle: v.id } },
       picking ? pickCell(v) : el('td', { className: 'pick' }),
       el('td', { className: 'wrap' }, v.id),
@@ -204,7 +231,9 @@ function renderList() {
     row.addEventListener('click', () => { location.hash = `#vehicle/${encodeURIComponent(v.id)}`; });
     body.append(row);
   }
-  document.getElementById('list-count').textContent = `${n} of ${app.fleet.length} vehicles`;
+  document.getElementById('list-count').textContent = n > LIST_ROWS
+    ? `${n} of ${app.fleet.length} vehicles match; the first ${LIST_ROWS} shown (search or filter to narrow)`
+    : `${n} of ${app.fleet.length} vehicles`;
   renderBulk();
 }
 
@@ -251,9 +280,6 @@ function ackOnly(alarm, onDone) {
   return el('td', {}, button);
 }
 
-const shortKind = (k) => (k || '').replace(/^ALARM_KIND_/, '').toLowerCase().replaceAll('_', ' ');
-const shortTransition = (t) => (t || '').replace(/^ALARM_TRANSITION_/, '').toLowerCase();
-
 function renderAlarms() {
   const unackedOnly = document.getElementById('f-unacked').checked;
   const body = document.querySelector('#alarm-table tbody');
@@ -277,126 +303,10 @@ function renderAlarms() {
   badge.textContent = String(open);
 }
 
-// --- vehicle page ----------------------------------------------------------------------------
+// --- vehicle page (vehicle.js) ---------------------------------------------------------------
 function currentVehicleId() {
-  return decodeURIComponent(location.hash.slice('#vehicle/'.length));
-}
-
-function fact(dl, name, value) {
-  dl.append(el('dt', {}, name), el('dd', {}, value ?? '–'));
-}
-
-async function renderVehicle(id) {
-  let v;
-  try {
-    v = await api(`/api/vehicles/${encodeURIComponent(id)}`);
-  } catch (e) {
-    document.getElementById('v-title').textContent = `${id}: ${e.message}`;
-    return;
-  }
-  document.getElementById('v-title').textContent = v.id;
-  const dl = document.getElementById('v-facts');
-  clear(dl);
-  fact(dl, 'State', STATES[v.state] || v.state);
-  fact(dl, 'Online', v.online ? 'yes' : 'no');
-  fact(dl, 'Battery', v.soc_pct === null ? null : `${v.soc_pct} %`);
-  fact(dl, 'Range', v.range_m === null ? null : `${fmt(v.range_m / 1000)} km`);
-  fact(dl, 'Speed', v.speed_kmh === null ? null : `${fmt(v.speed_kmh)} km/h`);
-  fact(dl, 'Position', v.lat === null ? null : `${v.lat.toFixed(5)}, ${v.lon.toFixed(5)}`);
-  // What the bike reports of itself (the ingest's vehicle_state, when it has these columns),
-  // else what the console derives from the event tables.
-  const rep = v.reported || {};
-  const locks = Array.isArray(rep.locks) && rep.locks.length ? rep.locks.map((l) =>
-    `${l.kind || l.lock_kind || 'lock'}: ${l.state_name || l.name || l.state}`).join(', ')
-    : locksText(v.locks);
-  fact(dl, 'Locks', locks || null);
-  if (rep.speed_limit_dkmh !== undefined && rep.speed_limit_dkmh !== null) {
-    fact(dl, 'Speed limit in force', `${fmt(rep.speed_limit_dkmh / 10)} km/h`);
-  }
-  if (rep.assist_name) fact(dl, 'Assist', rep.assist_name);
-  if (rep.bus_state) fact(dl, 'Bus', String(rep.bus_state).replace(/^BUS_STATE_/, '').toLowerCase());
-  if (Array.isArray(rep.faults)) {
-    fact(dl, 'Active faults', rep.faults.map((f) => (typeof f === 'string' ? f
-      : f.name || f.code)).join(', ') || 'none');
-  }
-  const active = Array.isArray(rep.active_alarms) ? rep.active_alarms.map(shortKind)
-    : v.alarms.kinds.map(shortKind);
-  fact(dl, 'Active alarms', active.join(', ') || 'none');
-  fact(dl, 'Last seen', ago(v.last_seen_us));
-  if (v.status) {
-    fact(dl, 'Connection', v.status.connection);
-    fact(dl, 'Firmware', v.status.firmware_version);
-    fact(dl, 'Outbox', v.status.outbox_depth === null ? null : String(v.status.outbox_depth));
-  }
-  if (!app.vehicleMap) app.vehicleMap = new VehicleMap('v-map', app.config);
-  app.vehicleMap.show(v);
-
-  const alarms = document.querySelector('#v-alarms tbody');
-  clear(alarms);
-  for (const a of v.alarm_history) {
-    alarms.append(el('tr', { dataset: { alarm: a.id } }, el('td', {}, when(a.at_us || a.created_at_us)),
-      el('td', {}, shortKind(a.kind)), el('td', {}, shortTransition(a.transition)),
-      el('td', { className: 'wrap' }, a.detail), ackCell(a, () => renderVehicle(id))));
-  }
-  const rides = document.querySelector('#v-rides tbody');
-  clear(rides);
-  for (const r of v.rides) {
-    const km = r.distance_odo_m ?? r.distance_gnss_m;
-    rides.append(el('tr', {}, el('td', {}, when(r.started_at_us)), el('td', {}, when(r.ended_at_us)),
-      el('td', {}, km === null ? '–' : `${fmt(km / 1000)} km`),
-      el('td', {}, r.max_speed_dkmh === null ? '–' : `${fmt(r.max_speed_dkmh / 10)} km/h`),
-      el('td', {}, `${r.soc_start_pct ?? '–'} → ${r.soc_end_pct ?? '–'} %`)));
-  }
-  const faults = document.querySelector('#v-faults tbody');
-  clear(faults);
-  for (const f of v.faults) {
-    faults.append(el('tr', {}, el('td', {}, f.node), el('td', { className: 'wrap' }, f.name),
-      el('td', {}, f.severity.replace(/^FAULT_SEVERITY_/, '').toLowerCase()), el('td', {}, f.kind),
-      el('td', {}, when(f.last_seen_us))));
-  }
-  if (app.buttonsFor !== v.id) {
-    app.buttonsFor = v.id;
-    const last = document.getElementById('v-last-result');
-    last.textContent = '';
-    delete last.dataset.result;
-    app.commands.renderButtons(document.getElementById('v-buttons'), () => [v.id],
-      (out) => vehicleSent(v.id, out));
-  }
-  renderHistory(document.querySelector('#v-console-commands tbody'), v.console_commands || []);
-  const commands = document.querySelector('#v-commands tbody');
-  clear(commands);
-  for (const c of v.commands) {
-    commands.append(el('tr', {}, el('td', {}, when(c.received_at_us)), el('td', {}, c.action),
-      el('td', {}, c.key_id), el('td', {}, c.result ?? 'pending'),
-      el('td', { className: 'wrap' }, c.reason ?? '')));
-  }
-}
-
-// The vehicle page's answer line: the command's result as soon as the bike sends it.
-function vehicleSent(id, out) {
-  const last = document.getElementById('v-last-result');
-  const one = out.commands && out.commands[0];
-  if (out.error || !one || one.error) {
-    last.dataset.result = 'failed';
-    last.textContent = out.error || (one && one.error) || 'not sent';
-    return;
-  }
-  last.dataset.result = 'pending';
-  last.dataset.command = one.command_id;
-  last.textContent = 'sent, waiting for the bike';
-  app.commands.watch(one.command_id, (c) => {
-    if (last.dataset.command !== c.command_id) return;
-    last.dataset.result = c.result || 'pending';
-    last.textContent = resultText(c);
-  });
-  loadHistory(id).catch(() => {});
-}
-
-async function loadHistory(id) {
-  if (!id) return;
-  const r = await api(`/api/commands?vehicle=${encodeURIComponent(id)}&limit=50`);
-  if (currentVehicleId() !== id) return;
-  renderHistory(document.querySelector('#v-console-commands tbody'), r.commands);
+  return location.hash.startsWith('#vehicle/')
+    ? decodeURIComponent(location.hash.slice('#vehicle/'.length)) : '';
 }
 
 // --- routing ---------------------------------------------------------------------------------
@@ -404,7 +314,8 @@ async function route() {
   if (!app.session) return;
   const hash = location.hash || '#map';
   const view = hash.startsWith('#vehicle/') ? 'vehicle' : hash.slice(1);
-  app.view = ['map', 'list', 'alarms', 'vehicle'].includes(view) ? view : 'map';
+  app.view = ['map', 'list', 'alarms', 'vehicle', 'zones', 'admin', 'campaigns'].includes(view)
+    ? view : 'map';
   for (const s of document.querySelectorAll('main > section')) {
     s.hidden = s.id !== `${app.view}-view`;
   }
@@ -412,18 +323,25 @@ async function route() {
     a.classList.toggle('active', a.id === `nav-${app.view}`);
   }
   if (app.view === 'map') app.fleetMap.resize();
-  if (app.view !== 'vehicle') app.buttonsFor = null;
-  if (app.view === 'vehicle') await renderVehicle(currentVehicleId());
+  if (app.view === 'list' && app.listStale) renderList();
+  if (app.view !== 'vehicle') app.vehiclePage.reset();
+  if (app.view === 'vehicle') await app.vehiclePage.render(currentVehicleId());
+  if (app.view === 'campaigns') await app.campaignPage.show();
 }
 
 async function start() {
   document.getElementById('top').hidden = false;
   document.getElementById('who').textContent = `${app.session.name} (${app.session.role})`;
   app.config = await api('/api/config');
-  app.buttonsFor = null;
   if (!app.commands) {
     app.commands = new Commands({ api, can, status, config: () => app.config });
   }
+  if (!app.vehiclePage) {
+    app.vehiclePage = new VehiclePage({ api, can, status, config: () => app.config,
+      commands: () => app.commands, ackCell, currentId: currentVehicleId });
+  }
+  app.vehiclePage.reset();
+  if (!app.campaignPage) app.campaignPage = new CampaignPage({ api, status });
   app.commands.renderButtons(document.getElementById('bulk-buttons'), () => [...app.selected],
     bulkSent);
   if (!app.fleetMap) {
@@ -435,6 +353,9 @@ async function start() {
       if (state !== 'unknown') legend.append(el('li', { className: `s-${state}` }, name));
     }
   }
+  // zones.js and admin.js (issue 28) take the session and the fleet map from here.
+  document.dispatchEvent(new CustomEvent('fleet-session',
+    { detail: { session: app.session, map: app.fleetMap.map } }));
   await route();
   await Promise.all([loadFleet(), loadAlarms()]);
   app.fleetMap.fit();

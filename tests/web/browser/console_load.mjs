@@ -26,10 +26,13 @@ try {
   // A new document (the query makes it one; a hash change alone would not reload).
   await page.goto(`${spec.url}/?first-load#map`, { waitUntil: 'domcontentloaded' });
   try {
-    await page.waitForFunction((n) => document.querySelectorAll('#map path[data-vehicle]').length >= n,
-      { polling: 100 }, spec.vehicles);
+    // SVG markers (one element each), or the canvas renderer's count of bikes drawn (maps.js sets
+    // #map's data-drawn once the canvas has drawn them).
+    await page.waitForFunction((n) => document.querySelectorAll('#map path[data-vehicle]').length >= n ||
+      Number(document.getElementById('map').dataset.drawn || 0) >= n, { polling: 50 }, spec.vehicles);
   } catch (e) {
     const drawn = await page.evaluate(() => ({ markers: document.querySelectorAll('#map path[data-vehicle]').length,
+      canvas: document.getElementById('map').dataset.drawn,
       paths: document.querySelectorAll('#map path').length, status: document.getElementById('status-line').textContent,
       login: !document.getElementById('login-view').hidden }));
     throw new Error(`${e.message}: ${JSON.stringify(drawn)}`);
