@@ -19,7 +19,7 @@
 # pg_stat_statements: the server's time per statement of the drain), KEEP=1.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-FLEETGW=$(realpath "${FLEETGW:-build/gateway/app/fleetgw}")
+FLEETGW=$(realpath -m "${FLEETGW:-build/gateway/app/fleetgw}")
 VEHICLES=${VEHICLES:-1000}
 DURATION_S=${DURATION_S:-60}
 RIDING_SHARE=${RIDING_SHARE:-0.3}

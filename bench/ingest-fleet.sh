@@ -24,22 +24,24 @@
 # Every step has a timeout (the fleet-sim's run + ramp + 120 s; the settle wait SETTLE_TIMEOUT_S,
 # 600; a worker's start STARTUP_TIMEOUT_S, 300, its stop STOP_TIMEOUT_S, 60; a query
 # QUERY_TIMEOUT_S, 600). A benchmark, not a test. Needs root (PostgreSQL runs as `postgres`).
+# From a fresh clone after scripts/install-deps.sh, one command: `sudo bench/ingest-fleet.sh`
+# (the default FLEETGW is built first in build/, Release: ingest-lib.sh).
 # Environment: FLEETGW (default build/gateway/app/fleetgw; fleetgw-ingest and fleetgw-fleet-sim
 #   beside it), VEHICLES (1000), DURATION_S (120; 600 is the issue's 10 minutes), RIDING_SHARE
 #   (0.3), WORKERS (2), CONNECT_RATE (1000 sessions/s), PER_BROKER (18000), INGEST_ARGS, KEEP=1
 #   keeps the work directory.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-FLEETGW=$(realpath "${FLEETGW:-build/gateway/app/fleetgw}")
+FLEETGW=$(realpath -m "${FLEETGW:-build/gateway/app/fleetgw}")
 VEHICLES=${VEHICLES:-1000}
 DURATION_S=${DURATION_S:-120}
 RIDING_SHARE=${RIDING_SHARE:-0.3}
 NWORKERS=${WORKERS:-2}
 CONNECT_RATE=${CONNECT_RATE:-1000}
 PER_BROKER=${PER_BROKER:-18000}
+source bench/ingest-lib.sh
 SIM=$(dirname "$FLEETGW")/fleetgw-fleet-sim
 [[ -x $SIM ]] || { echo "ingest-fleet: no $SIM" >&2; exit 1; }
-source bench/ingest-lib.sh
 
 start_postgres
 start_broker

@@ -12,16 +12,16 @@
 #   KILL_EVERY_S (15), INGEST_ARGS, KEEP=1.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-FLEETGW=$(realpath "${FLEETGW:-build/gateway/app/fleetgw}")
+FLEETGW=$(realpath -m "${FLEETGW:-build/gateway/app/fleetgw}")
 VEHICLES=${VEHICLES:-2000}
 DURATION_S=${DURATION_S:-90}
 RIDING_SHARE=${RIDING_SHARE:-0.3}
 NWORKERS=${WORKERS:-3}
 KILL_EVERY_S=${KILL_EVERY_S:-15}
-SIM=$(dirname "$FLEETGW")/fleetgw-fleet-sim
-[[ -x $SIM ]] || { echo "ingest-scaleout: no $SIM" >&2; exit 1; }
 command -v ip >/dev/null || { echo "ingest-scaleout: needs iproute2" >&2; exit 77; }
 source bench/ingest-lib.sh
+SIM=$(dirname "$FLEETGW")/fleetgw-fleet-sim
+[[ -x $SIM ]] || { echo "ingest-scaleout: no $SIM" >&2; exit 1; }
 
 # Namespaces fgw-<pid>-K with veth fgh<K>-<pid>/fgn<K> (host side 10.99.K.1, worker 10.99.K.2).
 NS_PREFIX="fgw-$$"
