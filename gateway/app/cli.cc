@@ -420,6 +420,12 @@ int run_cli(int argc, char** argv) {
   command_cmd->add_flag("--clear-trip", cmd_options.clear_trip, "reset the trip distance and time");
   command_cmd->add_flag("--power-off", cmd_options.power_off,
                         "power the bike off (refused while it or a lock moves)");
+  // Diagnostic reads (issue 29): the block names are checked by run_command_tool().
+  command_cmd->add_option("--diag", cmd_options.diag,
+                          "read a diagnostic block (mc_settings, bms_cells, mc_lifetime, ...; "
+                          "lock_model with --lock)");
+  command_cmd->add_flag("--captured", cmd_options.captured,
+                        "with --diag mc_lifetime|pack_lifetime: the record last seen on the bus");
   command_cmd->add_option("--key", cmd_options.key, "Ed25519 private key (PEM)")->required();
   command_cmd->add_option("--key-id", cmd_options.key_id,
                           "key id (default: the delegation's, else the key file's stem)");

@@ -13,6 +13,7 @@
 #include "fleetgw/v1/command.pb.h"
 #include "fleetgw/v1/envelope.pb.h"
 #include "gateway/app/time_arg.h"
+#include "gateway/command/diag_blocks.h"
 #include "gateway/command/sha256.h"
 #include "gateway/command/verifier.h"
 #include "gateway/common/untrusted_text.h"
@@ -58,6 +59,46 @@ std::string_view state_name(v1::LockState s) {
   }
 }
 
+std::string hex_id(std::uint32_t v, int digits) {
+  static constexpr char kDigits[] = "0123456789ABCDEF";
+  std::string s = "0x";
+  for (int i = digits - 1; i >= 0; --i) s += kDigits[(v >> (4 * i)) & 0xF];
+  return s;
+}
+
+// A diagnostic read's decoded block (issue 29): every received string escaped.
+nlohmann::json diagnostic_json(const v1::DiagnosticResult& d) {
+  nlohmann::json messages = nlohmann::json::array();
+  for (const auto& m : d.messages()) {
+    nlohmann::json values = nlohmann::json::array();
+    for (const auto& v : m.values()) {
+      nlohmann::json value = nullptr;
+      if (v.valid() && v.has_value_e6()) {
+        value = static_cast<double>(v.value_e6()) / 1e6;
+      } else if (v.valid()) {
+        value = common::untrusted_excerpt(v.text(), 128);
+      }
+      nlohmann::json one{{"name", common::untrusted_excerpt(v.name(), 128)}, {"value", value}};
+      if (!v.unit().empty()) one["unit"] = common::valid_utf8(v.unit());
+      values.push_back(std::move(one));
+    }
+    const auto* data = reinterpret_cast<const std::uint8_t*>(m.data().data());
+    messages.push_back({{"message", common::untrusted_excerpt(m.message(), 64)},
+                        {"can_id", hex_id(m.can_id(), 3)},
+                        {"command", hex_id(m.command(), 4)},
+                        {"data", hex({data, m.data().size()})},
+                        {"heard_at", m.heard_at_us() > 0 ? app::iso_utc(m.heard_at_us()) : ""},
+                        {"values", std::move(values)}});
+  }
+  nlohmann::json j{{"block", common::untrusted_excerpt(d.block(), 64)},
+                   {"node", common::untrusted_excerpt(d.node(), 64)},
+                   {"source", common::untrusted_excerpt(d.source(), 64)},
+                   {"requests_sent", d.requests_sent()},
+                   {"messages", std::move(messages)}};
+  if (!d.note().empty()) j["note"] = common::untrusted_excerpt(d.note(), 256);
+  return j;
+}
+
 nlohmann::json to_json(const v1::CommandResult& r, std::string_view vehicle, Micros round_trip) {
   nlohmann::json j;
   j["command_id"] = r.command_id();
@@ -98,6 +139,7 @@ nlohmann::json to_json(const v1::CommandResult& r, std::string_view vehicle, Mic
     if (m.has_obc_ready()) mc["obc_ready"] = m.obc_ready();
     j["mc"] = std::move(mc);
   }
+  if (r.has_diagnostic()) j["diagnostic"] = diagnostic_json(r.diagnostic());
   return j;
 }
 
@@ -178,18 +220,33 @@ int run_command_tool(const CommandToolOptions& o) {
   };
 
   if (!is_valid_tool_id(o.vehicle)) return usage("--vehicle: 1..64 characters of [A-Za-z0-9._-]");
-  // Exactly one action: lock/unlock, or one MC action.
-  const bool lock_action = !o.lock.empty() || !o.action.empty();
+  // Exactly one action: lock/unlock, one MC action, or one diagnostic read (whose --lock names
+  // the lock of lock_model).
+  const bool diag = !o.diag.empty();
+  const bool lock_action = (!diag && !o.lock.empty()) || !o.action.empty();
   const int actions = int{lock_action} + int{o.speed_limit_kmh.has_value()} +
                       int{!o.assist.empty()} + int{!o.lights.empty()} + int{o.clear_trip} +
-                      int{o.power_off};
+                      int{o.power_off} + int{diag};
   if (actions != 1) {
     return usage(
         "give exactly one action: --lock with --action, --speed-limit, --assist, --lights, "
-        "--clear-trip or --power-off");
+        "--clear-trip, --power-off or --diag");
   }
+  if (o.captured && !diag) return usage("--captured goes with --diag mc_lifetime|pack_lifetime");
   std::string mc_action, mc_value;
-  if (lock_action) {
+  const DiagBlockSpec* diag_spec = nullptr;
+  if (diag) {
+    diag_spec = find_diag_block(o.diag);
+    if (diag_spec == nullptr) return usage("--diag: one of " + diag_block_names());
+    const bool lock_model = diag_spec->block == v1::DIAGNOSTIC_BLOCK_LOCK_MODEL;
+    if (lock_model && (o.lock.empty() || o.lock.size() > 64 || o.lock == "vehicle")) {
+      return usage("--diag lock_model: name the lock with --lock (seat, battery, ...)");
+    }
+    if (!lock_model && !o.lock.empty()) return usage("--lock goes with --diag lock_model only");
+    if (o.captured && !diag_spec->capturable) {
+      return usage("--captured: only for --diag mc_lifetime or pack_lifetime");
+    }
+  } else if (lock_action) {
     if (o.action != "lock" && o.action != "unlock") return usage("--action: lock or unlock");
     if (o.lock.empty() || o.lock.size() > 64) return usage("--lock: a lock kind or 'vehicle'");
   } else if (o.speed_limit_kmh) {
@@ -335,9 +392,22 @@ int run_command_tool(const CommandToolOptions& o) {
 
     const Micros now = clock();
     const Micros expires = now + std::chrono::duration_cast<Micros>(o.expires_in);
-    const auto cmd = mc_action.empty()
-                         ? make_command(o.vehicle, o.lock, o.action, now, expires, id)
-                         : make_mc_command(o.vehicle, mc_action, mc_value, now, expires, id);
+    std::optional<v1::Command> cmd;
+    if (diag_spec != nullptr) {
+      cmd.emplace();
+      auto* read = cmd->mutable_diagnostic_read();
+      read->set_block(diag_spec->block);
+      if (diag_spec->block == v1::DIAGNOSTIC_BLOCK_LOCK_MODEL) read->set_lock_kind(o.lock);
+      read->set_last_captured(o.captured);
+      cmd->set_command_id(id);
+      cmd->set_vehicle_id(o.vehicle);
+      cmd->set_issued_at_us(now.count());
+      cmd->set_expires_at_us(expires.count());
+    } else if (mc_action.empty()) {
+      cmd = make_command(o.vehicle, o.lock, o.action, now, expires, id);
+    } else {
+      cmd = make_mc_command(o.vehicle, mc_action, mc_value, now, expires, id);
+    }
     auto signed_cmd = *cmd;
     if (!o.operator_id.empty()) signed_cmd.set_operator_id(o.operator_id);
     const SentCommand sent = sign_for_sending(signed_cmd, *key, key_id, delegation);

@@ -6,7 +6,8 @@
 //  * run_command_tool(): validates the options (exit 2 with a message for usage errors: unknown
 //    action, not exactly one action, bad vehicle id, unreadable key, credentials over plain
 //    tcp:// ...), signs a Command -- lock/unlock (--lock + --action) or one MC action
-//    (--speed-limit, --assist, --lights, --clear-trip, --power-off; issue 13) --
+//    (--speed-limit, --assist, --lights, --clear-trip, --power-off; issue 13) or one
+//    diagnostic read (--diag BLOCK [--lock KIND] [--captured]; issue 29) --
 //    with a fresh random 128-bit command id, connects (clean session; TLS with server and
 //    host-name verification when the URI is ssl://), subscribes to <prefix>/<V>/cmd/result
 //    BEFORE publishing the SignedCommand to <prefix>/<V>/cmd at QoS 1, then waits up to
@@ -14,9 +15,11 @@
 //    command_sha256 is the SHA-256 of the exact Command bytes it signed. Other results are
 //    ignored (counted on `err`): a result for a forged payload that copied our id, or any
 //    result without the digest (a gateway older than this field), is never taken for ours. It
-//    prints that result as one JSON line on `out` and returns 0 only for `succeeded`; 1 for failed
-//    / timeout / rejected; 3 when no answer came (or the broker could not be reached). Diagnostics
-//    go to `err`; the password is never printed.
+//    prints that result as one JSON line on `out` (a diagnostic read's decoded block as
+//    "diagnostic": {block, node, source, requests_sent, note, messages: [{message, can_id,
+//    command, data, heard_at, values: [{name, value, unit}]}]}) and returns 0 only for `succeeded`;
+//    1 for failed / timeout / rejected; 3 when no answer came (or the broker could not be reached).
+//    Diagnostics go to `err`; the password is never printed.
 //  * It also subscribes to <prefix>/<V>/status, where the gateway's uplink keeps its retained
 //    Status (online on connect, offline on a clean stop, the last will when the connection is
 //    lost). When no result comes, the message on `err` says what the latest status there said:
@@ -70,7 +73,11 @@ struct CommandToolOptions {
   std::string lights;                  // --lights on|off
   bool clear_trip = false;             // --clear-trip
   bool power_off = false;              // --power-off
-  std::filesystem::path key;           // --key KEY.pem (Ed25519 private key)
+  // Diagnostic reads (issue 29): --diag BLOCK (mc_settings, bms_cells, mc_lifetime, ...; the
+  // lock for lock_model in --lock), --captured: the lifetime record last seen on the bus.
+  std::string diag;
+  bool captured = false;
+  std::filesystem::path key;  // --key KEY.pem (Ed25519 private key)
   std::string key_id;  // --key-id ID; default: the delegation's key id, else the key file's stem
   // Issue 28: --delegation FILE (a SignedDelegation from `fleetgw keys delegate`) sent with the
   // command, for a key that is not in the gateways' [command.trusted_keys]; --operator NAME

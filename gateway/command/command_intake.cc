@@ -44,6 +44,7 @@ Disposition CommandService::Impl::on_payload(std::span<const std::uint8_t> paylo
     return reject(*rej, now, journal ? std::optional<Micros>(cmd.expires_at) : std::nullopt,
                   !journal);
   }
+  if (cmd.diag.requested()) return on_diag_command(std::move(cmd), now);
   if (cmd.mc.kind != McActionKind::kNone) return on_mc_command(std::move(cmd), now);
   if (auto rej = preflight(cmd, now)) {
     remember(cmd, std::max(cmd.expires_at, wall_now + config.rejected_retention));

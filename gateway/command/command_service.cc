@@ -37,6 +37,12 @@ McActionConfig mc_settings(const CommandServiceConfig& c) {
   return m;
 }
 
+DiagReaderConfig diag_settings(const CommandServiceConfig& c) {
+  DiagReaderConfig d = c.diag;
+  d.decode_options = c.decode_options;
+  return d;
+}
+
 }  // namespace
 
 std::int64_t to_ms(Micros d) {
@@ -115,7 +121,9 @@ CommandService::Impl::Impl(CommandServiceConfig c, CommandContext ctx)
       context(std::move(ctx)),
       verifier(config.verifier),
       motion(interlock_settings(config)),
-      mc(mc_settings(config), context.node, motion) {
+      mc(mc_settings(config), context.node, motion),
+      diag(diag_settings(config), context.node),
+      capture(context.store) {
   if (config.retries < 0) throw std::invalid_argument("command.retries must be >= 0");
   if (config.confirm_timeout <= Micros(0)) {
     throw std::invalid_argument("command.confirm_timeout must be > 0");
@@ -171,7 +179,8 @@ CommandService::Impl::Running* CommandService::Impl::find_running(std::string_vi
 }
 
 bool CommandService::Impl::executing(std::string_view id) {
-  return find_running(id) != nullptr || (mc_run && mc_run->cmd.command_id == id);
+  return find_running(id) != nullptr || (mc_run && mc_run->cmd.command_id == id) ||
+         (diag_run && diag_run->cmd.command_id == id);
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -243,12 +252,16 @@ void CommandService::on_message(const motinova::DecodedMessage& msg, Micros now)
     impl_->motion.observe_mc_status(msg, now);
   }
   impl_->mc.on_message(msg, now);
+  impl_->diag.on_message(msg, now);
+  impl_->capture.on_message(msg, impl_->wall(now).count(), now);
 }
 
 void CommandService::tick(Micros now) {
   Impl& s = *impl_;
   if (!s.unjournaled.empty()) s.retry_unjournaled(now);
   s.mc.tick(now);
+  s.diag.tick(now);
+  s.capture.tick(now);
   const Micros wall_now = s.wall(now);
   if (now < s.next_purge || !s.context.clock_synchronised(wall_now)) return;
   s.next_purge = now + s.config.purge_interval;

@@ -62,6 +62,12 @@
 //    are executed and confirmed from the bus by McActionRunner (mc_actions.h); the result
 //    carries McActionResult. One MC action at a time; power off is refused while a lock
 //    command runs, a lock moves or the bike moves (or its motion is unknown).
+//  * Diagnostic reads (Command.diagnostic_read, issue 29) take the same way in too and are run
+//    by DiagReader (diag_reader.h): read requests only, nothing is written to a node; one read
+//    at a time (diag_busy), an MC read not while an MC action runs (mc_busy); a node that does
+//    not answer in time gives TIMEOUT "node_offline: ..."; the result carries the decoded block
+//    (CommandResult.diagnostic). The lifetime records seen on the bus are kept (DiagCapture)
+//    and answer a read with last_captured without a bus request.
 //  * Destroying the service mid-command is safe: pending node callbacks become no-ops, the
 //    journal keeps "executing" and the next recover() finishes it.
 #pragma once
@@ -77,6 +83,7 @@
 #include <string_view>
 #include <vector>
 
+#include "gateway/command/diag_reader.h"
 #include "gateway/command/mc_actions.h"
 #include "gateway/command/motion_interlock.h"
 #include "gateway/command/verifier.h"
@@ -129,6 +136,8 @@ struct CommandServiceConfig {
   // MC actions (issue 13). Its decode_options, confirm_timeout and retries are taken from the
   // fields above when the service is built.
   McActionConfig mc{};
+  // Diagnostic reads (issue 29). Its decode_options are taken from the field above.
+  DiagReaderConfig diag{};
 };
 
 // Fills the config from fleetgw.toml: [vehicle].id, [command], [protocol] lock kinds and names.

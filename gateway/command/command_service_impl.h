@@ -10,6 +10,7 @@
 //   motion_interlock.cc   whether the bike moves (MotionInterlock)
 //   command_mc.cc         MC actions (issue 13): pre-flight, journal-first start, result
 //   mc_actions.cc         MC actions on the bus and their confirmation (McActionRunner)
+//   diag_service.cc       diagnostic reads (issue 29): pre-flight, journal-first start, result
 // Contract: single-threaded; every function runs on the caller's thread inside one of the
 // CommandService entry points. Nothing here throws to the caller for a storage failure.
 #pragma once
@@ -22,6 +23,8 @@
 
 #include "fleetgw/v1/command.pb.h"
 #include "gateway/command/command_service.h"
+#include "gateway/command/diag_capture.h"
+#include "gateway/command/diag_reader.h"
 #include "gateway/command/mc_actions.h"
 #include "gateway/command/motion_interlock.h"
 #include "storage/store.h"
@@ -75,6 +78,10 @@ struct CommandService::Impl : std::enable_shared_from_this<CommandService::Impl>
     Micros received{0};
   };
   std::optional<McRun> mc_run;
+  // Diagnostic reads (issue 29): the bus side, the lifetime records seen, the read in progress.
+  DiagReader diag;
+  DiagCapture capture;
+  std::optional<McRun> diag_run;
   std::vector<std::unique_ptr<Running>> running;
   CommandStats stats;
   ResultObserver observer;
@@ -128,6 +135,11 @@ struct CommandService::Impl : std::enable_shared_from_this<CommandService::Impl>
   // command_mc.cc
   Disposition on_mc_command(VerifiedCommand cmd, Micros now);
   void finish_mc(McOutcome outcome, Micros now);
+
+  // diag_service.cc
+  Disposition on_diag_command(VerifiedCommand cmd, Micros now);
+  void finish_diag(DiagOutcome outcome, Micros now);
+  DiagOutcome read_captured(const DiagBlockSpec& spec) const;
 
   // command_results.cc
   bool store_result(v1::CommandResult r, Micros now, std::optional<Micros> journal_expires,

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "fleetgw/v1/command.pb.h"
+#include "gateway/command/diag_blocks.h"
 #include "gateway/command/sha256.h"
 #include "gateway/common/untrusted_text.h"
 
@@ -143,6 +144,8 @@ std::string_view reject_reason_name(RejectReason reason) {
       return "delegation_not_yet_valid";
     case RejectReason::kDelegationExpired:
       return "delegation_expired";
+    case RejectReason::kDiagBusy:
+      return "diag_busy";
   }
   return "unknown";
 }
@@ -249,7 +252,16 @@ VerifyResult CommandVerifier::authenticate(std::span<const std::uint8_t> payload
   if (cmd.expires_at_us() <= 0) return bad("no expires_at_us");
   if (cmd.expires_at_us() <= cmd.issued_at_us()) return bad("expires_at_us <= issued_at_us");
   McRequest mc;
-  if (cmd.mc_action_case() != v1::Command::MC_ACTION_NOT_SET) {
+  DiagRequest diag;
+  if (cmd.has_diagnostic_read()) {
+    // Issue 29: a read is never mixed with an actuation (an older gateway would run that part).
+    if (cmd.action() != v1::COMMAND_ACTION_UNSPECIFIED ||
+        cmd.target_case() != v1::Command::TARGET_NOT_SET ||
+        cmd.mc_action_case() != v1::Command::MC_ACTION_NOT_SET) {
+      return bad("a diagnostic read must not carry a lock or MC action");
+    }
+    if (auto problem = parse_diag_read(cmd.diagnostic_read(), diag)) return bad(*problem);
+  } else if (cmd.mc_action_case() != v1::Command::MC_ACTION_NOT_SET) {
     // One action per command: the parse kept only the last of several.
     const auto fields = mc_action_fields(signed_cmd.command());
     if (!fields) return bad("command bytes cannot be walked");
@@ -359,6 +371,7 @@ VerifyResult CommandVerifier::authenticate(std::span<const std::uint8_t> payload
   out.whole_vehicle = cmd.target_case() == v1::Command::kWholeVehicle;
   if (cmd.target_case() == v1::Command::kLockKind) out.lock_kind = cmd.lock_kind();
   out.mc = std::move(mc);
+  out.diag = std::move(diag);
   out.command_sha256 = std::move(digest);
   out.operator_id = std::move(operator_id);
   if (delegated) out.delegation = std::move(delegated->grant);
@@ -371,6 +384,7 @@ VerifyResult CommandVerifier::authenticate(std::span<const std::uint8_t> payload
 }
 
 std::string_view delegation_action(const VerifiedCommand& c) {
+  if (c.diag.requested()) return "diagnostics";
   if (c.mc.kind != McActionKind::kNone) return mc_action_name(c.mc.kind);
   return c.target == node::LockTarget::kLocked ? "lock" : "unlock";
 }
@@ -450,7 +464,9 @@ std::optional<Rejection> CommandVerifier::check(VerifiedCommand& c, Micros now,
   if (seen && seen(c.command_id, now)) {
     return reject_auth(RejectReason::kReplayed, "command id already seen");
   }
-  if (!c.whole_vehicle && c.mc.kind == McActionKind::kNone) {
+  const bool diag_lock = c.diag.block == v1::DIAGNOSTIC_BLOCK_LOCK_MODEL;
+  if (diag_lock || (!c.whole_vehicle && c.mc.kind == McActionKind::kNone && !c.diag.requested())) {
+    if (diag_lock) c.lock_kind = c.diag.lock_kind;
     c.lock_index = -1;
     for (std::size_t k = 0; k < config_.lock_kinds.size(); ++k) {
       if (!config_.lock_kinds[k].empty() && config_.lock_kinds[k] == c.lock_kind) {

@@ -118,13 +118,15 @@ enum class RejectReason : std::uint8_t {
   kOutOfScope,
   kDelegationNotYetValid,
   kDelegationExpired,
+  // Diagnostic reads (issue 29; diag_reader.h): another read is running
+  kDiagBusy,
 };
 // The reason as sent in CommandResult.reason: "malformed", "unknown_key", "signature_invalid",
 // "wrong_vehicle", "clock_unsynchronised", "expired", "issued_in_future", "validity_too_long",
 // "replayed", "lock_not_fitted", "lock_offline", "interlock_moving", "interlock_motion_unknown",
 // "lock_busy", "shutting_down", "storage_error", "mc_offline", "mc_busy", "mc_state_unknown",
 // "out_of_range", "unknown_assist_level", "lock_moving", "no_parking_zone", "delegation_invalid",
-// "revoked", "out_of_scope", "delegation_not_yet_valid", "delegation_expired".
+// "revoked", "out_of_scope", "delegation_not_yet_valid", "delegation_expired", "diag_busy".
 std::string_view reject_reason_name(RejectReason reason);
 
 // "succeeded", "failed", "timeout", "rejected" or "unspecified": the result names used in logs,
@@ -168,6 +170,14 @@ struct McRequest {
   bool headlight_on = false;  // kHeadlight
 };
 
+// A diagnostic read (issue 29, Command.diagnostic_read); block UNSPECIFIED for other commands.
+struct DiagRequest {
+  v1::DiagnosticBlock block = v1::DIAGNOSTIC_BLOCK_UNSPECIFIED;
+  std::string lock_kind;       // DIAGNOSTIC_BLOCK_LOCK_MODEL: the lock asked about
+  bool last_captured = false;  // lifetime records: answer from the capture, send nothing
+  bool requested() const { return block != v1::DIAGNOSTIC_BLOCK_UNSPECIFIED; }
+};
+
 // A command that passed authentication (and, from verify(), every check).
 struct VerifiedCommand {
   std::string command_id;
@@ -179,6 +189,7 @@ struct VerifiedCommand {
   bool whole_vehicle = false;
   std::string lock_kind;  // empty for whole_vehicle and MC actions
   McRequest mc;           // mc.kind != kNone: an MC action (no lock target)
+  DiagRequest diag;       // diag.requested(): a diagnostic read (no lock target, no MC action)
   int lock_index = -1;    // 0-based LOCK k (node 7 + k); -1 for whole_vehicle or not yet resolved
   // SHA-256 of the signed Command bytes: binds the result to them and tells a redelivery (same
   // bytes) from a reused id (different bytes).
@@ -192,8 +203,8 @@ struct VerifiedCommand {
   std::string payload_sha256;
 };
 
-// The action name a delegation must grant for this command: "lock", "unlock" or the MC
-// action's name ("speed_limit", ...).
+// The action name a delegation must grant for this command: "lock", "unlock", the MC
+// action's name ("speed_limit", ...) or "diagnostics" for a diagnostic read.
 std::string_view delegation_action(const VerifiedCommand& command);
 
 using VerifyResult = std::variant<VerifiedCommand, Rejection>;

@@ -237,6 +237,13 @@ void Bike::Impl::handle(const AppFrame& f) {
     return;
   }
 
+  // 0x761 read 0x4100: the other reading of the IOT's parameter-block read (spec 3.5.2, "0x4100
+  // also possible"), not in the catalogue on 0x761; answered like the OBC's 0x731 0x4100.
+  if (f.can_id == 0x761 && f.function == 0x41 && f.mode == motinova::Mode::kRead &&
+      f.data.empty()) {
+    if (alive(Node::kMc)) after(reply_latency(), [this] { send_mc_params2(); });
+    return;
+  }
   motinova::decode(f, motinova::Catalogue::standard(), opts_, decoded_);
   if (decoded_.status != motinova::DecodeStatus::kOk) {
     ++stats_.ignored_messages;
@@ -295,6 +302,13 @@ void Bike::Impl::handle(const AppFrame& f) {
       }
       return;
     }
+    case 0x751:  // CDL (or the gateway's diagnostics) reads of the MC lifetime records
+      if (!alive(Node::kMc) || f.mode != motinova::Mode::kRead) return;
+      if (f.function == 0x12 || f.function == 0x19) {
+        const bool second = f.function == 0x19;
+        after(reply_latency(), [this, second] { send_mc_lifetime(second); });
+      }
+      return;
     case 0x752:  // CDL reads of BMS data: all answered with the pack statistics
       if (alive(Node::kBms)) after(reply_latency(), [this] { send_pack_stats(); });
       return;

@@ -216,6 +216,7 @@ class Bike::Impl final : public motinova::FrameSink {
   void send_mc_settings();
   void send_mc_params2();
   void send_mc_tuning();
+  void send_mc_lifetime(bool second);  // 0x715/0xA230 (record 1) or 0xAC10 (record 2)
   void send_bms_status();
   void send_bms_cells();
   void send_bms_nameplate();
@@ -289,6 +290,10 @@ class Bike::Impl final : public motinova::FrameSink {
   std::array<uint8_t, 32> tuning_{};
   uint32_t mc_faults_ = 0;
   FaultTx mc_fault_tx_;
+  // Lifetime records (0xA230/0xAC10): activations per normalised fault bit, and the PCB, motor
+  // and MCU temperature extremes (max, min) seen in the running data.
+  std::array<uint16_t, 21> mc_fault_counts_{};
+  std::array<double, 6> mc_temp_extremes_{-1000, 1000, -1000, 1000, -1000, 1000};
 
   // rider, drive train and pack (ride_physics.h); the ride profile's segment end times
   RidePhysics ride_;

@@ -14,6 +14,11 @@ using namespace detail;
 // Messages
 
 void Bike::Impl::send_mc_status() {
+  const double temps[3] = {ride_.pcb_temp, ride_.motor_temp, ride_.mcu_temp};
+  for (std::size_t i = 0; i < 3; ++i) {
+    mc_temp_extremes_[2 * i] = std::max(mc_temp_extremes_[2 * i], temps[i]);
+    mc_temp_extremes_[2 * i + 1] = std::min(mc_temp_extremes_[2 * i + 1], temps[i]);
+  }
   const double v_kmh = ride_.speed_ms * 3.6;
   const double discharge_ma = std::max(0.0, -ride_.current_a) * 1000.0;
   // Range and consumption from this trip once it is long enough to say anything.
@@ -93,6 +98,45 @@ void Bike::Impl::send_mc_tuning() {
   AppFrame f = writer(0x713, 0x56).frame();
   std::copy(tuning_.begin(), tuning_.end(), f.data.data());
   send(Node::kMc, f);
+}
+
+// The MC's lifetime records, in answer to the service dongle's reads on 0x751 (spec 3.2.11,
+// 3.2.12). The history before the simulation is a fixed, plausible past: 400 power-ons and 4
+// minutes of operation per km of the starting ODO (15 km/h); the counters are the fault
+// activations of this run.
+void Bike::Impl::send_mc_lifetime(bool second) {
+  if (second) {
+    static constexpr std::string_view kNames[] = {
+        "mcu_fault_count",         "cadence_sensor_fault_count", "throttle_sensor_fault_count",
+        "mos_short_count",         "bus_voltage_fault_count",    "circuit_fault_count",
+        "te_mcu_fault_count",      "te_circuit_fault_count"};
+    motinova::MessageWriter w = writer(0x715, 0xAC);
+    for (std::size_t i = 0; i < 8; ++i) w.raw(kNames[i], mc_fault_counts_[13 + i]);
+    send(Node::kMc, w.frame());
+    return;
+  }
+  static constexpr std::string_view kNames[] = {
+      "over_current_count",        "under_voltage_count",      "over_voltage_count",
+      "rotor_locked_count",        "over_heat_count",          "speed_sensor_fault_count",
+      "torque_sensor_fault_count", "hall_or_brake_fault_count", "phase_line_fault_count",
+      "ntc_fault_count",           "bms_check_fault_count",    "hmi_check_fault_count",
+      "pbu_check_fault_count"};
+  motinova::MessageWriter w = writer(0x715, 0xA2);
+  w.raw("power_on_count", static_cast<int64_t>(400 + boot_gen_))
+      .raw("operating_time_min", static_cast<int64_t>(sc_.odo_km * 4.0 + ride_.runtime_s / 60));
+  for (std::size_t i = 0; i < 13; ++i) w.raw(kNames[i], mc_fault_counts_[i]);
+  // Before the first running data the extremes are the ambient temperature.
+  auto extreme = [this](std::size_t i) {
+    const double t = mc_temp_extremes_[i];
+    return temp_raw(t < -500 || t > 500 ? sc_.ambient_c : t);
+  };
+  w.raw("pcb_temp_max_c", extreme(0))
+      .raw("pcb_temp_min_c", extreme(1))
+      .raw("motor_temp_max_c", extreme(2))
+      .raw("motor_temp_min_c", extreme(3))
+      .raw("mcu_temp_max_c", extreme(4))
+      .raw("mcu_temp_min_c", extreme(5));
+  send(Node::kMc, w.frame());
 }
 
 void Bike::Impl::send_bms_status() {
@@ -229,6 +273,13 @@ void Bike::Impl::set_faults(Node n, uint32_t bits, bool on) {
   uint32_t& word = fault_word(n);
   const uint32_t before = word;
   word = on ? (word | bits) : (word & ~bits);
+  if (n == Node::kMc) {
+    // Counted in the MC's lifetime records (bits 0..20 of the normalised word).
+    const uint32_t rising = word & ~before;
+    for (std::size_t b = 0; b < mc_fault_counts_.size(); ++b) {
+      if ((rising >> b) & 1U) ++mc_fault_counts_[b];
+    }
+  }
   if (word != before) after(ms(2), [this, n] { send_fault_word(n); });
 }
 
