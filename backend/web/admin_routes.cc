@@ -1,4 +1,6 @@
-// Alarm resolution and API tokens (issue 28; route_context.h, api_tokens.h).
+// Alarm resolution, API tokens and the admin pages (issue 28; route_context.h, api_tokens.h,
+// admin_pages.h).
+#include "backend/web/admin_pages.h"
 #include "backend/web/api_tokens.h"
 #include "backend/web/route_context.h"
 
@@ -30,6 +32,10 @@ ResolveResult resolve_alarm(PgConnection& c, const AlarmKey& key, std::string_vi
 }  // namespace
 
 void add_admin_routes(httplib::Server& s, RouteContext& ctx) {
+  // The admin pages (admin_pages.h): revocation lists, zones, operator accounts.
+  add_revocation_routes(s, ctx);
+  add_zone_routes(s, ctx);
+  add_account_routes(s, ctx);
   // Resolve: the incident is over (the bike found, the false alarm explained). The alarm stops
   // counting as active on the map; who and when are kept, with an optional note.
   s.Post(R"(/api/alarms/([^/]+)/resolve)", [&ctx](const httplib::Request& req,

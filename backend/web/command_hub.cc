@@ -4,6 +4,7 @@
 #include <mqtt/async_client.h>
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <stdexcept>
@@ -219,6 +220,28 @@ void CommandHub::send(const CommandRequest& r, const std::string& vehicle_id,
     } catch (const PgError& pe) {
       spdlog::warn("serve: marking {} unpublished: {}", cmd.command_id, pe.what());
     }
+    throw std::runtime_error(std::string("broker: ") + e.what());
+  }
+}
+
+void CommandHub::publish_retained(const std::vector<std::string>& topics,
+                                  const std::string& payload) {
+  std::vector<std::pair<std::string, mqtt::delivery_token_ptr>> pending;
+  pending.reserve(topics.size());
+  try {
+    for (const std::string& t : topics) {
+      pending.emplace_back(
+          t, impl_->client->publish(t, payload.data(), payload.size(), 1, /*retained=*/true));
+    }
+    const auto deadline = std::chrono::steady_clock::now() + 10s;
+    for (auto& [topic, tok] : pending) {
+      const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(
+          deadline - std::chrono::steady_clock::now());
+      if (!tok->wait_for(std::max(left, std::chrono::milliseconds(1)))) {
+        throw std::runtime_error(topic + ": the broker did not acknowledge it in time");
+      }
+    }
+  } catch (const mqtt::exception& e) {
     throw std::runtime_error(std::string("broker: ") + e.what());
   }
 }

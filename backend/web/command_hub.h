@@ -22,6 +22,7 @@
 #include <functional>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "backend/common/pg.h"
 #include "backend/web/auth.h"
@@ -47,6 +48,10 @@ class CommandHub {
             std::optional<std::uint64_t> delegation_serial, const SignedCommandBytes& cmd,
             const CommandOrigin& origin);
   bool connected() const;
+  // Retained documents (revocation lists, zone bundles: issue 28) at QoS 1 on each topic, all
+  // published before any is waited for; std::runtime_error names the first topic the broker
+  // did not acknowledge within 10 s in all.
+  void publish_retained(const std::vector<std::string>& topics, const std::string& payload);
 
  private:
   std::string o_topic(const std::string& vehicle_id) const;

@@ -258,6 +258,37 @@ SignedCommandBytes CommandSigner::sign(const CommandRequest& r, std::string_view
   return out;
 }
 
+std::string CommandSigner::sign_document(std::string_view bytes) const {
+  const std::unique_ptr<EVP_MD_CTX, MdCtxFree> ctx(EVP_MD_CTX_new());
+  unsigned char sig[64];
+  std::size_t sig_len = sizeof sig;
+  if (!ctx || EVP_DigestSignInit(ctx.get(), nullptr, nullptr, nullptr, impl_->key.get()) != 1 ||
+      EVP_DigestSign(ctx.get(), sig, &sig_len, reinterpret_cast<const unsigned char*>(bytes.data()),
+                     bytes.size()) != 1 ||
+      sig_len != 64) {
+    throw std::runtime_error("Ed25519 signing failed (OpenSSL)");
+  }
+  return std::string(reinterpret_cast<char*>(sig), sig_len);
+}
+
+const v1::SignedDelegation* CommandSigner::signed_delegation() const {
+  return impl_->signed_delegation ? &*impl_->signed_delegation : nullptr;
+}
+
+std::optional<std::string> CommandSigner::document_out_of_scope(std::string_view action,
+                                                                std::int64_t now_us) const {
+  if (!impl_->signed_delegation) return std::nullopt;
+  const v1::Delegation& d = impl_->delegation;
+  const std::string serial =
+      "delegation " + std::to_string(d.serial()) + " of key '" + d.key_id() + "'";
+  if (std::find(d.actions().begin(), d.actions().end(), action) == d.actions().end()) {
+    return "action '" + std::string(action) + "' is not delegated to this server (" + serial + ")";
+  }
+  if (now_us < d.not_before_us()) return serial + " is valid from " + utc(d.not_before_us());
+  if (now_us >= d.not_after_us()) return serial + " expired at " + utc(d.not_after_us());
+  return std::nullopt;
+}
+
 json CommandSigner::describe() const {
   json j = {{"key_id", key_id_}, {"delegated", impl_->signed_delegation.has_value()}};
   if (impl_->signed_delegation) {

@@ -35,6 +35,10 @@
 #include <string_view>
 #include <variant>
 
+namespace fleetgw::v1 {
+class SignedDelegation;
+}
+
 namespace fleetgw::web {
 
 struct CommandRequest {
@@ -75,6 +79,13 @@ class CommandSigner {
                           std::chrono::seconds ttl) const;
   // What the console shows about the key: id, and the delegation's scope and window.
   nlohmann::json describe() const;
+  // Documents signed with the same key (zone bundles, issue 28): the Ed25519 signature of
+  // exactly `bytes`, and the root's delegation as it came (nullptr without --delegation).
+  std::string sign_document(std::string_view bytes) const;
+  const v1::SignedDelegation* signed_delegation() const;
+  // Why the delegation does not let this server sign the document `action` ("zones") now.
+  std::optional<std::string> document_out_of_scope(std::string_view action,
+                                                   std::int64_t now_us) const;
 
  private:
   struct Impl;

@@ -5,6 +5,7 @@
 #include <string>
 
 #include "backend/web/registry_schema.h"
+#include "backend/web/revocation_schema.h"
 
 namespace fleetgw::web {
 namespace {
@@ -81,6 +82,7 @@ constexpr Version kVersions[] = {
     {1, "operators, sessions, login throttle, audit, alarm acknowledgements", kV1},
     {2, "console commands, alarm resolutions, API tokens", kV2},
     {3, "vehicle registry, GBFS ids, zone bundles, MDS agencies", kRegistrySchemaV3},
+    {4, "revocation lists published from the console", kRevocationSchemaV4},
 };
 
 // Any constant other than the ingest's: the lock serialises console migrations only.

@@ -63,6 +63,26 @@ void add_serve_options(CLI::App& app, ServeOptions& o) {
                  "a command expires this long after it is signed")
       ->check(CLI::Range(5, 3600))
       ->capture_default_str();
+  app.add_option("--root-key", o.root_keys,
+                 "a fleet root's public key, ID=BASE64 or ID=FILE.pub (fleetgw keys root); "
+                 "repeatable: revocation lists uploaded by an admin must be signed by one");
+  app.add_option("--max-body-kib", o.max_body_bytes,
+                 "largest request body in KiB (a zone upload's GeoJSON is one)")
+      ->transform(
+          [](std::string v) {
+            long kib = 0;
+            try {
+              kib = std::stol(v);
+            } catch (const std::exception&) {
+              kib = 0;
+            }
+            if (kib < 16 || kib > 65536) {
+              throw CLI::ValidationError("--max-body-kib", "a whole number of KiB, 16..65536");
+            }
+            return std::to_string(kib * 1024);
+          },
+          "KiB")
+      ->default_str("64");
   add_standards_options(app, o.standards);
   app.add_option("--add-operator", o.add_operator,
                  "create or update the operator NAME (password: first line of stdin) and exit");
@@ -82,6 +102,7 @@ void add_serve_options(CLI::App& app, ServeOptions& o) {
     }
     app.get_option(std::string("--") + name)->envname(env);
   }
+  app.get_option("--max-body-kib")->envname("FLEETGW_SERVE_MAX_BODY_KIB");
 }
 
 }  // namespace fleetgw::web

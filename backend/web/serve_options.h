@@ -3,6 +3,7 @@
 
 #include <cstdint>
 #include <string>
+#include <vector>
 
 #include "backend/web/registry_options.h"
 
@@ -31,11 +32,14 @@ struct ServeOptions {
   std::string cert_file;
   std::string key_file;
   std::string username;
-  std::string password;  // never logged
+  std::string password;     // never logged
   std::string signing_key;  // PKCS#8 PEM Ed25519 private key (mode 0600)
   std::string delegation;   // serialized fleetgw.v1.SignedDelegation ("": a plain trusted key)
   std::string key_id;       // without a delegation: the key id (default: the key file's stem)
   int command_ttl_s = 60;   // a command's validity: expires_at = issued_at + this
+  // The fleet's root public keys ("ID=BASE64" or "ID=FILE.pub", as `fleetgw keys root` prints
+  // and writes them): revocation lists uploaded by an admin must be signed by one of them.
+  std::vector<std::string> root_keys;
   StandardsOptions standards;  // GBFS, MDS and the vehicle registry (issue 27)
   // One-off administration instead of serving:
   std::string add_operator;  // with role; the password is read from stdin

@@ -36,6 +36,8 @@ CommandRig::CommandRig(const std::string& vehicle, std::optional<RigDelegation> 
     const fs::path file = dir.path() / "console-1.delegation";
     std::ofstream(file, std::ios::binary) << sign_delegation(root, "root-1", d);
     args.insert(args.end(), {"--delegation", file.string()});
+    // The root admins' revocation lists are verified against (revocation_routes.cc).
+    args.insert(args.end(), {"--root-key", "root-1=" + public_key_b64(root)});
   }
   stack = std::make_unique<ServeStack>(args);
   if (stack->add_operator("olga", "operator", "operator-password") != 0 ||
