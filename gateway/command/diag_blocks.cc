@@ -86,7 +86,7 @@ std::vector<DiagBlockSpec> build_table() {
   return t;
 }
 
-const std::vector<DiagBlockSpec>& table() {
+const std::vector<DiagBlockSpec>& diag_table() {
   static const std::vector<DiagBlockSpec> t = build_table();
   return t;
 }
@@ -103,18 +103,18 @@ std::int64_t diag_value_e6(double value) {
 }  // namespace
 
 std::span<const DiagBlockSpec> diag_blocks() {
-  return table();
+  return diag_table();
 }
 
 const DiagBlockSpec* find_diag_block(v1::DiagnosticBlock block) {
-  for (const auto& b : table()) {
+  for (const auto& b : diag_table()) {
     if (b.block == block) return &b;
   }
   return nullptr;
 }
 
 const DiagBlockSpec* find_diag_block(std::string_view name) {
-  for (const auto& b : table()) {
+  for (const auto& b : diag_table()) {
     if (b.name == name) return &b;
   }
   return nullptr;
@@ -133,7 +133,7 @@ DiagBlockSpec lock_model_block(int k) {
 
 std::string diag_block_names() {
   std::string out;
-  for (const auto& b : table()) out += (out.empty() ? "" : ", ") + std::string(b.name);
+  for (const auto& b : diag_table()) out += (out.empty() ? "" : ", ") + std::string(b.name);
   return out;
 }
 

@@ -25,7 +25,7 @@ constexpr CapturedKind kCaptured[] = {
     {"pack_stats", 0x725, 0x50},
 };
 
-const CapturedKind* kind_of(const motinova::AppFrame& f) {
+const CapturedKind* captured_kind_of(const motinova::AppFrame& f) {
   for (const auto& k : kCaptured) {
     if (k.can_id == f.can_id && k.function == f.function) return &k;
   }
@@ -86,7 +86,7 @@ DiagCapture::DiagCapture(storage::Store& store, Micros persist_interval)
 void DiagCapture::on_message(const motinova::DecodedMessage& msg, std::int64_t wall_us,
                              Micros now) {
   if (msg.frame == nullptr || msg.status != motinova::DecodeStatus::kOk) return;
-  const auto* k = kind_of(*msg.frame);
+  const auto* k = captured_kind_of(*msg.frame);
   if (k == nullptr) return;
   Slot& slot = slots_[std::string(k->name)];
   const bool changed = !slot.record || !(slot.record->frame == *msg.frame);
