@@ -116,6 +116,32 @@ std::vector<OutboxDepth> Store::outbox_depth() {
   return out;
 }
 
+std::uint64_t Store::visit_outbox(OutboxKind kind,
+                                  const std::function<void(const OutboxEntry&)>& visit) {
+  std::uint64_t n = 0;
+  try {
+    auto st = impl_->db.cached(
+        "SELECT seq, priority, created_us, payload, source_id FROM outbox WHERE kind = ? "
+        "ORDER BY seq");
+    st->bind(1, to_string(kind));
+    OutboxEntry e;
+    e.kind = kind;
+    while (st->step()) {
+      e.seq = static_cast<std::uint64_t>(st->column_int64(0));
+      e.priority = static_cast<int>(st->column_int64(1));
+      e.created_us = st->column_int64(2);
+      e.payload = st->column_blob(3);
+      e.source_id = st->column_opt_int64(4);
+      visit(e);
+      ++n;
+    }
+    st->reset();
+  } catch (const std::exception& e) {
+    impl_->error_log.report(std::string("storage: reading the outbox failed: ") + e.what());
+  }
+  return n;
+}
+
 std::optional<std::int64_t> Store::oldest_unsent_us() {
   // Sequence order is creation order, and seq is the rowid: no scan.
   try {

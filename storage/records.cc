@@ -80,7 +80,8 @@ std::string EvictionReport::to_json() const {
       {"evicted",
        {{"telemetry", telemetry_rows},
         {"pack_snapshots", pack_snapshot_rows},
-        {"outbox", outbox_rows}}},
+        {"outbox", outbox_rows},
+        {"campaign", campaign_records}}},
       {"budget_exhausted", budget_exhausted},
   };
   j["oldest_telemetry_kept_us"] =

@@ -213,10 +213,12 @@ enum class OutboxPriority : std::uint8_t {
   kPack = 4,
   kTelemetry = 5,
   // Below telemetry, only for OutboxKind::kCampaign (issue 29): campaign samples never hold back
-  // a record of the product, and their bytes in the store are this priority's depth.
+  // a record of the product, and their bytes in the store are these priorities' depth. A
+  // campaign of priority p (0..9, campaign.proto) is queued at kCampaign + p (6..15).
   kCampaign = 6,
 };
 inline constexpr int kLowestPriority = 5;
+inline constexpr int kLowestCampaignPriority = 15;  // kCampaign + 9
 
 std::string_view to_string(OutboxKind kind);
 std::optional<OutboxKind> outbox_kind_from_string(std::string_view text);
@@ -245,7 +247,8 @@ struct EvictionReport {
   std::uint64_t bytes_after = 0;
   std::uint64_t telemetry_rows = 0;      // evicted in this pass
   std::uint64_t pack_snapshot_rows = 0;  // evicted in this pass
-  std::uint64_t outbox_rows = 0;         // unsent outbox entries dropped with them
+  std::uint64_t outbox_rows = 0;         // unsent outbox entries dropped (campaign ones included)
+  std::uint64_t campaign_records = 0;    // campaign outbox entries evicted in this pass
   std::optional<std::int64_t> oldest_telemetry_kept_us;
   bool budget_exhausted = false;  // nothing evictable left; database stays above budget
   std::string to_json() const;

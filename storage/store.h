@@ -29,7 +29,8 @@
 //   at every commit so a returned write() also survives power loss.
 // - Outbox: priority 0 is the most urgent (OutboxPriority: alarms and command results 0,
 //   faults 1, rides 2,
-//   lock events 3, pack statistics 4, telemetry 5; eviction reports go at priority 1).
+//   lock events 3, pack statistics 4, telemetry 5; eviction reports go at priority 1;
+//   campaign records 6..15, below all of them: OutboxPriority::kCampaign + the campaign's).
 //   peek_outbox() returns entries in (priority, seq) order, skipping the ones in flight, and
 //   marks what it returns as in flight (in memory only). ack() deletes exactly the
 //   acknowledged rows; release() puts in-flight entries back (publish failed).
@@ -37,11 +38,12 @@
 //   writes: the database pages, the WAL (bounded: checkpointed when it reaches its allowance,
 //   never left above it) and the shared-memory file. At open the budget is clamped, with a
 //   warning, to what the file system can hold (statvfs). Inside the budget a reserve is kept
-//   for records that are never evicted: telemetry (then pack snapshots) is evicted, oldest
-//   first, as soon as the live pages pass (budget - WAL allowance - reserve), so the command
-//   journal, command results, faults, rides and lock events can still be written when
-//   telemetry has filled the rest. When SQLite reports SQLITE_FULL anyway (the disk filled up
-//   from elsewhere), write() checkpoints, evicts a chunk of telemetry (then pack snapshots),
+//   for records that are never evicted: telemetry (then campaign records, lowest campaign
+//   priority first, then pack snapshots) is evicted, oldest first, as soon as the live pages
+//   pass (budget - WAL allowance - reserve), so the command journal, command results, faults,
+//   rides and lock events can still be written when telemetry has filled the rest. When SQLite
+//   reports SQLITE_FULL anyway (the disk filled up from elsewhere), write() checkpoints, evicts
+//   a chunk of telemetry (then campaign records, then pack snapshots),
 //   gives the pages back to the file system and retries before giving up. Each eviction is
 //   counted per table (persisted), logged, queued as an eviction_report outbox entry (JSON)
 //   and returned from write().
@@ -240,6 +242,10 @@ class Store {
   void release_all();
   std::size_t in_flight() const;
   std::vector<OutboxDepth> outbox_depth();
+  // Calls `visit` with every outbox entry of `kind`, in flight or not, in seq order (the
+  // campaign service recomputes each campaign's bytes in the store from them at start-up).
+  // Returns how many; never throws (an error is recorded in health() and ends the walk).
+  std::uint64_t visit_outbox(OutboxKind kind, const std::function<void(const OutboxEntry&)>& visit);
   std::optional<std::int64_t> oldest_unsent_us();
   std::uint64_t next_seq() const;
   // Random identifier (a UUID) created with the store and kept in its meta table

@@ -44,6 +44,51 @@ std::uint64_t delete_queued_entries(Database& db, const EvictableTable& evicted,
   return static_cast<std::uint64_t>(db.changes());
 }
 
+// Campaign records (issue 29) have no table row: each is one outbox entry of kind `campaign` at
+// priorities kCampaign (6) .. kLowestCampaignPriority (15), where nothing else is queued. They
+// are evicted after telemetry -- the unbounded filler, while each campaign's records are bounded
+// by its own disk budget and all of them by a quarter of the store's -- and before pack
+// snapshots and every record that is never evicted (faults, alarms, rides...): the lowest
+// campaign priority first (the highest number), oldest first within it. Deletes at most
+// `max_entries`, stopping once `bytes` of payload are gone; returns how many entries.
+std::uint64_t evict_campaign_records(Database& db, std::uint64_t bytes, std::int64_t max_entries) {
+  auto pick = db.cached(
+      "SELECT seq, length(payload) FROM outbox INDEXED BY outbox_by_priority "
+      "WHERE priority = ? ORDER BY seq LIMIT ?");
+  auto del = db.cached(
+      "DELETE FROM outbox INDEXED BY outbox_by_priority WHERE priority = ?2 AND seq <= ?1");
+  std::uint64_t evicted = 0, freed = 0;
+  for (int p = kLowestCampaignPriority;
+       p >= static_cast<int>(OutboxPriority::kCampaign) && freed < bytes && max_entries > 0; --p) {
+    std::optional<std::int64_t> cutoff;
+    std::int64_t n = 0;
+    pick->bind_all(p, max_entries);
+    while (freed < bytes && pick->step()) {
+      cutoff = pick->column_int64(0);
+      freed += static_cast<std::uint64_t>(pick->column_int64(1));
+      ++n;
+    }
+    pick->reset();
+    if (!cutoff) continue;
+    del->bind_all(*cutoff, p);
+    del->run();
+    del->reset();
+    evicted += static_cast<std::uint64_t>(db.changes());
+    max_entries -= n;
+  }
+  return evicted;
+}
+
+void count_eviction(Database& db, std::string_view name, std::uint64_t rows, std::int64_t now_us) {
+  // Upsert: stores created before campaigns have no 'campaign' row.
+  auto st = db.cached(
+      "INSERT INTO eviction_counters (table_name, rows, passes, last_us) VALUES (?1, ?2, 1, ?3) "
+      "ON CONFLICT (table_name) DO UPDATE SET rows = rows + ?2, passes = passes + 1, "
+      "last_us = ?3");
+  st->bind_all(name, static_cast<std::int64_t>(rows), now_us);
+  st->run();
+}
+
 }  // namespace
 
 BudgetPlan plan_budget(std::uint64_t configured, std::uint64_t effective, std::uint64_t page_size,
@@ -115,6 +160,21 @@ std::optional<EvictionReport> Store::Impl::enforce_budget(std::int64_t now_us, S
   const auto target = static_cast<std::uint64_t>(static_cast<double>(limit) * options.low_water);
 
   for (const EvictableTable& evictable : kEvictionOrder) {
+    if (evictable.kind == OutboxKind::kPack && live > target) {
+      // Campaign records go after telemetry, before pack snapshots (evict_campaign_records).
+      std::uint64_t evicted = 0;
+      while (live > target) {
+        const std::uint64_t n = evict_campaign_records(db, live - target, 100'000);
+        if (n == 0) break;
+        evicted += n;
+        live = live_bytes();
+      }
+      if (evicted > 0) {
+        report.campaign_records = evicted;
+        report.outbox_rows += evicted;
+        count_eviction(db, "campaign", evicted, now_us);
+      }
+    }
     const std::string t(evictable.table);
     auto cutoff_st = db.cached("SELECT id FROM " + t + " ORDER BY id LIMIT 1 OFFSET ?");
     auto max_st = db.cached("SELECT max(id) FROM " + t);
@@ -159,7 +219,8 @@ std::optional<EvictionReport> Store::Impl::enforce_budget(std::int64_t now_us, S
     st->bind_all(static_cast<std::int64_t>(report.outbox_rows), now_us);
     st->run();
   }
-  const bool evicted_any = report.telemetry_rows + report.pack_snapshot_rows > 0;
+  const bool evicted_any =
+      report.telemetry_rows + report.pack_snapshot_rows + report.campaign_records > 0;
   if (evicted_any) {
     // Give the freed pages back to the file system (the file shrinks at the next checkpoint).
     auto st = db.cached("PRAGMA incremental_vacuum");
@@ -174,8 +235,8 @@ std::optional<EvictionReport> Store::Impl::enforce_budget(std::int64_t now_us, S
   }
   if (report.budget_exhausted && !budget_exhausted_logged) {
     log->error(
-        "storage: '{}' is over its {} B budget with no telemetry or pack snapshots left "
-        "to evict ({} B of faults, rides, lock events, commands and unsent outbox); "
+        "storage: '{}' is over its {} B budget with no telemetry, campaign records or pack "
+        "snapshots left to evict ({} B of faults, rides, lock events, commands and unsent outbox); "
         "raise max_mb or get the unit online",
         options.path, budget.effective, report.bytes_after);
   }
@@ -198,6 +259,23 @@ std::uint64_t Store::Impl::evict_for_space(std::int64_t now_us, int attempt) {
     Transaction tx(db);
     std::uint64_t evicted = 0;
     for (const EvictableTable& evictable : kEvictionOrder) {
+      if (evictable.kind == OutboxKind::kPack) {
+        // Campaign records after telemetry, before pack snapshots: a quarter of them per
+        // attempt (growing), at least 16 entries (each up to ~30 KB).
+        const std::int64_t entries =
+            db.query_int64("SELECT count(*) FROM outbox WHERE priority >= " +
+                           std::to_string(static_cast<int>(OutboxPriority::kCampaign)))
+                .value_or(0);
+        if (entries > 0) {
+          const std::int64_t chunk =
+              std::min<std::int64_t>(entries, std::max<std::int64_t>(16, entries * attempt / 4));
+          evicted = evict_campaign_records(db, std::numeric_limits<std::uint64_t>::max(), chunk);
+          count_eviction(db, "campaign", evicted, now_us);
+          log->warn("storage: disk full on '{}': evicted {} unsent campaign records to make room",
+                    options.path, evicted);
+          break;
+        }
+      }
       const std::string t(evictable.table);
       const std::int64_t rows = db.query_int64("SELECT count(*) FROM " + t).value_or(0);
       if (rows == 0) continue;

@@ -193,11 +193,15 @@ void validate(const Batch& b) {
   }
   for (std::size_t i = 0; i < b.messages.size(); ++i) {
     const UplinkMessage& m = b.messages[i];
-    const int lowest = m.kind == OutboxKind::kCampaign ? static_cast<int>(OutboxPriority::kCampaign)
-                                                       : kLowestPriority;
-    if (m.priority < 0 || m.priority > lowest) {
+    // Campaign records live in a range of their own below every record of the product (the
+    // eviction of store_budget.cc finds them there, and nothing else).
+    const bool campaign = m.kind == OutboxKind::kCampaign;
+    const int highest = campaign ? static_cast<int>(OutboxPriority::kCampaign) : 0;
+    const int lowest = campaign ? kLowestCampaignPriority : kLowestPriority;
+    if (m.priority < highest || m.priority > lowest) {
       reject("messages", i, "priority",
-             std::to_string(m.priority) + " outside 0.." + std::to_string(lowest));
+             std::to_string(m.priority) + " outside " + std::to_string(highest) + ".." +
+                 std::to_string(lowest));
     }
     if (to_string(m.kind) == "invalid") reject("messages", i, "kind", "invalid value");
     if (m.payload.size() > Store::kMaxPayloadBytes) {
@@ -417,9 +421,9 @@ WriteResult Store::Impl::write_once(const Batch& b) {
     const EvictionReport& r = *result.eviction;
     log->warn(
         "storage: disk budget {} B reached on '{}' ({} -> {} B live): evicted {} "
-        "telemetry samples, {} pack snapshots, {} unsent outbox entries{}",
+        "telemetry samples, {} pack snapshots, {} campaign records, {} unsent outbox entries{}",
         r.budget_bytes, options.path, r.bytes_before, r.bytes_after, r.telemetry_rows,
-        r.pack_snapshot_rows, r.outbox_rows,
+        r.pack_snapshot_rows, r.campaign_records, r.outbox_rows,
         r.budget_exhausted ? "; NOTHING LEFT TO EVICT, database stays over budget" : "");
   }
   return result;
