@@ -6,6 +6,7 @@
 #include <stdexcept>
 
 #include "fleetgw/v1/campaign.pb.h"
+#include "gateway/command/document_signer.h"
 #include "gateway/common/untrusted_text.h"
 
 namespace fleetgw::campaign {
@@ -111,38 +112,43 @@ CampaignVerdict CampaignAuthority::offer(std::span<const std::uint8_t> payload, 
       signed_campaign.key_id().empty()) {
     return refused(CampaignRefusal::kMalformed, "no campaign, signature or key_id");
   }
-  const auto key = keys_.find(signed_campaign.key_id());
   const auto signed_bytes = campaign_bytes_of(signed_campaign.campaign());
   const auto signature = campaign_bytes_of(signed_campaign.signature());
-  if (key == keys_.end() && signed_campaign.has_delegation() && delegated_check_) {
-    // Issue 28: a delegated key, judged like a command's (docs/commands.md "Delegations").
-    const auto check = delegated_check_(signed_campaign.delegation(), signed_campaign.key_id(),
-                                        signed_bytes, signature);
-    if (check.signature_invalid) {
+  // Issue 28: a trusted key, or a delegated one judged like a command's (docs/commands.md
+  // "Delegations"), by the helper the zone bundles share.
+  const auto signer = command::judge_document_signer(
+      keys_, signed_campaign.key_id(),
+      signed_campaign.has_delegation() ? &signed_campaign.delegation() : nullptr, delegated_check_,
+      signed_bytes, signature);
+  switch (signer.outcome) {
+    case command::SignerOutcome::kTrusted:
+    case command::SignerOutcome::kDelegated:
+      break;
+    case command::SignerOutcome::kDelegatedSignatureInvalid:
       return refused(CampaignRefusal::kBadSignature,
                      "not a signature of the campaign by the delegated key '" +
                          common::untrusted_excerpt(signed_campaign.key_id()) + "'");
-    }
-    if (check.problem) {
+    case command::SignerOutcome::kDelegationRefused: {
       static constexpr CampaignRefusal kByReason[] = {CampaignRefusal::kDelegationInvalid,
                                                       CampaignRefusal::kRevoked,
                                                       CampaignRefusal::kOutOfScope,
                                                       CampaignRefusal::kClockUnsynchronised,
                                                       CampaignRefusal::kDelegationNotYetValid,
                                                       CampaignRefusal::kDelegationExpired};
-      return refused(kByReason[static_cast<std::size_t>(check.problem->reason)],
-                     check.problem->detail);
+      return refused(command::delegation_refusal_as(signer.problem->reason, kByReason),
+                     signer.problem->detail);
     }
-  } else if (key == keys_.end()) {
-    return refused(CampaignRefusal::kUnknownKey,
-                   "key '" + common::untrusted_excerpt(signed_campaign.key_id()) +
-                       "' is not in [command.trusted_keys]" +
-                       (signed_campaign.has_delegation()
-                            ? " (a delegation, but no [command.root_keys] to judge it)"
-                            : ""));
-  } else if (!key->second.verify(signed_bytes, signature)) {
-    return refused(CampaignRefusal::kBadSignature,
-                   "not a signature of the campaign by '" + key->first + "'");
+    case command::SignerOutcome::kUnknownKey:
+      return refused(CampaignRefusal::kUnknownKey,
+                     "key '" + common::untrusted_excerpt(signed_campaign.key_id()) +
+                         "' is not in [command.trusted_keys]" +
+                         (signer.delegation_unjudged
+                              ? " (a delegation, but no [command.root_keys] to judge it)"
+                              : ""));
+    case command::SignerOutcome::kSignatureInvalid:
+      return refused(CampaignRefusal::kBadSignature,
+                     "not a signature of the campaign by '" +
+                         common::untrusted_excerpt(signed_campaign.key_id()) + "'");
   }
   v1::Campaign campaign;
   if (!campaign.ParseFromString(signed_campaign.campaign())) {

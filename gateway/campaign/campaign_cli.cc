@@ -1,5 +1,6 @@
 #include "gateway/campaign/campaign_cli.h"
 
+#include <algorithm>
 #include <chrono>
 #include <iostream>
 
@@ -43,13 +44,19 @@ CampaignCli::CampaignCli(CLI::App& app) : state_(std::make_unique<State>()) {
   state_->sign->add_option("--key-id", s.key_id, "key id (default: the key file's name)");
   state_->sign->add_option("--version", s.version, "campaign version (default: the file's)");
   state_->sign->add_option("--out", s.out, "signed campaign file to write")->required();
+  state_->sign->add_option("--delegation", s.delegation,
+                           "the key's signed delegation (fleetgw keys delegate, action campaign)");
   auto& c = state_->check_options;
   state_->check = campaign->add_subcommand("check", "judge a signed campaign as a gateway would");
   state_->check->add_option("signed", c.signed_file, "signed campaign file")->required();
   state_->check
       ->add_option("--config", state_->check_config,
-                   "configuration with [command.trusted_keys] (and [vehicle])")
+                   "configuration with [command.trusted_keys] and/or [command.root_keys] "
+                   "(and [vehicle])")
       ->required();
+  state_->check->add_option(
+      "--revocations", c.revocations,
+      "a root's signed revocation list (fleetgw keys revoke) the gateway would hold");
   state_->check->add_option("--vehicle", c.vehicle_id,
                             "judge as this vehicle's gateway (default: the configuration's)");
 }
@@ -67,6 +74,9 @@ std::optional<int> CampaignCli::run() const {
     auto options = state_->check_options;
     const auto config = config::load_config(state_->check_config);
     options.trusted_keys = config.command.trusted_keys;
+    options.root_keys = config.command.root_keys;
+    options.store_budget_bytes = static_cast<std::uint64_t>(std::max(config.storage.max_mb, 0))
+                                 << 20;
     if (options.vehicle_id.empty()) options.vehicle_id = config.vehicle.id;
     options.groups = config.vehicle.groups;
     options.now = wall_now();

@@ -37,7 +37,6 @@ constexpr std::size_t kRecordSamples = 1024;
 constexpr Micros kRecordAge{30'000'000};
 constexpr Micros kNever{INT64_MIN / 2};
 
-
 // Values travel as integers times 10^6 (no floating point on the wire); every catalogue value
 // is far inside the range (a 32-bit raw value times its scale).
 std::int64_t value_e6(double value) {
@@ -222,6 +221,13 @@ class CampaignRunner {
   void release(std::uint64_t bytes) {
     counters_.bytes_in_store -= std::min(bytes, counters_.bytes_in_store);
   }
+  void set_bytes_in_store(std::uint64_t bytes) { counters_.bytes_in_store = bytes; }
+  void set_zones(const std::map<std::string, std::string, std::less<>>& inside) {
+    in_zone_ = false;
+    for (const auto& [id, name] : inside) {
+      in_zone_ = in_zone_ || id == c_.zone || name == c_.zone;
+    }
+  }
 
  private:
   struct Slot {
@@ -241,6 +247,8 @@ class CampaignRunner {
         return in_day_window(now, c_.day_start_s, c_.day_end_s);
       case TriggerKind::kCondition:
         return active_;
+      case TriggerKind::kZone:
+        return in_zone_;
     }
     return false;
   }
@@ -281,7 +289,8 @@ class CampaignRunner {
   CompiledCampaign c_;
   std::vector<Slot> slots_;
   bool firmware_ok_ = true, firmware_known_ = true;
-  bool active_ = false;  // level condition holds
+  bool active_ = false;   // level condition holds
+  bool in_zone_ = false;  // zone trigger: the bike is inside the zone
   bool has_prev_ = false;
   double prev_ = 0;
   Micros trigger_at_{0};
@@ -299,6 +308,7 @@ void CampaignEngine::put(CompiledCampaign campaign, Micros now) {
   remove(campaign.id, now);
   runners_.push_back(std::make_unique<CampaignRunner>(std::move(campaign)));
   runners_.back()->set_firmware(firmware_);
+  runners_.back()->set_zones(zones_inside_);
   rebuild_index();
 }
 
@@ -369,6 +379,17 @@ void CampaignEngine::on_message(Micros now, const motinova::DecodedMessage& mess
   for (const auto& r : runners_) r->cut(now, false, records_);
 }
 
+void CampaignEngine::on_zone(std::string_view zone_id, std::string_view zone_name, bool inside) {
+  if (inside) {
+    zones_inside_.insert_or_assign(std::string(zone_id), std::string(zone_name));
+  } else if (const auto it = zones_inside_.find(zone_id); it != zones_inside_.end()) {
+    zones_inside_.erase(it);
+  }
+  for (const auto& r : runners_) {
+    if (r->campaign().trigger == TriggerKind::kZone) r->set_zones(zones_inside_);
+  }
+}
+
 void CampaignEngine::tick(Micros now) {
   for (const auto& r : runners_) r->cut(now, r->state(now) == RunState::kEnded, records_);
 }
@@ -383,11 +404,30 @@ void CampaignEngine::release(std::string_view id, std::uint64_t bytes) {
   }
 }
 
+void CampaignEngine::set_bytes_in_store(std::string_view id, std::uint64_t bytes) {
+  for (const auto& r : runners_) {
+    if (r->campaign().id == id) r->set_bytes_in_store(bytes);
+  }
+}
+
 void CampaignEngine::store_holds(std::uint64_t bytes) {
+  scale_to(bytes, [](const CampaignRunner&) { return true; });
+}
+
+void CampaignEngine::store_holds_at(int priority, std::uint64_t bytes) {
+  scale_to(bytes,
+           [priority](const CampaignRunner& r) { return r.campaign().priority == priority; });
+}
+
+template <typename Pred>
+void CampaignEngine::scale_to(std::uint64_t bytes, Pred pred) {
   std::uint64_t counted = 0;
-  for (const auto& r : runners_) counted += r->counters().bytes_in_store;
+  for (const auto& r : runners_) {
+    if (pred(*r)) counted += r->counters().bytes_in_store;
+  }
   if (counted <= bytes) return;
   for (const auto& r : runners_) {
+    if (!pred(*r)) continue;
     const std::uint64_t mine = r->counters().bytes_in_store;
     const auto keep = static_cast<std::uint64_t>(static_cast<long double>(mine) * bytes / counted);
     r->release(mine - keep);

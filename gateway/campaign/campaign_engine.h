@@ -8,10 +8,10 @@
 //    (target.firmware: the node's fw from its device_info message on the bus; until the node
 //    reported it the campaign waits, a mismatch stops it: "not_targeted").
 //  * Trigger rules (docs/campaigns.md "Triggers"): always; a daily UTC window [day_start_s,
-//    day_end_s) (crossing midnight when start > end); a condition on one signal, evaluated on
-//    every value of it before the samples of the same message: above holds from value >
-//    threshold until value < threshold - hysteresis, below symmetrically; rising_edge is an
-//    event when the previous value was <= threshold and this one > threshold, falling_edge
+//    day_end_s) (crossing midnight when start > end); inside a zone (on_zone()); a condition on one
+//    signal, evaluated on every value of it before the samples of the same message: above holds
+//    from value > threshold until value < threshold - hysteresis, below symmetrically; rising_edge
+//    is an event when the previous value was <= threshold and this one > threshold, falling_edge
 //    when it was >= threshold and is < threshold, fault_active when a fault bit goes 0 -> 1. The
 //    first value seen is never an event (there is no previous one); invalid values are ignored.
 //  * Sampling: every signal at most once per period (the value of the first message at least a
@@ -34,6 +34,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <unordered_map>
 #include <vector>
 
@@ -77,16 +78,26 @@ class CampaignEngine {
   std::size_t size() const { return runners_.size(); }
 
   void on_message(Micros now, const motinova::DecodedMessage& message);
+  // The geofence's confirmed state (issue 29, zone triggers): the bike entered (`inside`) or
+  // left the zone of this id and name. A zone campaign holds while the bike is inside the zone
+  // it names (by id or name); a campaign added later starts from the zones the bike is in.
+  void on_zone(std::string_view zone_id, std::string_view zone_name, bool inside);
   // Cuts records that are due by age or window end, ends campaigns past their end.
   void tick(Micros now);
   // Records cut since the last call.
   std::vector<CampaignRecord> take_records();
   // `bytes` of `id`'s records left the store (acknowledged or evicted).
   void release(std::string_view id, std::uint64_t bytes);
-  // What the store holds of all campaigns' records (the outbox depth of their priority): each
+  // What the store holds of all campaigns' records (the outbox depth of their priorities): each
   // campaign's share is scaled down to it (records drain in sequence order across campaigns,
   // so the split is an estimate; 0 is exact).
   void store_holds(std::uint64_t bytes);
+  // The same for the campaigns of one priority (0..9): the store queues them at an outbox
+  // priority of their own, so its depth there (acks and evictions) is theirs alone.
+  void store_holds_at(int priority, std::uint64_t bytes);
+  // `id`'s records in the store, counted from the store at start-up (the outbox survives a
+  // restart, so does the campaign's use of its disk budget).
+  void set_bytes_in_store(std::string_view id, std::uint64_t bytes);
 
   struct View {
     const CompiledCampaign* campaign;
@@ -97,6 +108,8 @@ class CampaignEngine {
 
  private:
   void rebuild_index();
+  template <typename Pred>
+  void scale_to(std::uint64_t bytes, Pred pred);
   void note_firmware(const motinova::DecodedMessage& message);
 
   std::vector<std::unique_ptr<CampaignRunner>> runners_;
@@ -107,7 +120,8 @@ class CampaignEngine {
     std::size_t value_at = 0;  // where its field was in the message's values last time
   };
   std::unordered_map<const motinova::MessageDesc*, std::vector<Hook>> index_;
-  std::map<motinova::Node, std::string> firmware_;  // fw seen on the bus per node
+  std::map<motinova::Node, std::string> firmware_;                // fw seen on the bus per node
+  std::map<std::string, std::string, std::less<>> zones_inside_;  // id -> name
   std::vector<CampaignRecord> records_;
 };
 

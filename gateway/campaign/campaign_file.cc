@@ -117,13 +117,16 @@ Enum enum_at(const json& obj, const std::string& where, std::string_view key,
 
 void read_trigger(const json& t, v1::CampaignTrigger& out) {
   const std::string w = "trigger";
-  only_keys(t, w, {"kind", "day_start", "day_end", "day_start_s", "day_end_s", "condition"});
+  only_keys(t, w,
+            {"kind", "day_start", "day_end", "day_start_s", "day_end_s", "condition", "zone"});
   if (!t.contains("kind")) fail(w + ".kind", "missing");
   out.set_kind(
       enum_at<v1::CampaignTriggerKind>(t, w, "kind",
                                        {{"always", v1::CAMPAIGN_TRIGGER_KIND_ALWAYS},
                                         {"time_window", v1::CAMPAIGN_TRIGGER_KIND_TIME_WINDOW},
-                                        {"condition", v1::CAMPAIGN_TRIGGER_KIND_CONDITION}}));
+                                        {"condition", v1::CAMPAIGN_TRIGGER_KIND_CONDITION},
+                                        {"zone", v1::CAMPAIGN_TRIGGER_KIND_ZONE}}));
+  if (t.contains("zone")) out.set_zone(text_at(t, w, "zone"));
   if (t.contains("day_start")) out.set_day_start_s(day_seconds(t, w, "day_start"));
   if (t.contains("day_end")) out.set_day_end_s(day_seconds(t, w, "day_end"));
   if (t.contains("day_start_s")) {

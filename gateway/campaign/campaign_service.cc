@@ -2,7 +2,10 @@
 
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <sstream>
+
+#include "fleetgw/v1/campaign.pb.h"
 
 #include "gateway/command/base64.h"
 
@@ -53,6 +56,37 @@ void CampaignService::restore(Micros wall_now, Micros bus_now) {
   }
   std::string error;
   persist(&error);  // drops what was refused
+  count_stored_records();
+}
+
+void CampaignService::count_stored_records() {
+  std::map<std::string, std::uint64_t, std::less<>> bytes;
+  v1::CampaignSamples rec;
+  store_.visit_outbox(storage::OutboxKind::kCampaign, [&](const storage::OutboxEntry& e) {
+    // Only the id is needed; a payload that does not parse is counted nowhere (it still leaves
+    // the store with the outbox).
+    if (rec.ParseFromArray(e.payload.data(), static_cast<int>(e.payload.size()))) {
+      bytes[rec.campaign_id()] += e.payload.size();
+    }
+  });
+  for (const auto& [id, n] : bytes) engine_.set_bytes_in_store(id, n);
+}
+
+int CampaignService::outbox_priority(int campaign_priority) {
+  return static_cast<int>(storage::OutboxPriority::kCampaign) +
+         std::clamp(campaign_priority, 0,
+                    storage::kLowestCampaignPriority -
+                        static_cast<int>(storage::OutboxPriority::kCampaign));
+}
+
+void CampaignService::store_holds(std::span<const storage::OutboxDepth> depth) {
+  for (int p = 0; p <= kMaxPriority; ++p) {
+    std::uint64_t bytes = 0;
+    for (const auto& d : depth) {
+      if (d.priority == outbox_priority(p)) bytes = d.payload_bytes;
+    }
+    engine_.store_holds_at(p, bytes);
+  }
 }
 
 CampaignVerdict CampaignService::on_payload(std::string_view topic, std::string_view payload,
@@ -113,8 +147,7 @@ void CampaignService::tick(Micros wall_now, Micros bus_now) {
 std::vector<storage::UplinkMessage> CampaignService::take_messages() {
   std::vector<storage::UplinkMessage> out;
   for (auto& r : engine_.take_records()) {
-    out.push_back({storage::OutboxKind::kCampaign,
-                   static_cast<int>(storage::OutboxPriority::kCampaign),
+    out.push_back({storage::OutboxKind::kCampaign, outbox_priority(r.priority),
                    storage::Bytes(r.payload.begin(), r.payload.end())});
   }
   return out;

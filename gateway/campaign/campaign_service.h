@@ -11,8 +11,11 @@
 //    transaction, so it runs after a restart with the broker down; restore() offers each stored
 //    one again (re-verified: a tampered row or a key no longer trusted is refused and dropped).
 //    Campaigns past their end are dropped from the store at the next on_payload() or tick().
-//  * Results: storage::UplinkMessage of kind kCampaign at OutboxPriority::kCampaign (below
-//    telemetry): through the same outbox, exactly once, never ahead of a fault or alarm.
+//  * Results: storage::UplinkMessage of kind kCampaign at OutboxPriority::kCampaign + the
+//    campaign's priority (6..15, below telemetry): through the same outbox, exactly once, never
+//    ahead of a fault or alarm; a more urgent campaign's records first.
+//  * Disk budget across restarts: restore() counts each campaign's records still in the outbox
+//    (their payloads name the campaign), so a restarted bike does not grant a fresh budget.
 //  * Refusals are logged once per distinct reason and counted; the latest is in status().
 //  * `wall_now` is the clock a campaign's start and end (expired, ended) are judged on; the
 //    pipeline passes the bus clock, the one its windows run on (the system clock on a bike, the
@@ -22,6 +25,7 @@
 #include <nlohmann/json.hpp>
 
 #include <map>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -55,9 +59,18 @@ class CampaignService {
   void on_message(Micros bus_now, const motinova::DecodedMessage& message) {
     engine_.on_message(bus_now, message);
   }
+  // The geofence's zone events (enter: inside = true, exit: false), for zone triggers.
+  void on_zone(std::string_view zone_id, std::string_view zone_name, bool inside) {
+    engine_.on_zone(zone_id, zone_name, inside);
+  }
   void tick(Micros wall_now, Micros bus_now);
   std::vector<storage::UplinkMessage> take_messages();
-  void store_holds(std::uint64_t bytes) { engine_.store_holds(bytes); }
+  // The store's outbox depth (Store::outbox_depth()): each campaign priority's depth scales the
+  // bytes in store of that priority's campaigns (acknowledged or evicted records).
+  void store_holds(std::span<const storage::OutboxDepth> depth);
+  // The outbox priority of a campaign's records: OutboxPriority::kCampaign + its priority
+  // (6..15), so a more urgent campaign's records go first and are evicted last.
+  static int outbox_priority(int campaign_priority);
   std::size_t size() const { return engine_.size(); }
   // {"in_force": n, "offered", "accepted", "refused", "last_refusal": {...} | null,
   //  "campaigns": [{id, version, state, signals, trigger, sampling, priority,
@@ -67,6 +80,7 @@ class CampaignService {
 
  private:
   void persist(std::string* error);
+  void count_stored_records();
   void expire(Micros wall_now, Micros bus_now);
 
   CampaignServiceConfig config_;

@@ -2,6 +2,7 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cmath>
 #include <set>
 
@@ -204,11 +205,24 @@ std::variant<CompiledCampaign, std::string> compile_campaign(
         return e;
       }
       break;
+    case v1::CAMPAIGN_TRIGGER_KIND_ZONE: {
+      out.trigger = TriggerKind::kZone;
+      const std::string& z = c.trigger().zone();
+      if (z.empty() || z.size() > kMaxZoneNameBytes ||
+          !std::all_of(z.begin(), z.end(), [](char ch) { return ch >= 0x20 && ch < 0x7f; })) {
+        return fmt::format("trigger.zone: {} is not 1..{} printable ASCII bytes", spec_quoted(z),
+                           kMaxZoneNameBytes);
+      }
+      out.zone = z;
+      break;
+    }
     default:
       return std::string("trigger.kind: unspecified or unknown trigger");
   }
   if (auto e = check_sampling(c.sampling(), out); !e.empty()) return e;
-  if (c.priority() > 9) return fmt::format("priority: {} is over 9", c.priority());
+  if (c.priority() > static_cast<std::uint32_t>(kMaxPriority)) {
+    return fmt::format("priority: {} is over {}", c.priority(), kMaxPriority);
+  }
   out.priority = static_cast<int>(c.priority());
   if (c.disk_budget_bytes() < kMinDiskBudget || c.disk_budget_bytes() > kMaxDiskBudget) {
     return fmt::format("disk_budget_bytes: {} is outside {}..{}", c.disk_budget_bytes(),
@@ -253,6 +267,8 @@ std::string_view trigger_name(TriggerKind kind) {
       return "time_window";
     case TriggerKind::kCondition:
       return "condition";
+    case TriggerKind::kZone:
+      return "zone";
   }
   return "always";
 }

@@ -6,7 +6,8 @@
 //  * compile_campaign() refuses, naming the field ("signals[2]", "trigger.condition.signal",
 //    "sampling.period_ms"...): an id that is not 1..64 of [A-Za-z0-9._-]; version 0; no
 //    issued_at; no signal, more than kMaxSignals, an unknown or repeated one; an unspecified or
-//    unknown trigger or sampling kind; a day window outside 0..86400 s or empty; a condition on
+//    unknown trigger or sampling kind; a day window outside 0..86400 s or empty; a zone trigger
+//    without a zone or with one over 64 bytes or not printable ASCII; a condition on
 //    an unknown or non-numeric signal, FAULT_ACTIVE on a signal that is not a fault bit, a
 //    hysteresis on an edge or fault condition; window sampling without a condition, an
 //    edge or fault condition without window sampling; a period under kMinPeriodMs or over an
@@ -40,6 +41,9 @@ namespace fleetgw::campaign {
 using motinova::Micros;
 
 inline constexpr std::size_t kMaxSignals = 64;
+// 0 (most urgent) .. kMaxPriority among campaigns: the outbox queues them at 6..15, below every
+// record of the product (storage::OutboxPriority::kCampaign).
+inline constexpr int kMaxPriority = 9;
 inline constexpr std::uint32_t kMinPeriodMs = 10;
 inline constexpr std::uint32_t kMaxPeriodMs = 3'600'000;
 inline constexpr std::uint32_t kMaxWindowMs = 600'000;
@@ -48,7 +52,8 @@ inline constexpr std::uint64_t kMinDiskBudget = 4096;
 inline constexpr std::uint64_t kMaxDiskBudget = 64ull << 20;
 inline constexpr Micros kMaxDuration{90ll * 86'400'000'000};
 
-enum class TriggerKind : std::uint8_t { kAlways, kTimeWindow, kCondition };
+enum class TriggerKind : std::uint8_t { kAlways, kTimeWindow, kCondition, kZone };
+inline constexpr std::size_t kMaxZoneNameBytes = 64;
 enum class ConditionKind : std::uint8_t { kAbove, kBelow, kRising, kFalling, kFaultActive };
 enum class SamplingKind : std::uint8_t { kEvery, kOnChange, kWindow };
 
@@ -81,6 +86,7 @@ struct CompiledCampaign {
   TriggerKind trigger = TriggerKind::kAlways;
   std::uint32_t day_start_s = 0, day_end_s = 0;
   Condition condition;
+  std::string zone;  // kZone: a zone's id or name
   SamplingKind sampling = SamplingKind::kEvery;
   Micros period{0}, before{0}, after{0};
   int priority = 0;
@@ -99,7 +105,7 @@ std::variant<CompiledCampaign, std::string> compile_campaign(
     const v1::Campaign& campaign,
     const motinova::SignalCatalogue& catalogue = motinova::SignalCatalogue::standard());
 
-// "always", "time_window", "condition"; "above", "below", "rising_edge", "falling_edge",
+// "always", "time_window", "condition", "zone"; "above", "below", "rising_edge", "falling_edge",
 // "fault_active"; "every", "on_change", "window" (the file syntax, campaign_file.h).
 std::string_view trigger_name(TriggerKind kind);
 std::string_view condition_name(ConditionKind kind);

@@ -1,11 +1,15 @@
 #include "gateway/campaign/campaign_tool.h"
 
+#include <algorithm>
+#include <memory>
 #include <ostream>
 
 #include "fleetgw/v1/campaign.pb.h"
+#include "fleetgw/v1/keys.pb.h"
 #include "gateway/campaign/campaign_authority.h"
 #include "gateway/campaign/campaign_file.h"
 #include "gateway/campaign/campaign_spec.h"
+#include "gateway/command/delegation.h"
 #include "gateway/command/signing.h"
 #include "gateway/common/untrusted_text.h"
 #include "gateway/geofence/zone_file.h"
@@ -63,7 +67,19 @@ int run_campaign_sign(const CampaignSignOptions& options, std::ostream& out, std
       return 1;
     }
     const auto key = command::Ed25519PrivateKey::load_pem(options.key_pem);
-    const std::string payload = sign_campaign(campaign, key, key_id);
+    std::string payload = sign_campaign(campaign, key, key_id);
+    if (!options.delegation.empty()) {
+      // Issue 28: outside the signed bytes, as the root signed it.
+      const auto delegation = geofence::read_zone_file(options.delegation, error, 64 * 1024);
+      v1::SignedCampaign s;
+      if (!delegation || !s.ParseFromString(payload) ||
+          !s.mutable_delegation()->ParseFromString(*delegation)) {
+        err << "campaign sign: --delegation " << options.delegation.string()
+            << ": not a signed delegation " << error << '\n';
+        return 1;
+      }
+      payload = s.SerializeAsString();
+    }
     if (!geofence::write_zone_file(options.out, payload, error)) {
       err << "campaign sign: " << error << '\n';
       return 1;
@@ -88,7 +104,41 @@ int run_campaign_check(const CampaignCheckOptions& options, std::ostream& out, s
           << (error.empty() ? options.signed_file.string() + ": no such file" : error) << '\n';
       return 1;
     }
-    CampaignAuthority authority(options.trusted_keys, options.vehicle_id, options.groups);
+    CampaignLimits limits;
+    if (options.store_budget_bytes > 0) {
+      limits.total_disk_budget = std::min(limits.total_disk_budget, options.store_budget_bytes / 4);
+    }
+    CampaignAuthority authority(options.trusted_keys, options.vehicle_id, options.groups, limits);
+    if (!options.root_keys.empty()) {
+      // Issue 28: what the bike's command service does for action "campaign".
+      auto roots = std::make_shared<const command::RootKeys>(options.root_keys);
+      auto revocations = std::make_shared<command::Revocations>();
+      if (!options.revocations.empty()) {
+        const auto list =
+            geofence::read_zone_file(options.revocations, error, command::kMaxRevocationBytes);
+        if (!list) {
+          err << "campaign check: --revocations "
+              << (error.empty() ? options.revocations.string() + ": no such file" : error) << '\n';
+          return 1;
+        }
+        const auto v = revocations->offer(
+            {reinterpret_cast<const std::uint8_t*>(list->data()), list->size()}, *roots);
+        if (!v.accepted()) {
+          err << "campaign check: --revocations " << options.revocations.string() << ": refused ("
+              << v.reason << "): " << v.detail << '\n';
+          return 1;
+        }
+      }
+      const command::VehicleIdentity vehicle{options.vehicle_id, options.groups};
+      const auto now = options.now;
+      authority.set_delegated_check(
+          [roots, revocations, vehicle, now](
+              const v1::SignedDelegation& delegation, std::string_view key_id,
+              std::span<const std::uint8_t> signed_bytes, std::span<const std::uint8_t> signature) {
+            return command::check_delegated(delegation, key_id, signed_bytes, signature, "campaign",
+                                            vehicle, now, true, *roots, *revocations);
+          });
+    }
     const auto verdict = authority.offer(*payload, options.now);
     out << campaign_outcome_name(verdict.outcome);
     if (verdict.reason != CampaignRefusal::kNone) {

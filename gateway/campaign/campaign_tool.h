@@ -10,7 +10,9 @@
 //    writes the SignedCampaign atomically to `out`. It prints one line: id, version, signals,
 //    trigger, sampling and the cost bounds. Exit 0; 1 with a message on `err`, nothing written.
 //  * run_campaign_check() judges a signed campaign file as a gateway would at `now`
-//    (CampaignAuthority with the trusted keys, the vehicle and its groups when given), prints
+//    (CampaignAuthority with the trusted keys, the root keys and the revocation list when
+//    given -- a delegated key gets the bike's six delegation refusals --, the vehicle and its
+//    groups when given), prints
 //    the verdict and, when it authenticates and compiles, its cost. Exit 0 when a gateway
 //    would accept it, 1 when it would refuse it.
 #pragma once
@@ -33,6 +35,10 @@ struct CampaignSignOptions {
   std::uint64_t version = 0;  // 0: the file's
   motinova::Micros issued_at{0};
   std::filesystem::path out;
+  // Issue 28: the signing key's SignedDelegation (fleetgw keys delegate, action "campaign"),
+  // sent in SignedCampaign.delegation (outside the signed bytes) for a key the gateways know
+  // only through their root keys. Empty: none.
+  std::filesystem::path delegation{};
 };
 int run_campaign_sign(const CampaignSignOptions& options, std::ostream& out, std::ostream& err);
 
@@ -42,6 +48,16 @@ struct CampaignCheckOptions {
   std::string vehicle_id;
   std::vector<std::string> groups;
   motinova::Micros now{0};
+  // Issue 28: [command.root_keys]; with them a campaign under a delegation is judged as the
+  // bike judges it (command::check_delegated, action "campaign", on `now`, the tool's clock
+  // taken as synchronised) instead of refused as unknown_key.
+  std::map<std::string, std::string> root_keys{};
+  // A root's SignedRevocationList as published (fleetgw keys revoke): the revocations the
+  // bike would hold. Empty: none (the tool cannot know the bike's list otherwise).
+  std::filesystem::path revocations{};
+  // The store's budget ([storage] max_mb in bytes, 0: none): the campaigns' disk budgets
+  // together may take at most a quarter of it, as on the bike.
+  std::uint64_t store_budget_bytes = 0;
 };
 int run_campaign_check(const CampaignCheckOptions& options, std::ostream& out, std::ostream& err);
 

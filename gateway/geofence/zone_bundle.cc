@@ -477,10 +477,10 @@ BundleVerdict ZoneAuthority::offer(std::span<const std::uint8_t> payload, Bundle
                      "key id " + quote_zone_text(signed_bundle.key_id()) + " is not trusted", 0,
                      in_force_);
     case command::SignerOutcome::kSignatureInvalid:
-      return refused(BundleRefusal::kBadSignature,
-                     "Ed25519 signature does not verify with key " +
-                         quote_zone_text(signed_bundle.key_id()),
-                     0, in_force_);
+      return refused(
+          BundleRefusal::kBadSignature,
+          "Ed25519 signature does not verify with key " + quote_zone_text(signed_bundle.key_id()),
+          0, in_force_);
   }
   // Authentic from here on.
   v1::ZoneBundle bundle;

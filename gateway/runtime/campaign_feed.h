@@ -30,13 +30,7 @@ class CampaignFeed final : public MessageListener {
     const Micros wall = system_now();
     if (wall - last_depth_ >= std::chrono::seconds(5)) {
       last_depth_ = wall;
-      std::uint64_t bytes = 0;
-      for (const auto& d : store_.outbox_depth()) {
-        if (d.priority == static_cast<int>(storage::OutboxPriority::kCampaign)) {
-          bytes = d.payload_bytes;
-        }
-      }
-      service_.store_holds(bytes);
+      service_.store_holds(store_.outbox_depth());
     }
     drain();
   }

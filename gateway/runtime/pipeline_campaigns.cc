@@ -38,7 +38,7 @@ void Pipeline::start_campaigns(const config::Config& config) {
   c.fleet_topic = topics.fleet_campaigns;
   c.vehicle_topic = topics.campaigns;
   // Inside the store's budget: the campaigns together hold at most a quarter of it, so their
-  // records (never evicted by the store) cannot crowd out the records the reserve protects.
+  // records (evicted only after telemetry) cannot crowd out the records the reserve protects.
   if (const auto budget = store_.effective_budget(); budget > 0) {
     c.limits.total_disk_budget = std::min(c.limits.total_disk_budget, budget / 4);
   }

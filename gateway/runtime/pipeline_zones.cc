@@ -76,6 +76,11 @@ std::vector<std::string> zone_bundle_topics(const config::Config& config) {
 void Pipeline::record_zone_event(const geofence::ZoneEvent& e) {
   // The speed authority names the slow zone behind a limit in an operator's result.
   commands_->speed_authority().on_zone_event(e, common::untrusted_excerpt(e.zone_name, 64));
+  // Campaigns triggered by a zone (issue 29) follow the same confirmed state.
+  if (campaigns_ && (e.transition == geofence::Transition::kEnter ||
+                     e.transition == geofence::Transition::kExit)) {
+    campaigns_->on_zone(e.zone_id, e.zone_name, e.transition == geofence::Transition::kEnter);
+  }
   // The name comes from a signed bundle but is still received text: one escaped log line.
   spdlog::info("geofence: {} {} zone '{}' ('{}') at {}, bundle version {}",
                geofence::transition_name(e.transition), geofence::zone_kind_name(e.kind), e.zone_id,

@@ -60,7 +60,8 @@ TEST(CampaignService, AnAcceptedCampaignIsStoredAndRunsAfterARestartOffline) {
   const auto messages = service.take_messages();
   ASSERT_EQ(messages.size(), 1u);
   EXPECT_EQ(messages[0].kind, storage::OutboxKind::kCampaign);
-  EXPECT_EQ(messages[0].priority, static_cast<int>(storage::OutboxPriority::kCampaign));
+  // Its priority 5 among campaigns: outbox priority 6 + 5, below every record of the product.
+  EXPECT_EQ(messages[0].priority, static_cast<int>(storage::OutboxPriority::kCampaign) + 5);
   const auto status = service.status(kDay0 + 40 * kSecond);
   EXPECT_EQ(status["in_force"], 1);
   EXPECT_EQ(status["campaigns"][0]["state"], "running");

@@ -155,5 +155,22 @@ TEST(CampaignFile, MalformedFilesAreRefusedNamingTheKey) {
   EXPECT_EQ(bad("id = ").rfind("c.toml:1:", 0), 0u);
 }
 
+TEST(CampaignFile, AZoneTriggerNamesItsZone) {
+  std::string t = kToml;
+  const auto from = t.find("kind = \"condition\"");
+  const auto to = t.find("[sampling]");
+  t.replace(from, to - from, "kind = \"zone\"\nzone = \"depot-north\"\n\n");
+  auto r = parse_campaign_text(t, "zone.toml");
+  ASSERT_TRUE(std::holds_alternative<v1::Campaign>(r)) << std::get<std::string>(r);
+  auto c = std::get<v1::Campaign>(r);
+  c.set_issued_at_us(c.start_us());  // what `campaign sign` sets
+  EXPECT_EQ(c.trigger().kind(), v1::CAMPAIGN_TRIGGER_KIND_ZONE);
+  EXPECT_EQ(c.trigger().zone(), "depot-north");
+  auto compiled = compile_campaign(c);
+  ASSERT_TRUE(std::holds_alternative<CompiledCampaign>(compiled))
+      << std::get<std::string>(compiled);
+  EXPECT_EQ(trigger_name(std::get<CompiledCampaign>(compiled).trigger), "zone");
+}
+
 }  // namespace
 }  // namespace fleetgw::campaign

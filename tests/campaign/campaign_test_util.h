@@ -52,6 +52,10 @@ class TestBus {
                 .value("motor_temp_c", motor_temp_c)
                 .frame());
   }
+  // One raw field of mc_status (e.g. soc_pct 0xFF: "not available", decoded as invalid).
+  void mc_status_raw(motinova::Micros t, std::string_view field, std::int64_t raw) {
+    feed(t, motinova::MessageWriter(*find("mc_status", 0x710), options_).raw(field, raw).frame());
+  }
   void bms_temp(motinova::Micros t, double temp_c) {
     feed(t, motinova::MessageWriter(*find("bms_status", 0x720), options_)
                 .value("temp_c", temp_c)

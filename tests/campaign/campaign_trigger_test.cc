@@ -179,5 +179,76 @@ TEST(CampaignTrigger, TheDiskBudgetDropsSamplesUntilRecordsLeaveTheStore) {
   EXPECT_LE(v.counters.bytes_in_store, 4096u);
 }
 
+TEST(CampaignTrigger, TimeWindowWithinADayIsHalfOpen) {
+  auto c = test::base_campaign();
+  c.mutable_trigger()->set_kind(v1::CAMPAIGN_TRIGGER_KIND_TIME_WINDOW);
+  c.mutable_trigger()->set_day_start_s(2);  // 00:00:02 .. 00:00:05
+  c.mutable_trigger()->set_day_end_s(5);
+  EXPECT_EQ(sampled_seconds(c, {40, 40, 40, 40, 40, 40, 40}), (std::vector<int>{2, 3, 4}));
+}
+
+TEST(CampaignTrigger, InvalidValuesNeverTripACondition) {
+  // 0xFF in the MC's state of charge is the protocol's "not available": not 255 %.
+  const auto c = condition_campaign(v1::CAMPAIGN_CONDITION_KIND_ABOVE, "mc.status.soc_pct", 60);
+  CampaignEngine engine;
+  engine.put(test::compiled(c), kDay0);
+  test::TestBus bus(engine);
+  bus.mc_status_raw(kDay0, "soc_pct", 50);
+  bus.mc_status_raw(kDay0 + kSecond, "soc_pct", 0xFF);
+  bus.mc_status_raw(kDay0 + 2 * kSecond, "soc_pct", 55);
+  engine.tick(kDay0 + 30 * 86'400 * kSecond);
+  EXPECT_TRUE(bus.samples().empty());
+  EXPECT_EQ(engine.view(kDay0)[0].counters.events, 0u);
+}
+
+// Zone triggers (issue 29): while the geofence says the bike is inside the named zone (its id
+// or its name), from the enter event to the exit event, and from the start when a campaign
+// arrives while the bike is already inside.
+TEST(CampaignTrigger, ZoneHoldsWhileTheBikeIsInsideTheNamedZone) {
+  auto c = test::base_campaign();
+  c.mutable_trigger()->set_kind(v1::CAMPAIGN_TRIGGER_KIND_ZONE);
+  c.mutable_trigger()->set_zone("depot");
+  CampaignEngine engine;
+  engine.put(test::compiled(c), kDay0);
+  test::TestBus bus(engine);
+  for (int i = 0; i < 8; ++i) {
+    if (i == 2) engine.on_zone("z-1", "depot", true);
+    if (i == 3) engine.on_zone("z-2", "market", true);  // another zone changes nothing
+    if (i == 5) engine.on_zone("z-2", "market", false);
+    if (i == 6) engine.on_zone("z-1", "depot", false);
+    bus.mc_temp(kDay0 + i * kSecond, 40);
+  }
+  engine.tick(kDay0 + 30 * 86'400 * kSecond);
+  std::vector<int> at;
+  for (const auto& s : bus.samples()) at.push_back(static_cast<int>((s.t - kDay0) / kSecond));
+  EXPECT_EQ(at, (std::vector<int>{2, 3, 4, 5}));
+
+  // By id, and a campaign put while the bike is already inside collects at once.
+  c.mutable_trigger()->set_zone("z-9");
+  CampaignEngine later;
+  later.on_zone("z-9", "yard", true);
+  later.put(test::compiled(c), kDay0);
+  test::TestBus bus2(later);
+  bus2.mc_temp(kDay0, 40);
+  later.on_zone("z-9", "yard", false);
+  bus2.mc_temp(kDay0 + kSecond, 40);
+  later.tick(kDay0 + 30 * 86'400 * kSecond);
+  EXPECT_EQ(bus2.samples().size(), 1u);
+}
+
+TEST(CampaignTrigger, AZoneTriggerNeedsAZoneName) {
+  auto c = test::base_campaign();
+  c.mutable_trigger()->set_kind(v1::CAMPAIGN_TRIGGER_KIND_ZONE);
+  auto r = compile_campaign(c);
+  ASSERT_TRUE(std::holds_alternative<std::string>(r));
+  EXPECT_EQ(std::get<std::string>(r).rfind("trigger.zone:", 0), 0u) << std::get<std::string>(r);
+  c.mutable_trigger()->set_zone(std::string(65, 'z'));
+  EXPECT_TRUE(std::holds_alternative<std::string>(compile_campaign(c)));
+  c.mutable_trigger()->set_zone("depot\n");
+  EXPECT_TRUE(std::holds_alternative<std::string>(compile_campaign(c)));
+  c.mutable_trigger()->set_zone("depot north");
+  EXPECT_TRUE(std::holds_alternative<CompiledCampaign>(compile_campaign(c)));
+}
+
 }  // namespace
 }  // namespace fleetgw::campaign
