@@ -83,6 +83,7 @@ constexpr Version kVersions[] = {
     {2, "console commands, alarm resolutions, API tokens", kV2},
     {3, "vehicle registry, GBFS ids, zone bundles, MDS agencies", kRegistrySchemaV3},
     {4, "revocation lists published from the console", kRevocationSchemaV4},
+    {5, "vehicle reservations", kReservationSchemaV5},  // issue 27 (registry_schema.h)
 };
 
 // Any constant other than the ingest's: the lock serialises console migrations only.

@@ -5,6 +5,8 @@
 #include <cmath>
 #include <ctime>
 
+#include "backend/web/registry_reservations.h"
+
 namespace fleetgw::web {
 namespace {
 
@@ -36,12 +38,15 @@ ON CONFLICT (vehicle_id) DO UPDATE SET public_id = EXCLUDED.public_id,
   epoch_us = EXCLUDED.epoch_us, riding_seen = false
 )sql";
 
-// One row per listed vehicle. $1: now (µs), $2: offline after (µs).
+// One row per listed vehicle. $1: now (µs); {reserved_at_now}: registry_reservations.h's
+// condition at $1.
 constexpr std::string_view kStatusSql = R"sql(
 SELECT g.public_id, vs.lat_e7, vs.lon_e7, r.vehicle_type_id,
        greatest(vs.received_at_us, st.received_at_us), vs.soc_pct, vs.range_m,
        t.battery_capacity_wh, t.wh_per_km, t.propulsion_type, st.online,
-       coalesce(al.active, 0), coalesce(fa.active, 0), e.mwh, e.m
+       coalesce(al.active, 0), coalesce(fa.active, 0), e.mwh, e.m,
+       EXISTS (SELECT 1 FROM vehicle_reservations rsv WHERE rsv.vehicle_id = r.vehicle_id
+               AND {reserved_at_now})
 FROM registry_vehicles r
 JOIN gbfs_public_ids g ON g.vehicle_id = r.vehicle_id
 JOIN vehicle_state vs ON vs.vehicle_id = r.vehicle_id
@@ -134,7 +139,11 @@ json gbfs_vehicle_status_data(PgConnection& c, const StandardsOptions& o, std::i
   c.exec(kMarkRiding, "gbfs ids: riding");
   const PgParam now[] = {std::to_string(now_us)};
   c.query(kRotate, now, "gbfs ids: rotate");
-  const PgResult r = c.exec(kStatusSql, "gbfs vehicle status");
+  std::string status_sql(kStatusSql);
+  const std::string_view marker = "{reserved_at_now}";
+  status_sql.replace(status_sql.find(marker), marker.size(),
+                     reservation_in_force_sql("$1::bigint"));
+  const PgResult r = c.query(status_sql, now, "gbfs vehicle status");
   tx.commit();
   const std::int64_t offline_us = static_cast<std::int64_t>(o.offline_after_s) * 1'000'000;
   json vehicles = json::array();
@@ -142,7 +151,7 @@ json gbfs_vehicle_status_data(PgConnection& c, const StandardsOptions& o, std::i
     json v = {{"vehicle_id", r.str(i, 0)},
               {"lat", static_cast<double>(r.int64(i, 1)) / 1e7},
               {"lon", static_cast<double>(r.int64(i, 2)) / 1e7},
-              {"is_reserved", false},
+              {"is_reserved", r.boolean(i, 15)},
               {"vehicle_type_id", r.str(i, 3)}};
     const auto last = r.int64_or_null(i, 4);
     if (last) v["last_reported"] = rfc3339(*last);

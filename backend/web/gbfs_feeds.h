@@ -13,8 +13,8 @@
 //    Listing order is by that random id. A ride shorter than the time between two builds and
 //    whose record has not arrived yet shows the old id at the new place until it arrives.
 //  * is_disabled: an active alarm, an active critical fault, SOC below low_battery_pct, or no
-//    report for offline_after_s or an offline retained status. is_reserved: always false
-//    (fleetgw has no reservations yet).
+//    report for offline_after_s or an offline retained status. is_reserved: an operator's
+//    reservation in force (registry_reservations.h); a reserved vehicle is still listed.
 //  * current_range_meters: SOC x the type's capacity / the bike's measured energy per km (its
 //    last 20 rides with energy and distance, at least 1 km in all); else the state's range_m;
 //    else SOC x the type's max range. current_fuel_percent: SOC / 100 (GBFS: 0 to 1).

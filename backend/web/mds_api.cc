@@ -19,6 +19,15 @@ json mds_gps(const MdsPlace& p) {
   return {{"lat", *p.lat}, {"lng", *p.lon}};
 }
 
+// MDS GPS `heading` (degrees) and `horizontal_accuracy` (metres) from a sample's fix (ingest
+// migration 8: heading_ddeg, horizontal_error_dm at columns col, col + 1), when it had them.
+void add_fix_quality(json& loc, const PgResult& r, int row, int col) {
+  if (const auto dd = r.int64_or_null(row, col)) loc["heading"] = static_cast<double>(*dd) / 10.0;
+  if (const auto dm = r.int64_or_null(row, col + 1)) {
+    loc["horizontal_accuracy"] = static_cast<double>(*dm) / 10.0;
+  }
+}
+
 json propulsion_types(const std::string& propulsion) {
   // A pedal-assist bike also rides as a plain bicycle (MDS: ["human", "electric_assist"]).
   if (propulsion == "electric_assist") return json::array({"human", "electric_assist"});
@@ -79,7 +88,9 @@ json mds_vehicles(PgConnection& c, const StandardsOptions&,
               {"provider_id", v.provider_id},
               {"vehicle_id", v.vehicle_id},
               {"vehicle_type", v.vehicle_type},
-              {"propulsion_types", propulsion_types(v.propulsion)}};
+              {"propulsion_types", propulsion_types(v.propulsion)},
+              // Required by MDS 2.0's Vehicle (array or object): fleetgw records none.
+              {"accessibility_options", json::array()}};
     if (v.battery_mah) j["battery_capacity"] = *v.battery_mah;
     if (v.max_speed_kph) j["maximum_speed"] = *v.max_speed_kph;
     out.push_back(std::move(j));
@@ -103,7 +114,8 @@ json mds_vehicles_status(PgConnection& c, const StandardsOptions& o,
     const PgParam p[] = {pg_text_array(ids), std::to_string(now_us - 24 * kHourUs)};
     const PgResult r = c.query(
         "SELECT DISTINCT ON (vehicle_id) vehicle_id, store_id, sequence, sampled_at_us, "
-        "lat_e7, lon_e7, speed_dkmh, soc_pct FROM telemetry_samples WHERE vehicle_id = "
+        "lat_e7, lon_e7, speed_dkmh, soc_pct, heading_ddeg, horizontal_error_dm FROM "
+        "telemetry_samples WHERE vehicle_id = "
         "ANY($1::text[]) AND sampled_at_us >= $2::bigint AND lat_e7 IS NOT NULL AND lon_e7 IS "
         "NOT NULL ORDER BY vehicle_id, sampled_at_us DESC",
         p, "mds last telemetry");
@@ -111,6 +123,7 @@ json mds_vehicles_status(PgConnection& c, const StandardsOptions& o,
       json loc = {{"lat", static_cast<double>(r.int64(i, 4)) / 1e7},
                   {"lng", static_cast<double>(r.int64(i, 5)) / 1e7}};
       if (const auto dkmh = r.int64_or_null(i, 6)) loc["speed"] = static_cast<double>(*dkmh) / 36.0;
+      add_fix_quality(loc, r, i, 8);
       json t = {{"telemetry_id",
                  name_uuid("telemetry:" + r.str(i, 0) + "/" + r.str(i, 1) + "/" + r.str(i, 2))},
                 {"timestamp", to_ms(r.int64(i, 3))},
@@ -227,8 +240,9 @@ json mds_telemetry(PgConnection& c, const StandardsOptions&, std::int64_t from_u
                        std::to_string(page.limit + 1)};
   const PgResult r = c.query(
       "SELECT t.vehicle_id, t.store_id, t.sequence, v.device_id::text, v.provider_id::text, "
-      "t.sampled_at_us, t.lat_e7, t.lon_e7, t.speed_dkmh, t.soc_pct, ride.ride_id "
-      "FROM telemetry_samples t JOIN registry_vehicles v ON v.vehicle_id = t.vehicle_id "
+      "t.sampled_at_us, t.lat_e7, t.lon_e7, t.speed_dkmh, t.soc_pct, ride.ride_id, "
+      "t.heading_ddeg, t.horizontal_error_dm FROM telemetry_samples t JOIN registry_vehicles v ON "
+      "v.vehicle_id = t.vehicle_id "
       "LEFT JOIN LATERAL (SELECT ride_id FROM rides WHERE rides.vehicle_id = t.vehicle_id AND "
       "rides.started_at_us <= t.sampled_at_us AND rides.ended_at_us >= t.sampled_at_us "
       "LIMIT 1) ride ON true WHERE t.sampled_at_us >= $1::bigint AND t.sampled_at_us < "
@@ -239,6 +253,7 @@ json mds_telemetry(PgConnection& c, const StandardsOptions&, std::int64_t from_u
   for (int i = 0; i < r.rows() && i < page.limit; ++i) {
     json loc = {{"lat", r.int64(i, 6) / 1e7}, {"lng", r.int64(i, 7) / 1e7}};
     if (const auto dkmh = r.int64_or_null(i, 8)) loc["speed"] = static_cast<double>(*dkmh) / 36.0;
+    add_fix_quality(loc, r, i, 11);
     json t = {
         {"device_id", r.str(i, 3)},
         {"provider_id", r.str(i, 4)},

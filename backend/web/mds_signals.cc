@@ -1,6 +1,7 @@
 // The rows behind MDS (mds_signals.h).
 #include "backend/web/mds_signals.h"
 
+#include "backend/web/registry_reservations.h"
 #include "backend/web/registry_store.h"
 
 namespace fleetgw::web {
@@ -220,6 +221,32 @@ std::map<std::string, MdsTimeline> mds_timelines(PgConnection& c, const Standard
       out[r.str(i, 0)].signals.push_back(
           {r.int64(i, 1), low ? MdsSignalKind::BatteryLow : MdsSignalKind::BatteryOk, "",
            place_of(r, i, 3, 4, 2)});
+    }
+  }
+
+  // Reservations (registry_reservations.h): in force at the window's start, or starting or
+  // ending within it. An end after a trip took the vehicle changes nothing (the machine's
+  // trip start ended the reservation).
+  {
+    const PgParam p[] = {vs, from, to};
+    const PgResult r =
+        c.query("SELECT rsv.vehicle_id, rsv.started_at_us, rsv.ends_at_us, " +
+                    reservation_in_force_sql("$2::bigint") +
+                    " FROM vehicle_reservations rsv WHERE rsv.vehicle_id = ANY($1::text[]) AND "
+                    "rsv.started_at_us < $3::bigint AND rsv.ends_at_us >= $2::bigint ORDER BY 1, 2",
+                p, "mds reservations");
+    for (int i = 0; i < r.rows(); ++i) {
+      MdsTimeline& t = out[r.str(i, 0)];
+      const std::int64_t start = r.int64(i, 1);
+      const std::int64_t end = r.int64(i, 2);
+      if (start < from_us) {
+        if (r.boolean(i, 3)) t.start.reserved = true;
+      } else {
+        t.signals.push_back({start, MdsSignalKind::ReservationStart, "", {}});
+      }
+      if (end >= from_us && end < to_us) {
+        t.signals.push_back({end, MdsSignalKind::ReservationEnd, "", {}});
+      }
     }
   }
 

@@ -12,6 +12,7 @@ std::string MdsMachine::state() const {
   if (c_.on_trip) return c_.outside ? "elsewhere" : "on_trip";
   if (c_.outside) return "elsewhere";
   if (c_.theft || c_.low_battery) return "non_operational";
+  if (c_.reserved) return "reserved";
   return "available";
 }
 
@@ -23,6 +24,7 @@ std::optional<MdsEvent> MdsMachine::apply(const MdsSignal& s) {
   switch (s.kind) {
     case MdsSignalKind::TripStart:
       c_.on_trip = true;
+      c_.reserved = false;  // the rider who held it took it
       c_.trip_id = s.trip_id;
       types = {"trip_start"};
       break;
@@ -68,6 +70,14 @@ std::optional<MdsEvent> MdsMachine::apply(const MdsSignal& s) {
     case MdsSignalKind::Removed:
       c_.removed = true;
       types = {"decommissioned"};
+      break;
+    case MdsSignalKind::ReservationStart:
+      c_.reserved = true;
+      types = {"reservation_start"};
+      break;
+    case MdsSignalKind::ReservationEnd:
+      c_.reserved = false;
+      types = {"reservation_cancel"};
       break;
   }
   const std::string after = state();

@@ -6,13 +6,16 @@
 //    battery low, out of contact, removed) come from signals applied in time order; the state
 //    is a function of them, highest first: removed; missing (out of contact for longer than
 //    missing_after_us); non_contactable; on a trip: elsewhere when outside, else on_trip; parked
-//    outside: elsewhere; theft alarm or low battery: non_operational; else available.
+//    outside: elsewhere; theft alarm or low battery: non_operational; reserved; else available.
+//    A trip start ends a reservation (reserved -> on_trip).
 //  * apply() returns the event when the state changes (never otherwise), typed by the signal:
 //    trip_start, trip_end (with battery_low after it when the trip ends on a low battery),
 //    trip_leave_jurisdiction / trip_enter_jurisdiction (on a trip), battery_low,
 //    battery_charged, comms_lost, comms_restored (located from missing), not_located,
-//    decommissioned; unspecified for a theft alarm raised or cleared and a parked vehicle
-//    crossing the area's edge (MDS has no type for them). Trip events carry the trip's id.
+//    decommissioned, reservation_start, reservation_cancel (MDS 2.0 has no reservation_stop:
+//    a cancelled or expired reservation is reservation_cancel); unspecified for a theft alarm
+//    raised or cleared and a parked vehicle crossing the area's edge (MDS has no type for them).
+//    Trip events carry the trip's id.
 //  * advance_to(t) emits not_located when the vehicle has been out of contact for
 //    missing_after_us by t.
 #pragma once
@@ -36,6 +39,8 @@ enum class MdsSignalKind {
   CommsLost,
   CommsRestored,
   Removed,
+  ReservationStart,
+  ReservationEnd,  // cancelled or expired (a trip start ends it too, without this signal)
 };
 
 struct MdsPlace {
@@ -70,6 +75,7 @@ struct MdsConditions {
   std::int64_t offline_since_us = 0;
   bool missing = false;
   bool removed = false;
+  bool reserved = false;  // an operator's reservation in force (registry_reservations.h)
 };
 
 class MdsMachine {

@@ -10,6 +10,7 @@
 #include "backend/web/fleet_api.h"
 #include "backend/web/gbfs_feeds.h"
 #include "backend/web/mds_api.h"
+#include "backend/web/registry_reservations.h"
 #include "backend/web/registry_store.h"
 #include "backend/web/secrets.h"
 
@@ -476,6 +477,7 @@ void mount_standards_routes(httplib::Server& server, PgPool& pool, Auth& auth,
   auto st = std::make_shared<StandardsState>(
       StandardsState{pool, auth, options, tls, std::move(authorise), {}});
   registry_routes(server, st);
+  mount_reservation_routes(server, pool, auth, st->authorise);
   gbfs_routes(server, st);
   mds_routes(server, st);
 }

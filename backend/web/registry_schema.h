@@ -55,4 +55,20 @@ CREATE TABLE mds_agencies (
   token_sha256 text NOT NULL UNIQUE, created_at_us bigint NOT NULL, revoked_at_us bigint);
 )sql";
 
+// Console schema version 5 (issue 27, registry_reservations.h): vehicle reservations, one row
+// per reservation, kept after it ends (MDS reads past ones). ends_at_us is when it stopped
+// holding the vehicle: cancelled or expired, whichever came first.
+inline constexpr std::string_view kReservationSchemaV5 = R"sql(
+CREATE TABLE vehicle_reservations (
+  id bigserial PRIMARY KEY,
+  vehicle_id text NOT NULL REFERENCES registry_vehicles (vehicle_id) ON DELETE CASCADE,
+  reserved_by text NOT NULL, started_at_us bigint NOT NULL,
+  expires_at_us bigint NOT NULL CHECK (expires_at_us > started_at_us),
+  ended_at_us bigint, end_reason text,
+  ends_at_us bigint GENERATED ALWAYS AS (least(coalesce(ended_at_us, expires_at_us),
+                                               expires_at_us)) STORED);
+CREATE INDEX vehicle_reservations_by_vehicle ON vehicle_reservations (vehicle_id, started_at_us);
+CREATE INDEX vehicle_reservations_by_end ON vehicle_reservations (ends_at_us);
+)sql";
+
 }  // namespace fleetgw::web

@@ -244,14 +244,49 @@ json position_to_gbfs(std::int32_t lon_e7, std::int32_t lat_e7) {
   return json::array({static_cast<double>(lon_e7) / 1e7, static_cast<double>(lat_e7) / 1e7});
 }
 
-json ring_to_gbfs(const v1::ZoneRing& r) {
+// Twice the ring's signed area in (lon, lat) units of 1e-7 degrees: positive when the vertices
+// run counter-clockwise (the closing edge is implied; a repeated first vertex adds nothing).
+double ring_signed_area2(const v1::ZoneRing& r) {
+  const int n = std::min(r.lat_e7_size(), r.lon_e7_size());
+  double sum = 0;
+  for (int i = 0; i < n; ++i) {
+    const int j = (i + 1) % n;
+    sum += static_cast<double>(r.lon_e7(i)) * static_cast<double>(r.lat_e7(j)) -
+           static_cast<double>(r.lon_e7(j)) * static_cast<double>(r.lat_e7(i));
+  }
+  return sum;
+}
+
+// Even-odd point-in-ring test (the bike's own reading of overlapping rings).
+bool ring_contains(const v1::ZoneRing& r, std::int32_t lon, std::int32_t lat) {
+  const int n = std::min(r.lat_e7_size(), r.lon_e7_size());
+  bool inside = false;
+  for (int i = 0, j = n - 1; i < n; j = i++) {
+    const double yi = r.lat_e7(i), yj = r.lat_e7(j), xi = r.lon_e7(i), xj = r.lon_e7(j);
+    if ((yi > lat) != (yj > lat) && lon < (xj - xi) * (lat - yi) / (yj - yi) + xi) inside = !inside;
+  }
+  return inside;
+}
+
+// GBFS v3.0 (after RFC 7946 s. 3.1.6) asks for the right-hand rule: exterior rings
+// counter-clockwise, holes clockwise. The bike reads rings by even-odd, which ignores their
+// direction, so a ring is written in the direction its role asks for (`exterior`), starting at
+// the same vertex; a ring already in that direction keeps its order (the document written back
+// unchanged). A degenerate ring (no area) is left as it is.
+json ring_to_gbfs(const v1::ZoneRing& r, bool exterior) {
   json ring = json::array();
   const int n = std::min(r.lat_e7_size(), r.lon_e7_size());
-  for (int i = 0; i < n; ++i) ring.push_back(position_to_gbfs(r.lon_e7(i), r.lat_e7(i)));
-  // GBFS (RFC 7946) rings are closed: the last position repeats the first.
-  if (n > 0 && (r.lat_e7(0) != r.lat_e7(n - 1) || r.lon_e7(0) != r.lon_e7(n - 1))) {
-    ring.push_back(position_to_gbfs(r.lon_e7(0), r.lat_e7(0)));
+  // A ring stored closed (its last vertex repeating the first) is walked without the repeat.
+  const int m =
+      n > 1 && r.lat_e7(0) == r.lat_e7(n - 1) && r.lon_e7(0) == r.lon_e7(n - 1) ? n - 1 : n;
+  const double area2 = ring_signed_area2(r);
+  const bool reverse = area2 != 0 && (area2 > 0) != exterior;
+  for (int k = 0; k < m; ++k) {
+    const int i = reverse ? (m - k) % m : k;
+    ring.push_back(position_to_gbfs(r.lon_e7(i), r.lat_e7(i)));
   }
+  // GBFS (RFC 7946) rings are closed: the last position repeats the first.
+  if (m > 0) ring.push_back(ring.front());
   return ring;
 }
 
@@ -263,13 +298,26 @@ json multipolygon_to_gbfs(const v1::Zone& z) {
   // No grouping (or one that does not add up): every ring is an outer ring of its own polygon
   // except what the even-odd rule makes holes, which GeoJSON readers also accept; one polygon
   // keeps the bike's reading exactly.
-  if (counts.empty() || total != static_cast<std::uint32_t>(z.rings_size())) {
-    counts = {static_cast<std::uint32_t>(z.rings_size())};
-  }
+  const bool grouped = !counts.empty() && total == static_cast<std::uint32_t>(z.rings_size());
+  if (!grouped) counts = {static_cast<std::uint32_t>(z.rings_size())};
   int next = 0;
   for (auto c : counts) {
     json polygon = json::array();
-    for (std::uint32_t k = 0; k < c; ++k) polygon.push_back(ring_to_gbfs(z.rings(next++)));
+    const int first = next;
+    for (std::uint32_t k = 0; k < c; ++k) {
+      const v1::ZoneRing& ring = z.rings(next++);
+      // A grouped polygon's first ring is its exterior, the rest its holes. Ungrouped rings: a
+      // ring inside an odd number of the others is a hole to the bike (even-odd).
+      bool exterior = k == 0;
+      if (!grouped && k > 0 && ring.lat_e7_size() > 0 && ring.lon_e7_size() > 0) {
+        int depth = 0;
+        for (int o = first; o < first + static_cast<int>(c); ++o) {
+          if (o != next - 1 && ring_contains(z.rings(o), ring.lon_e7(0), ring.lat_e7(0))) ++depth;
+        }
+        exterior = depth % 2 == 0;
+      }
+      polygon.push_back(ring_to_gbfs(ring, exterior));
+    }
     polygons.push_back(std::move(polygon));
   }
   return json{{"type", "MultiPolygon"}, {"coordinates", std::move(polygons)}};

@@ -29,13 +29,18 @@
 //    geofencing_zones.json document (nlohmann::json; dump() it). A FIRST_MATCH bundle of RULES
 //    zones (what zone_bundle_from_gbfs made) comes back with the same features in the same
 //    order, the same rules, names, windows and coordinates (1e-7 degrees; a ring closed as
-//    GBFS requires) and the same global_rules: from_gbfs(to_gbfs(b)) == b for every bundle
-//    from_gbfs returns. A bundle of the older kinds (from GeoJSON, precedence UNION) is
-//    written as the rules the bike enforces, one feature per zone: slow -> maximum_speed_kph,
-//    no_ride -> ride_through_allowed false, no_parking -> ride_end_allowed false, no_start ->
-//    ride_start_allowed false, operating_area -> every ride allowed inside; with operating
-//    areas, global_rules say rides may neither start nor end outside them. Under UNION the
-//    features are ordered most restrictive first (no-ride, slow by rising limit, no-parking,
+//    GBFS requires) and the same global_rules. Rings follow GBFS's right-hand rule: a
+//    polygon's exterior ring counter-clockwise, its holes clockwise (without polygon grouping,
+//    a ring inside an odd number of the zone's other rings is a hole); a ring the other way
+//    round is written reversed from the same first vertex -- the same area to the bike, which
+//    reads rings by even-odd. So from_gbfs(to_gbfs(b)) == b for every bundle from_gbfs returns
+//    from a right-hand document (its document comes back unchanged), and a left-hand
+//    document's rings come back reversed. A bundle of the older kinds (from GeoJSON, precedence
+//    UNION) is written as the rules the bike enforces, one feature per zone: slow ->
+//    maximum_speed_kph, no_ride -> ride_through_allowed false, no_parking -> ride_end_allowed
+//    false, no_start -> ride_start_allowed false, operating_area -> every ride allowed inside; with
+//    operating areas, global_rules say rides may neither start nor end outside them. Under UNION
+//    the features are ordered most restrictive first (no-ride, slow by rising limit, no-parking,
 //    no-start, areas), which gives GBFS's first-match reading the bike's meaning wherever
 //    zones of one kind overlap; where zones of different kinds overlap GBFS cannot say "both"
 //    and the first feature's rule is what a GBFS reader sees (docs/location.md).

@@ -1,17 +1,22 @@
 // GBFS v3.0 feeds of `fleetgw serve` (issue 27) against PostgreSQL: every file checked against
-// the v3.0 specification's required fields, types and rules (written from gbfs.md and
-// MobilityData's v3.0 JSON schemas), vehicle id rotation across a trip, no vehicle in a ride,
-// ETag/If-None-Match, and the zone bundle in force as geofencing_zones.
+// the v3.0 specification's required fields, types and rules (gbfs_spec_check.h, written from
+// gbfs.md v3.0), vehicle id rotation across a trip, no vehicle in a ride, ETag/If-None-Match,
+// the zone bundle in force as geofencing_zones, and its rings written by the right-hand rule
+// (a left-hand ring reversed, a right-hand document unchanged).
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <fstream>
+#include <functional>
 #include <nlohmann/json.hpp>
-#include <regex>
 #include <set>
+#include <variant>
 
 #include "backend/web/gbfs_feeds.h"
 #include "fleetgw/v1/zones.pb.h"
+#include "proto/convert/gbfs_zones.h"
 #include "tests/support/wait.h"
+#include "tests/web/gbfs_spec_check.h"
 #include "tests/web/registry_test_util.h"
 
 namespace fleetgw::testing {
@@ -20,71 +25,11 @@ namespace {
 using nlohmann::json;
 namespace pb = fleetgw::v1;
 
-const std::regex kRfc3339(R"(\d{4}-\d{2}-\d{2}T\d{2}:\d{2}:\d{2}(\.\d+)?(Z|[+-]\d{2}:\d{2}))");
-const std::regex kLanguage("^[a-z]{2,3}(-[A-Z]{2})?$");
-const std::set<std::string> kFormFactors = {"bicycle",          "cargo_bicycle",  "car",  "moped",
-                                            "scooter_standing", "scooter_seated", "other"};
-const std::set<std::string> kPropulsions = {"human",          "electric_assist",   "electric",
-                                            "combustion",     "combustion_diesel", "hybrid",
-                                            "plug_in_hybrid", "hydrogen_fuel_cell"};
+namespace spec = gbfs_spec;
 
-// Every GBFS file: last_updated (RFC 3339), ttl (integer >= 0), version "3.0", data (object).
-void expect_envelope(const json& doc) {
-  ASSERT_TRUE(doc.is_object());
-  ASSERT_TRUE(doc.contains("last_updated") && doc["last_updated"].is_string()) << doc.dump();
-  EXPECT_TRUE(std::regex_match(doc["last_updated"].get<std::string>(), kRfc3339));
-  ASSERT_TRUE(doc.contains("ttl") && doc["ttl"].is_number_integer());
-  EXPECT_GE(doc["ttl"].get<int>(), 0);
-  EXPECT_EQ(doc.value("version", ""), "3.0");
-  ASSERT_TRUE(doc.contains("data") && doc["data"].is_object());
-}
-
-void expect_localized(const json& arr) {
-  ASSERT_TRUE(arr.is_array() && !arr.empty()) << arr.dump();
-  for (const json& t : arr) {
-    ASSERT_TRUE(t.contains("text") && t["text"].is_string());
-    ASSERT_TRUE(t.contains("language") && t["language"].is_string());
-    EXPECT_TRUE(std::regex_match(t["language"].get<std::string>(), kLanguage));
-  }
-}
-
-void expect_rule(const json& r) {
-  for (const char* k : {"ride_start_allowed", "ride_end_allowed", "ride_through_allowed"}) {
-    ASSERT_TRUE(r.contains(k) && r[k].is_boolean()) << k << " in " << r.dump();
-  }
-  if (r.contains("maximum_speed_kph")) {
-    ASSERT_TRUE(r["maximum_speed_kph"].is_number_integer());
-    EXPECT_GE(r["maximum_speed_kph"].get<int>(), 0);
-  }
-  if (r.contains("vehicle_type_ids")) {
-    for (const json& id : r["vehicle_type_ids"]) EXPECT_TRUE(id.is_string());
-  }
-}
-
-// MultiPolygon per RFC 7946 as GBFS requires: closed rings of >= 4 positions, exterior rings
-// counter-clockwise, holes clockwise (the right-hand rule).
-void expect_multipolygon(const json& g) {
-  ASSERT_EQ(g.value("type", ""), "MultiPolygon");
-  ASSERT_TRUE(g["coordinates"].is_array() && !g["coordinates"].empty());
-  for (const json& polygon : g["coordinates"]) {
-    ASSERT_TRUE(polygon.is_array() && !polygon.empty());
-    for (std::size_t k = 0; k < polygon.size(); ++k) {
-      const json& ring = polygon[k];
-      ASSERT_GE(ring.size(), 4u);
-      EXPECT_EQ(ring.front(), ring.back()) << "ring not closed";
-      double area2 = 0;
-      for (std::size_t i = 0; i + 1 < ring.size(); ++i) {
-        ASSERT_EQ(ring[i].size(), 2u);
-        area2 += ring[i][0].get<double>() * ring[i + 1][1].get<double>() -
-                 ring[i + 1][0].get<double>() * ring[i][1].get<double>();
-      }
-      if (k == 0) {
-        EXPECT_GT(area2, 0) << "exterior ring must be counter-clockwise";
-      } else {
-        EXPECT_LT(area2, 0) << "hole must be clockwise";
-      }
-    }
-  }
+// A document's problems, for EXPECT_TRUE(p.empty()) << ...
+std::string gbfs_problems_text(const spec::Problems& p) {
+  return "GBFS v3.0 problems:" + spec::join(p);
 }
 
 pb::ZoneRing ring(std::initializer_list<std::pair<double, double>> lat_lon) {
@@ -195,7 +140,8 @@ class GbfsFeeds : public ::testing::Test {
     EXPECT_EQ(res->get_header_value("Access-Control-Allow-Origin"), "*");
     EXPECT_FALSE(res->get_header_value("ETag").empty());
     json doc = json::parse(res->body);
-    expect_envelope(doc);
+    const spec::Problems p = spec::check_envelope(doc);
+    EXPECT_TRUE(p.empty()) << name << ": " << gbfs_problems_text(p);
     return doc;
   }
 
@@ -215,7 +161,8 @@ std::unique_ptr<ServeStack> GbfsFeeds::stack_;
 
 TEST_F(GbfsFeeds, DiscoveryListsEveryFeedAndEachIsServed) {
   const json doc = feed("gbfs");
-  ASSERT_TRUE(doc["data"]["feeds"].is_array());
+  const spec::Problems p = spec::check_discovery(doc);
+  ASSERT_TRUE(p.empty()) << gbfs_problems_text(p);
   std::set<std::string> names;
   for (const json& f : doc["data"]["feeds"]) {
     ASSERT_TRUE(f["name"].is_string() && f["url"].is_string());
@@ -229,27 +176,16 @@ TEST_F(GbfsFeeds, DiscoveryListsEveryFeedAndEachIsServed) {
 }
 
 TEST_F(GbfsFeeds, SystemInformationHasEveryRequiredField) {
-  const json d = feed("system_information")["data"];
-  for (const char* k : {"system_id", "opening_hours", "feed_contact_email", "timezone"}) {
-    ASSERT_TRUE(d.contains(k) && d[k].is_string()) << k;
-  }
-  ASSERT_TRUE(d["languages"].is_array() && !d["languages"].empty());
-  expect_localized(d["name"]);
+  const spec::Problems p = spec::check_system_information(feed("system_information"));
+  EXPECT_TRUE(p.empty()) << gbfs_problems_text(p);
 }
 
 TEST_F(GbfsFeeds, VehicleTypesFollowTheSpecification) {
-  const json d = feed("vehicle_types")["data"];
-  ASSERT_TRUE(d["vehicle_types"].is_array());
+  const json doc = feed("vehicle_types");
+  const spec::Problems p = spec::check_vehicle_types(doc);
+  ASSERT_TRUE(p.empty()) << gbfs_problems_text(p);
   bool ebike = false;
-  for (const json& t : d["vehicle_types"]) {
-    ASSERT_TRUE(t["vehicle_type_id"].is_string());
-    EXPECT_TRUE(kFormFactors.contains(t.value("form_factor", "")));
-    EXPECT_TRUE(kPropulsions.contains(t.value("propulsion_type", "")));
-    if (t["propulsion_type"] != "human") {
-      ASSERT_TRUE(t.contains("max_range_meters") && t["max_range_meters"].is_number());
-      EXPECT_GE(t["max_range_meters"].get<double>(), 0);
-    }
-    if (t.contains("name")) expect_localized(t["name"]);
+  for (const json& t : doc["data"]["vehicle_types"]) {
     if (t["vehicle_type_id"] == "ebike") {
       ebike = true;
       EXPECT_EQ(t["max_range_meters"].get<double>(), 50000);  // 500 Wh / 10 Wh/km
@@ -267,25 +203,14 @@ TEST_F(GbfsFeeds, VehicleStatusFollowsTheSpecificationAndHidesRidesAndOwnIds) {
     EXPECT_EQ(res->body.find(id), std::string::npos) << id;
   }
   const json doc = json::parse(res->body);
-  expect_envelope(doc);
-  std::set<std::string> types;
-  const json vehicle_types = feed("vehicle_types");
-  for (const json& t : vehicle_types["data"]["vehicle_types"]) types.insert(t["vehicle_type_id"]);
-  std::set<std::string> ids;
+  spec::TypeTable types;
+  const spec::Problems tp = spec::check_vehicle_types(feed("vehicle_types"), &types);
+  ASSERT_TRUE(tp.empty()) << gbfs_problems_text(tp);
+  const spec::Problems p = spec::check_vehicle_status(doc, types);
+  EXPECT_TRUE(p.empty()) << gbfs_problems_text(p);
   for (const json& v : doc["data"]["vehicles"]) {
-    ASSERT_TRUE(v["vehicle_id"].is_string());
-    EXPECT_TRUE(ids.insert(v["vehicle_id"]).second) << "duplicate id";
-    ASSERT_TRUE(v["lat"].is_number() && v["lon"].is_number());
-    EXPECT_LE(std::abs(v["lat"].get<double>()), 90);
-    EXPECT_LE(std::abs(v["lon"].get<double>()), 180);
-    ASSERT_TRUE(v["is_reserved"].is_boolean() && v["is_disabled"].is_boolean());
-    EXPECT_TRUE(types.contains(v.value("vehicle_type_id", ""))) << v.dump();
-    EXPECT_TRUE(std::regex_match(v.value("last_reported", ""), kRfc3339));
-    ASSERT_TRUE(v["current_range_meters"].is_number());  // required: motorised type
-    EXPECT_GE(v["current_range_meters"].get<double>(), 0);
-    ASSERT_TRUE(v["current_fuel_percent"].is_number());
-    EXPECT_GE(v["current_fuel_percent"].get<double>(), 0);
-    EXPECT_LE(v["current_fuel_percent"].get<double>(), 1);
+    EXPECT_TRUE(v.contains("last_reported")) << v.dump();
+    EXPECT_TRUE(v.contains("current_fuel_percent")) << v.dump();
   }
   EXPECT_TRUE(vehicle_at(doc, 48.24, 11.64).is_null()) << "a vehicle in a ride is listed";
   EXPECT_TRUE(vehicle_at(doc, 48.33, 11.73).is_null()) << "an unregistered vehicle is listed";
@@ -386,19 +311,15 @@ TEST_F(GbfsFeeds, EtagAnswers304AndAnotherTagTheFeed) {
 }
 
 TEST_F(GbfsFeeds, GeofencingZonesAreTheBundleInForce) {
-  const json d = feed("geofencing_zones")["data"];
-  ASSERT_EQ(d["geofencing_zones"]["type"], "FeatureCollection");
-  ASSERT_TRUE(d["global_rules"].is_array());
+  const json doc = feed("geofencing_zones");
+  spec::TypeTable types;
+  spec::check_vehicle_types(feed("vehicle_types"), &types);
+  const spec::Problems p = spec::check_geofencing_zones(doc, types);
+  ASSERT_TRUE(p.empty()) << gbfs_problems_text(p);
+  const json& d = doc["data"];
   ASSERT_EQ(d["global_rules"].size(), 1u);
-  expect_rule(d["global_rules"][0]);
   const json& features = d["geofencing_zones"]["features"];
   ASSERT_EQ(features.size(), 2u);
-  for (const json& f : features) {
-    ASSERT_EQ(f["type"], "Feature");
-    expect_multipolygon(f["geometry"]);
-    ASSERT_TRUE(f["properties"]["rules"].is_array());
-    for (const json& r : f["properties"]["rules"]) expect_rule(r);
-  }
   const json& market = features[0];  // GBFS precedence: bundle order kept
   EXPECT_EQ(market["geometry"]["coordinates"].size(), 2u);
   EXPECT_EQ(market["geometry"]["coordinates"][0].size(), 2u);  // outer + hole
@@ -428,9 +349,11 @@ TEST(GbfsZones, AnOlderUnionBundleListsTheMostRestrictiveZonesFirst) {
   add("slow6", pb::ZONE_KIND_SLOW, 6);
   add("noride", pb::ZONE_KIND_NO_RIDE, 0);
   const json d = fleetgw::web::gbfs_zones_from_bundle(b.SerializeAsString(), {});
+  const spec::Problems p = spec::check_geofencing_zones(
+      {{"last_updated", "2026-11-29T08:00:00Z"}, {"ttl", 60}, {"version", "3.0"}, {"data", d}}, {});
+  EXPECT_TRUE(p.empty()) << gbfs_problems_text(p);
   std::vector<json> firsts;
   for (const json& f : d["geofencing_zones"]["features"]) {
-    expect_multipolygon(f["geometry"]);
     firsts.push_back(f["properties"]["rules"][0]);
   }
   ASSERT_EQ(firsts.size(), 5u);
@@ -441,6 +364,117 @@ TEST(GbfsZones, AnOlderUnionBundleListsTheMostRestrictiveZonesFirst) {
   EXPECT_TRUE(firsts[4]["ride_end_allowed"].get<bool>());   // operating area
   ASSERT_EQ(d["global_rules"].size(), 1u);                  // outside it: no start, no end
   EXPECT_FALSE(d["global_rules"][0]["ride_end_allowed"].get<bool>());
+}
+
+// GBFS's right-hand rule on export (proto/convert/gbfs_zones.h): a bundle whose rings were
+// signed clockwise (a city file drawn left-handed) is written with counter-clockwise exterior
+// rings and clockwise holes from the same first vertex, the bike's area unchanged; a document
+// that was right-hand already comes back exactly (`zones export` writes it back unchanged).
+TEST(GbfsZones, RingsAreWrittenByTheRightHandRuleAndARightHandDocumentComesBackUnchanged) {
+  pb::ZoneBundle b = city_bundle();
+  const json right = fleetgw::convert::gbfs_from_zone_bundle(b, {.ttl_s = 60});
+  const spec::Problems rp = spec::check_geofencing_zones(right, {});
+  ASSERT_TRUE(rp.empty()) << gbfs_problems_text(rp);
+  // Through the import and back: identical.
+  const auto imported = fleetgw::convert::zone_bundle_from_gbfs(right.dump());
+  ASSERT_TRUE(std::holds_alternative<fleetgw::convert::GbfsZonesImport>(imported));
+  pb::ZoneBundle again = std::get<fleetgw::convert::GbfsZonesImport>(imported).bundle;
+  again.set_version(b.version());
+  again.set_issued_at_us(b.issued_at_us());
+  EXPECT_EQ(fleetgw::convert::gbfs_from_zone_bundle(again, {.ttl_s = 60}), right);
+
+  // Every ring reversed (exteriors clockwise, the hole counter-clockwise): left-handed.
+  pb::ZoneBundle left = b;
+  for (pb::Zone& z : *left.mutable_zones()) {
+    for (pb::ZoneRing& r : *z.mutable_rings()) {
+      std::reverse(r.mutable_lat_e7()->begin(), r.mutable_lat_e7()->end());
+      std::reverse(r.mutable_lon_e7()->begin(), r.mutable_lon_e7()->end());
+    }
+  }
+  const json fixed = fleetgw::convert::gbfs_from_zone_bundle(left, {.ttl_s = 60});
+  const spec::Problems fp = spec::check_geofencing_zones(fixed, {});
+  EXPECT_TRUE(fp.empty()) << gbfs_problems_text(fp);
+  // The same vertices as the right-hand export, and each ring closed by its first.
+  const json& a = right["data"]["geofencing_zones"]["features"];
+  const json& c = fixed["data"]["geofencing_zones"]["features"];
+  ASSERT_EQ(a.size(), c.size());
+  for (std::size_t f = 0; f < a.size(); ++f) {
+    const json& pa = a[f]["geometry"]["coordinates"];
+    const json& pc = c[f]["geometry"]["coordinates"];
+    ASSERT_EQ(pa.size(), pc.size());
+    for (std::size_t i = 0; i < pa.size(); ++i) {
+      for (std::size_t k = 0; k < pa[i].size(); ++k) {
+        // As sets: the closing position repeats each ring's own first vertex.
+        std::set<std::string> va, vc;
+        for (const json& pos : pa[i][k]) va.insert(pos.dump());
+        for (const json& pos : pc[i][k]) vc.insert(pos.dump());
+        EXPECT_EQ(va, vc) << "feature " << f << " polygon " << i << " ring " << k;
+      }
+    }
+  }
+  // Ungrouped rings (an older bundle): the ring inside the other is the hole.
+  pb::ZoneBundle ungrouped;
+  ungrouped.set_version(1);
+  pb::Zone* z = ungrouped.add_zones();
+  z->set_id("donut");
+  z->set_kind(pb::ZONE_KIND_NO_RIDE);
+  *z->add_rings() = ring({{48.0, 11.0}, {48.1, 11.0}, {48.1, 11.1}, {48.0, 11.1}});  // clockwise
+  *z->add_rings() = ring({{48.02, 11.02}, {48.02, 11.08}, {48.08, 11.08}, {48.08, 11.02}});
+  const json donut = fleetgw::convert::gbfs_from_zone_bundle(ungrouped, {.ttl_s = 60});
+  const spec::Problems dp = spec::check_geofencing_zones(donut, {});
+  EXPECT_TRUE(dp.empty()) << gbfs_problems_text(dp);
+}
+
+// The checker itself fails on what the specification forbids (so a feed that breaks a rule
+// cannot pass the tests above).
+TEST(GbfsSpecCheck, RefusesWhatTheSpecificationForbids) {
+  const json ok = {{"last_updated", "2026-11-29T08:00:00Z"},
+                   {"ttl", 15},
+                   {"version", "3.0"},
+                   {"data",
+                    {{"vehicles",
+                      {{{"vehicle_id", "a"},
+                        {"lat", 48.1},
+                        {"lon", 11.5},
+                        {"is_reserved", false},
+                        {"is_disabled", false},
+                        {"vehicle_type_id", "ebike"},
+                        {"current_range_meters", 1000}}}}}}};
+  const spec::TypeTable types = {{"ebike", "electric_assist"}};
+  ASSERT_TRUE(spec::check_vehicle_status(ok, types).empty());
+  const auto broken = [&](const std::function<void(json&)>& edit) {
+    json d = ok;
+    edit(d);
+    return !spec::check_vehicle_status(d, types).empty();
+  };
+  EXPECT_TRUE(broken([](json& d) { d["version"] = "2.3"; }));
+  EXPECT_TRUE(broken([](json& d) { d["last_updated"] = 1700000000; }));
+  EXPECT_TRUE(broken([](json& d) { d["ttl"] = -1; }));
+  EXPECT_TRUE(broken([](json& d) { d["data"]["vehicles"][0].erase("is_reserved"); }));
+  EXPECT_TRUE(broken([](json& d) { d["data"]["vehicles"][0]["is_disabled"] = 0; }));
+  EXPECT_TRUE(broken([](json& d) { d["data"]["vehicles"][0].erase("current_range_meters"); }));
+  EXPECT_TRUE(broken([](json& d) { d["data"]["vehicles"][0]["vehicle_type_id"] = "car"; }));
+  EXPECT_TRUE(broken([](json& d) { d["data"]["vehicles"][0]["current_fuel_percent"] = 80; }));
+  EXPECT_TRUE(broken([](json& d) { d["data"]["vehicles"][0]["lat"] = 91; }));
+  EXPECT_TRUE(broken([](json& d) { d["data"]["vehicles"].push_back(d["data"]["vehicles"][0]); }));
+  json cw = {
+      {"last_updated", "2026-11-29T08:00:00Z"},
+      {"ttl", 0},
+      {"version", "3.0"},
+      {"data",
+       {{"geofencing_zones",
+         {{"type", "FeatureCollection"},
+          {"features",
+           {{{"type", "Feature"},
+             {"properties", json::object()},
+             {"geometry",
+              {{"type", "MultiPolygon"},
+               {"coordinates",
+                {{{{11.0, 48.0}, {11.0, 48.1}, {11.1, 48.1}, {11.1, 48.0}, {11.0, 48.0}}}}}}}}}}}},
+        {"global_rules", json::array()}}}};
+  EXPECT_FALSE(spec::check_geofencing_zones(cw, {}).empty()) << "a clockwise exterior ring";
+  cw["data"].erase("global_rules");
+  EXPECT_FALSE(spec::check_geofencing_zones(cw, {}).empty());
 }
 
 }  // namespace

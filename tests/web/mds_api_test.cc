@@ -1,6 +1,7 @@
 // The MDS 2.0 Provider API of `fleetgw serve` (issue 27) against PostgreSQL: authentication,
 // version negotiation, paging, every response's required fields (written from MDS 2.0's
-// data-types.md and the mds-openapi micromobility models), and the state machine walked through
+// data-types.md and the mds-openapi micromobility models: mds_spec_check.h), per-sample heading
+// and accuracy in /mds/telemetry (the ingest's migration 8), and the state machine walked through
 // a ride that leaves the operating area, a theft alarm, a low battery and a lost connection
 // (status_history, the ingest's migration 4).
 #include <gtest/gtest.h>
@@ -8,6 +9,7 @@
 #include <nlohmann/json.hpp>
 #include <set>
 
+#include "tests/web/mds_spec_check.h"
 #include "tests/web/registry_test_util.h"
 
 namespace fleetgw::testing {
@@ -16,78 +18,21 @@ namespace {
 using nlohmann::json;
 
 constexpr std::int64_t kMin = 60'000'000;
-const std::set<std::string> kStates = {"removed",  "available", "non_operational",
-                                       "reserved", "on_trip",   "non_contactable",
-                                       "missing",  "elsewhere"};
-const std::set<std::string> kEventTypes = {"agency_drop_off",
-                                           "agency_pick_up",
-                                           "battery_charged",
-                                           "battery_low",
-                                           "changed_geographies",
-                                           "comms_lost",
-                                           "comms_restored",
-                                           "compliance_pick_up",
-                                           "decommissioned",
-                                           "located",
-                                           "maintenance",
-                                           "maintenance_pick_up",
-                                           "not_located",
-                                           "off_hours",
-                                           "on_hours",
-                                           "provider_drop_off",
-                                           "rebalance_pick_up",
-                                           "reservation_cancel",
-                                           "reservation_start",
-                                           "system_resume",
-                                           "system_suspend",
-                                           "trip_cancel",
-                                           "trip_end",
-                                           "trip_enter_jurisdiction",
-                                           "trip_leave_jurisdiction",
-                                           "trip_start",
-                                           "unspecified"};
-const std::set<std::string> kTripTypes = {"trip_start", "trip_end", "trip_cancel",
-                                          "trip_enter_jurisdiction", "trip_leave_jurisdiction"};
 constexpr const char* kHostileId = "mds-\"<script>alert(1)</script>";
 
+// The MDS 2.0 OpenAPI definitions' checks (mds_spec_check.h).
 void expect_gps(const json& g) {
-  ASSERT_TRUE(g.is_object()) << g.dump();
-  ASSERT_TRUE(g["lat"].is_number() && g["lng"].is_number()) << g.dump();
-  EXPECT_LE(std::abs(g["lat"].get<double>()), 90);
-  EXPECT_LE(std::abs(g["lng"].get<double>()), 180);
+  mds_spec::Problems p;
+  mds_spec::check_gps(p, g, "$");
+  EXPECT_TRUE(p.empty()) << g.dump() << mds_spec::join(p);
 }
-
 void expect_event(const json& e) {
-  EXPECT_TRUE(is_uuid_text(e["device_id"]));
-  EXPECT_TRUE(is_uuid_text(e["provider_id"]));
-  EXPECT_TRUE(is_uuid_text(e["event_id"]));
-  EXPECT_TRUE(kStates.contains(e.value("vehicle_state", ""))) << e.dump();
-  ASSERT_TRUE(e["event_types"].is_array() && !e["event_types"].empty());
-  bool trip = false;
-  for (const json& t : e["event_types"]) {
-    EXPECT_TRUE(kEventTypes.contains(t.get<std::string>())) << t;
-    trip = trip || kTripTypes.contains(t.get<std::string>());
-  }
-  ASSERT_TRUE(e["timestamp"].is_number_integer());
-  expect_gps(e["location"]);
-  if (trip) {
-    ASSERT_TRUE(e["trip_ids"].is_array() && !e["trip_ids"].empty()) << e.dump();
-    for (const json& id : e["trip_ids"]) EXPECT_TRUE(is_uuid_text(id));
-  }
-  if (e.contains("battery_percent")) {
-    EXPECT_GE(e["battery_percent"].get<int>(), 0);
-    EXPECT_LE(e["battery_percent"].get<int>(), 100);
-  }
+  const mds_spec::Problems p = mds_spec::check_event(e);
+  EXPECT_TRUE(p.empty()) << e.dump() << mds_spec::join(p);
 }
-
 void expect_telemetry(const json& t) {
-  EXPECT_TRUE(is_uuid_text(t["device_id"]));
-  EXPECT_TRUE(is_uuid_text(t["provider_id"]));
-  EXPECT_TRUE(is_uuid_text(t["telemetry_id"]));
-  ASSERT_TRUE(t["timestamp"].is_number_integer());
-  ASSERT_TRUE(t.contains("trip_ids") && (t["trip_ids"].is_null() || t["trip_ids"].is_array()));
-  ASSERT_TRUE(t.contains("journey_id"));
-  expect_gps(t["location"]);
+  const mds_spec::Problems p = mds_spec::check_telemetry(t);
+  EXPECT_TRUE(p.empty()) << t.dump() << mds_spec::join(p);
 }
 
 class MdsApi : public ::testing::Test {
@@ -127,6 +72,11 @@ class MdsApi : public ::testing::Test {
     for (int i = 1; i < 10; ++i) {
       insert_soc_sample(*stack_, "mds-walk", i, t0_ + i * kMin, 90 - i, 48.15 + i * 0.001, 11.55);
     }
+    // One sample's fix carries heading and accuracy, as the ingest stores them (migration 8).
+    stack_->db().exec(
+        "UPDATE telemetry_samples SET heading_ddeg = 2715, horizontal_error_dm = 32 WHERE "
+        "vehicle_id = 'mds-walk' AND sequence = 5",
+        "sample fix quality");
     stack_->insert_alarm("mds-walk", 101, "ALARM_KIND_OUTSIDE_OPERATING_AREA",
                          "ALARM_TRANSITION_RAISED", t0_ + 4 * kMin);
     stack_->insert_alarm("mds-walk", 102, "ALARM_KIND_OUTSIDE_OPERATING_AREA",
@@ -170,7 +120,10 @@ class MdsApi : public ::testing::Test {
       EXPECT_EQ(res->get_header_value("Content-Type"), "application/vnd.mds+json;version=2.0");
       const json doc = json::parse(res->body);
       EXPECT_EQ(doc.value("version", ""), "2.0.0");
-      EXPECT_TRUE(doc[key].is_array()) << doc.dump();
+      const bool realtime = key == "vehicles" || key == "vehicles_status";
+      const mds_spec::Problems p = mds_spec::check_payload(
+          doc, key, realtime, [](const json&, const std::string&) { return mds_spec::Problems{}; });
+      EXPECT_TRUE(p.empty()) << path << mds_spec::join(p);
       for (const json& item : doc[key]) all.push_back(item);
       EXPECT_TRUE(doc.contains("links") && doc["links"].contains("next"));
       if (doc["links"]["next"].is_null()) return all;
@@ -238,7 +191,8 @@ TEST_F(MdsApi, VehiclesCarryTheRegistryAndHostileIdsAsEscapedData) {
   ASSERT_EQ(vehicles.size(), 3u);  // three pages of 2, 1 (--mds-page-size 2)
   bool hostile = false;
   for (const json& v : vehicles) {
-    EXPECT_TRUE(is_uuid_text(v["device_id"]));
+    const mds_spec::Problems p = mds_spec::check_vehicle(v);
+    EXPECT_TRUE(p.empty()) << v.dump() << mds_spec::join(p);
     EXPECT_EQ(v["provider_id"], kTestProviderId);
     ASSERT_TRUE(v["vehicle_id"].is_string());
     EXPECT_EQ(v["vehicle_type"], "bicycle");
@@ -265,17 +219,26 @@ TEST_F(MdsApi, TripsAndTheirTelemetryForAnHour) {
   EXPECT_EQ(t["end_time"], (t0_ + 10 * kMin) / 1000);
   EXPECT_EQ(t["duration"], 600);
   EXPECT_EQ(t["distance"], 2400);
-  expect_gps(t["start_location"]);
-  expect_gps(t["end_location"]);
+  const mds_spec::Problems tp = mds_spec::check_trip(t);
+  EXPECT_TRUE(tp.empty()) << t.dump() << mds_spec::join(tp);
   EXPECT_DOUBLE_EQ(t["start_location"]["lat"].get<double>(), 48.15);
 
   // The route: the ride's telemetry names the trip.
   const json tel = collect("/mds/telemetry?telemetry_time=" + hour_param(hour_), "telemetry");
   int on_trip = 0;
+  int with_fix_quality = 0;
   for (const json& s : tel) {
     expect_telemetry(s);
     if (s["trip_ids"].is_array() && s["trip_ids"][0] == t["trip_id"]) ++on_trip;
+    // Sample 5's own fix (set up with heading 271.5 degrees and 3.2 m accuracy).
+    if (s["location"].contains("heading")) {
+      ++with_fix_quality;
+      EXPECT_DOUBLE_EQ(s["location"]["heading"].get<double>(), 271.5) << s.dump();
+      EXPECT_DOUBLE_EQ(s["location"].value("horizontal_accuracy", 0.0), 3.2) << s.dump();
+      EXPECT_EQ(s["timestamp"], (t0_ + 5 * kMin) / 1000);
+    }
   }
+  EXPECT_EQ(with_fix_quality, 1) << "heading and accuracy per sample (ingest migration 8)";
   EXPECT_EQ(on_trip, 9);
   EXPECT_EQ(tel.size(), 11u);  // + the two parked SOC samples, outside the trip
 }

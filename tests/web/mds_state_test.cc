@@ -24,6 +24,8 @@ bool allowed(const std::string& from, const std::string& to, const std::string& 
       {"non_operational", "available", "unspecified"},
       {"available", "on_trip", "trip_start"},
       {"reserved", "on_trip", "trip_start"},
+      {"available", "reserved", "reservation_start"},
+      {"reserved", "available", "reservation_cancel"},
       {"on_trip", "available", "trip_end"},
       {"on_trip", "elsewhere", "trip_leave_jurisdiction"},
       {"elsewhere", "on_trip", "trip_enter_jurisdiction"},
@@ -131,6 +133,30 @@ TEST(MdsState, RemovedIsFinal) {
   const auto events = derive_events({}, {sig(10, Sig::Removed), sig(20, Sig::BatteryLow)}, 0, 100);
   EXPECT_EQ(states(events), (std::vector<std::string>{"removed:decommissioned"}));
   expect_valid_walk(events);
+}
+
+// Reservations (registry_reservations.h): reserved by reservation_start, back to available by
+// reservation_cancel (cancelled or expired), or on_trip when the rider takes the bike -- and
+// the reservation's later end then changes nothing.
+TEST(MdsState, AReservationEndsByCancelOrByTheTripThatTakesTheBike) {
+  auto events =
+      derive_events({}, {sig(10, Sig::ReservationStart), sig(20, Sig::ReservationEnd)}, 0, 100);
+  EXPECT_EQ(states(events), (std::vector<std::string>{"reserved:reservation_start",
+                                                      "available:reservation_cancel"}));
+  expect_valid_walk(events);
+  events = derive_events({},
+                         {sig(10, Sig::ReservationStart), sig(20, Sig::TripStart, "t1"),
+                          sig(30, Sig::TripEnd, "t1"), sig(40, Sig::ReservationEnd)},
+                         0, 100);
+  EXPECT_EQ(states(events), (std::vector<std::string>{"reserved:reservation_start",
+                                                      "on_trip:trip_start", "available:trip_end"}));
+  expect_valid_walk(events);
+  // Reserved at the window's start: cancelled within it.
+  MdsConditions start;
+  start.reserved = true;
+  events = derive_events(start, {sig(5, Sig::ReservationEnd)}, 0, 100);
+  EXPECT_EQ(states(events), (std::vector<std::string>{"available:reservation_cancel"}));
+  expect_valid_walk(events, "reserved");
 }
 
 }  // namespace
