@@ -11,6 +11,7 @@
 #include "gateway/command/delegation.h"
 #include "gateway/command/diag_blocks.h"
 #include "tests/command/command_test_util.h"
+#include "tests/uplink/proto_compat.h"
 
 namespace fleetgw::command::testing {
 namespace {
@@ -338,6 +339,38 @@ TEST(Diag, ADelegationWithoutTheActionIsRefusedOutOfScope) {
   ASSERT_NE(read, nullptr);
   EXPECT_EQ(read->result(), v1::COMMAND_RESULT_CODE_SUCCEEDED) << read->reason();
   EXPECT_TRUE(read->has_diagnostic());
+}
+
+// The schema side: the additions are recorded in the committed snapshot with their numbers, and
+// a gateway that predates them (field 14 unknown to it, so ignored) finds no action at all in a
+// diagnostic read and refuses it as malformed -- it can never take a read for an actuation.
+TEST(DiagSchema, AdditionsAreRecordedAndAnOlderGatewayRefusesAReadAsMalformed) {
+  const auto snapshot = fleetgw::testing::load_snapshot(FLEETGW_PROTO_SNAPSHOT);
+  const struct {
+    const char* message;
+    const char* field;
+    int number;
+  } fields[] = {{"Command", "diagnostic_read", 14},
+                {"CommandResult", "diagnostic", 13},
+                {"DiagnosticRead", "block", 1},
+                {"DiagnosticResult", "messages", 4},
+                {"DiagnosticValue", "value_e6", 5}};
+  for (const auto& f : fields) {
+    const auto* d = fleetgw::testing::find_field(snapshot, f.message, f.field);
+    ASSERT_NE(d, nullptr) << f.message << "." << f.field << " missing from the snapshot";
+    EXPECT_EQ(d->number(), f.number);
+  }
+  auto c = diag_command(v1::DIAGNOSTIC_BLOCK_MC_LIFETIME, Micros(1'800'000'000'000'000));
+  c.clear_diagnostic_read();  // what an older gateway understands of it
+  const auto key = Ed25519PrivateKey::generate();
+  VerifierConfig config;
+  config.vehicle_id = kVehicle;
+  config.trusted_keys[kKeyId] = key.public_key().base64();
+  const std::string payload = sign_command(c, key, kKeyId);
+  const auto verdict = CommandVerifier(config).authenticate(
+      {reinterpret_cast<const std::uint8_t*>(payload.data()), payload.size()});
+  ASSERT_TRUE(std::holds_alternative<Rejection>(verdict));
+  EXPECT_EQ(std::get<Rejection>(verdict).reason, RejectReason::kMalformed);
 }
 
 }  // namespace
