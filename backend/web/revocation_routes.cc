@@ -91,18 +91,27 @@ RootKeys parse_root_keys(const std::vector<std::string>& specs) {
                                ": expected ID=BASE64 or ID=FILE.pub (ID: 1..64 of "
                                "[A-Za-z0-9._-])");
     }
-    std::string value = spec.substr(eq + 1);
-    // A .pub file as `fleetgw keys root` writes it (one line of base64), or the base64 itself.
-    if (value.find('/') != std::string::npos || value.ends_with(".pub")) {
+    const std::string value = spec.substr(eq + 1);
+    // The base64 itself (which may hold '/'), else a .pub file as `fleetgw keys root` writes
+    // it (one line of base64).
+    auto key_of = [](const std::string& text) {
+      try {
+        return decode_base64(text);
+      } catch (const std::invalid_argument&) {
+        return std::string();
+      }
+    };
+    std::string raw = value.ends_with(".pub") ? std::string() : key_of(value);
+    if (raw.size() != crypto_sign_PUBLICKEYBYTES) {
       std::ifstream in(value);
-      if (!in) throw std::runtime_error("--root-key " + id + ": cannot read " + value);
-      std::getline(in, value);
-    }
-    std::string raw;
-    try {
-      raw = decode_base64(value);
-    } catch (const std::invalid_argument&) {
-      raw.clear();
+      std::string line;
+      if (!in || !std::getline(in, line)) {
+        throw std::runtime_error("--root-key " + id +
+                                 ": neither a base64 raw Ed25519 public key nor a readable "
+                                 ".pub file: " +
+                                 value);
+      }
+      raw = key_of(line);
     }
     if (raw.size() != crypto_sign_PUBLICKEYBYTES) {
       throw std::runtime_error("--root-key " + id +

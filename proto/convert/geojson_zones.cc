@@ -13,15 +13,15 @@ namespace {
 
 using nlohmann::json;
 
-constexpr std::size_t kMaxZones = 4096;
-constexpr std::size_t kMaxVertices = 100'000;
-constexpr std::size_t kMaxNameBytes = 128;
-constexpr std::int64_t kMaxLonSpanE7 = 1'800'000'000;
-constexpr double kMinRingWidthM = 0.1;
-constexpr double kMinRingAreaM2 = 1.0;
-constexpr double kMPerE7 = 6'371'008.8 * M_PI / 180.0 * 1e-7;
+constexpr std::size_t kGeojsonMaxZones = 4096;
+constexpr std::size_t kGeojsonMaxVertices = 100'000;
+constexpr std::size_t kGeojsonMaxNameBytes = 128;
+constexpr std::int64_t kGeojsonMaxLonSpanE7 = 1'800'000'000;
+constexpr double kGeojsonMinRingWidthM = 0.1;
+constexpr double kGeojsonMinRingAreaM2 = 1.0;
+constexpr double kGeojsonMPerE7 = 6'371'008.8 * M_PI / 180.0 * 1e-7;
 
-std::optional<v1::ZoneKind> kind_named(std::string_view name) {
+std::optional<v1::ZoneKind> geojson_kind_named(std::string_view name) {
   if (name == "operating_area") return v1::ZONE_KIND_OPERATING_AREA;
   if (name == "slow") return v1::ZONE_KIND_SLOW;
   if (name == "no_ride") return v1::ZONE_KIND_NO_RIDE;
@@ -30,7 +30,7 @@ std::optional<v1::ZoneKind> kind_named(std::string_view name) {
   return std::nullopt;
 }
 
-std::string kind_name(v1::ZoneKind k) {
+std::string geojson_kind_name(v1::ZoneKind k) {
   switch (k) {
     case v1::ZONE_KIND_OPERATING_AREA:
       return "operating_area";
@@ -49,7 +49,7 @@ std::string kind_name(v1::ZoneKind k) {
   }
 }
 
-bool zone_id_ok(std::string_view s) {
+bool geojson_zone_id_ok(std::string_view s) {
   if (s.empty() || s.size() > 64) return false;
   return std::all_of(s.begin(), s.end(), [](char c) {
     return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '.' ||
@@ -57,7 +57,8 @@ bool zone_id_ok(std::string_view s) {
   });
 }
 
-std::optional<std::string> read_ring(const json& ring, const std::string& at, v1::ZoneRing& out) {
+std::optional<std::string> geojson_read_ring(const json& ring, const std::string& at,
+                                             v1::ZoneRing& out) {
   if (!ring.is_array()) return at + ": not an array of positions";
   for (std::size_t i = 0; i < ring.size(); ++i) {
     const json& pos = ring[i];
@@ -78,17 +79,20 @@ std::optional<std::string> read_ring(const json& ring, const std::string& at, v1
   return std::nullopt;
 }
 
-std::optional<std::string> read_polygon(const json& rings, const std::string& at, v1::Zone& zone) {
+std::optional<std::string> geojson_read_polygon(const json& rings, const std::string& at,
+                                                v1::Zone& zone) {
   if (!rings.is_array()) return at + ": not an array of rings";
   for (std::size_t r = 0; r < rings.size(); ++r) {
-    if (auto e = read_ring(rings[r], at + "[" + std::to_string(r) + "]", *zone.add_rings())) {
+    if (auto e =
+            geojson_read_ring(rings[r], at + "[" + std::to_string(r) + "]", *zone.add_rings())) {
       return e;
     }
   }
   return std::nullopt;
 }
 
-std::optional<std::string> read_feature(const json& f, const std::string& at, v1::Zone& zone) {
+std::optional<std::string> geojson_read_feature(const json& f, const std::string& at,
+                                                v1::Zone& zone) {
   if (!f.is_object() || f.value("type", json()) != "Feature") return at + ": not a Feature";
   const json props =
       f.contains("properties") && f["properties"].is_object() ? f["properties"] : json::object();
@@ -96,7 +100,7 @@ std::optional<std::string> read_feature(const json& f, const std::string& at, v1
   if (!id.is_string()) return at + ".properties.id: missing (a string naming the zone)";
   zone.set_id(id.get<std::string>());
   const json kind = props.value("kind", json());
-  const auto k = kind.is_string() ? kind_named(kind.get<std::string>()) : std::nullopt;
+  const auto k = kind.is_string() ? geojson_kind_named(kind.get<std::string>()) : std::nullopt;
   if (!k) {
     return at +
            ".properties.kind: must be \"operating_area\", \"slow\", \"no_ride\", \"no_parking\" "
@@ -119,12 +123,13 @@ std::optional<std::string> read_feature(const json& f, const std::string& at, v1
   const json type = geometry.value("type", json());
   const json coords = geometry.value("coordinates", json());
   const std::string c_at = at + ".geometry.coordinates";
-  if (type == "Polygon") return read_polygon(coords, c_at, zone);
+  if (type == "Polygon") return geojson_read_polygon(coords, c_at, zone);
   if (type == "MultiPolygon") {
     if (!coords.is_array()) return c_at + ": not an array of polygons";
     for (std::size_t p = 0; p < coords.size(); ++p) {
       const int before = zone.rings_size();
-      if (auto e = read_polygon(coords[p], c_at + "[" + std::to_string(p) + "]", zone)) return e;
+      if (auto e = geojson_read_polygon(coords[p], c_at + "[" + std::to_string(p) + "]", zone))
+        return e;
       zone.add_polygon_rings(static_cast<std::uint32_t>(zone.rings_size() - before));
     }
     return std::nullopt;
@@ -134,7 +139,7 @@ std::optional<std::string> read_feature(const json& f, const std::string& at, v1
 
 // The ring's path in the uploaded geometry: coordinates[r] for a Polygon, coordinates[p][r]
 // for a MultiPolygon (polygon_rings says how rings group).
-std::string ring_path(const v1::Zone& z, int ring) {
+std::string geojson_ring_path(const v1::Zone& z, int ring) {
   if (z.polygon_rings_size() == 0) return ".geometry.coordinates[" + std::to_string(ring) + "]";
   int p = 0, first = 0;
   while (p < z.polygon_rings_size() && ring >= first + static_cast<int>(z.polygon_rings(p))) {
@@ -144,25 +149,25 @@ std::string ring_path(const v1::Zone& z, int ring) {
   return ".geometry.coordinates[" + std::to_string(p) + "][" + std::to_string(ring - first) + "]";
 }
 
-struct Vertex {
+struct GeojsonVertex {
   std::int64_t lat, lon;
-  bool operator==(const Vertex&) const = default;
+  bool operator==(const GeojsonVertex&) const = default;
 };
 
 // The gateway's ring rules (gateway/geofence/zone_bundle.cc ring_of), from the same bytes.
-std::optional<std::string> check_ring(const v1::ZoneRing& r) {
+std::optional<std::string> geojson_check_ring(const v1::ZoneRing& r) {
   if (r.lat_e7_size() != r.lon_e7_size())
     return std::string("latitudes and longitudes differ in number");
-  std::vector<Vertex> ring;
+  std::vector<GeojsonVertex> ring;
   std::int64_t lo = INT64_MAX, hi = INT64_MIN;
   for (int i = 0; i < r.lat_e7_size(); ++i) {
-    const Vertex v{r.lat_e7(i), r.lon_e7(i)};
+    const GeojsonVertex v{r.lat_e7(i), r.lon_e7(i)};
     lo = std::min(lo, v.lon);
     hi = std::max(hi, v.lon);
     if (ring.empty() || !(ring.back() == v)) ring.push_back(v);
   }
   if (ring.size() > 1 && ring.back() == ring.front()) ring.pop_back();
-  std::vector<Vertex> distinct;
+  std::vector<GeojsonVertex> distinct;
   for (const auto& v : ring) {
     if (std::find(distinct.begin(), distinct.end(), v) == distinct.end()) distinct.push_back(v);
     if (distinct.size() >= 3) break;
@@ -170,17 +175,17 @@ std::optional<std::string> check_ring(const v1::ZoneRing& r) {
   if (distinct.size() < 3) {
     return "ring with " + std::to_string(distinct.size()) + " distinct points (at least 3 needed)";
   }
-  if (hi - lo > kMaxLonSpanE7) {
+  if (hi - lo > kGeojsonMaxLonSpanE7) {
     return std::string(
         "ring spans more than 180 degrees of longitude (no zone may cross the "
         "antimeridian)");
   }
   // On the plane tangent at the first vertex, metres.
-  const Vertex o = ring.front();
-  const double kx = std::cos(static_cast<double>(o.lat) * 1e-7 * M_PI / 180.0) * kMPerE7;
-  auto local = [&](const Vertex& v) {
+  const GeojsonVertex o = ring.front();
+  const double kx = std::cos(static_cast<double>(o.lat) * 1e-7 * M_PI / 180.0) * kGeojsonMPerE7;
+  auto local = [&](const GeojsonVertex& v) {
     return std::pair<double, double>{static_cast<double>(v.lon - o.lon) * kx,
-                                     static_cast<double>(v.lat - o.lat) * kMPerE7};
+                                     static_cast<double>(v.lat - o.lat) * kGeojsonMPerE7};
   };
   double bx = 0, by = 0;
   for (const auto& v : ring) {
@@ -191,10 +196,11 @@ std::optional<std::string> check_ring(const v1::ZoneRing& r) {
     }
   }
   const double length = std::hypot(bx, by);
-  const bool line = !(length > 0) || std::all_of(ring.begin(), ring.end(), [&](const Vertex& v) {
-    const auto [x, y] = local(v);
-    return std::abs(bx * y - by * x) / length < kMinRingWidthM;
-  });
+  const bool line =
+      !(length > 0) || std::all_of(ring.begin(), ring.end(), [&](const GeojsonVertex& v) {
+        const auto [x, y] = local(v);
+        return std::abs(bx * y - by * x) / length < kGeojsonMinRingWidthM;
+      });
   if (line) return std::string("ring's points all lie on one line (it encloses no area)");
   double twice = 0;
   for (std::size_t i = 0; i < ring.size(); ++i) {
@@ -202,7 +208,7 @@ std::optional<std::string> check_ring(const v1::ZoneRing& r) {
     const auto [x1, y1] = local(ring[(i + 1) % ring.size()]);
     twice += x0 * y1 - x1 * y0;
   }
-  if (!(std::abs(twice / 2) >= kMinRingAreaM2)) {
+  if (!(std::abs(twice / 2) >= kGeojsonMinRingAreaM2)) {
     return std::string("ring encloses less than 1 square metre (its edges retrace or cross)");
   }
   return std::nullopt;
@@ -223,8 +229,8 @@ std::variant<v1::ZoneBundle, std::string> zone_bundle_from_geojson(std::string_v
   bundle.set_precedence(v1::ZONE_PRECEDENCE_UNION);
   const json& features = doc["features"];
   for (std::size_t i = 0; i < features.size(); ++i) {
-    if (auto e =
-            read_feature(features[i], "features[" + std::to_string(i) + "]", *bundle.add_zones())) {
+    if (auto e = geojson_read_feature(features[i], "features[" + std::to_string(i) + "]",
+                                      *bundle.add_zones())) {
       return *e;
     }
   }
@@ -233,25 +239,25 @@ std::variant<v1::ZoneBundle, std::string> zone_bundle_from_geojson(std::string_v
 
 std::optional<std::string> check_zone_bundle(const v1::ZoneBundle& bundle,
                                              std::string_view features_path) {
-  if (static_cast<std::size_t>(bundle.zones_size()) > kMaxZones) {
+  if (static_cast<std::size_t>(bundle.zones_size()) > kGeojsonMaxZones) {
     return std::string(features_path) + ": " + std::to_string(bundle.zones_size()) +
-           " zones, at most " + std::to_string(kMaxZones);
+           " zones, at most " + std::to_string(kGeojsonMaxZones);
   }
   std::size_t vertices = 0;
   for (const auto& z : bundle.zones()) {
     for (const auto& r : z.rings()) vertices += static_cast<std::size_t>(r.lat_e7_size());
   }
-  if (vertices > kMaxVertices) {
+  if (vertices > kGeojsonMaxVertices) {
     return std::string(features_path) + ": " + std::to_string(vertices) + " vertices, at most " +
-           std::to_string(kMaxVertices);
+           std::to_string(kGeojsonMaxVertices);
   }
   std::set<std::string> ids;
   for (int i = 0; i < bundle.zones_size(); ++i) {
     const v1::Zone& z = bundle.zones(i);
     const std::string at = std::string(features_path) + "[" + std::to_string(i) + "]";
-    if (!zone_id_ok(z.id())) return at + ".properties.id: must be 1..64 of [A-Za-z0-9._-]";
+    if (!geojson_zone_id_ok(z.id())) return at + ".properties.id: must be 1..64 of [A-Za-z0-9._-]";
     if (!ids.insert(z.id()).second) return at + ".properties.id: '" + z.id() + "' repeated";
-    if (z.name().size() > kMaxNameBytes) return at + ".properties.name: more than 128 bytes";
+    if (z.name().size() > kGeojsonMaxNameBytes) return at + ".properties.name: more than 128 bytes";
     if (z.kind() == v1::ZONE_KIND_SLOW && (z.speed_limit_kmh() < 1 || z.speed_limit_kmh() > 255)) {
       return at + ".properties.speed_limit_kmh: a slow zone needs a limit in 1..255 km/h";
     }
@@ -260,7 +266,7 @@ std::optional<std::string> check_zone_bundle(const v1::ZoneBundle& bundle,
     }
     if (z.rings_size() == 0) return at + ".geometry.coordinates: no ring";
     for (int r = 0; r < z.rings_size(); ++r) {
-      if (auto e = check_ring(z.rings(r))) return at + ring_path(z, r) + ": " + *e;
+      if (auto e = geojson_check_ring(z.rings(r))) return at + geojson_ring_path(z, r) + ": " + *e;
     }
   }
   return std::nullopt;
@@ -291,7 +297,7 @@ json geojson_from_zone_bundle(const v1::ZoneBundle& bundle) {
         polygons.push_back(std::move(poly));
       }
     }
-    json props = {{"id", z.id()}, {"name", z.name()}, {"kind", kind_name(z.kind())}};
+    json props = {{"id", z.id()}, {"name", z.name()}, {"kind", geojson_kind_name(z.kind())}};
     if (z.kind() == v1::ZONE_KIND_SLOW) props["speed_limit_kmh"] = z.speed_limit_kmh();
     if (z.kind() == v1::ZONE_KIND_RULES && z.rules_size() > 0) {
       const v1::ZoneRule& rule = z.rules(0);

@@ -6,6 +6,9 @@
 
 #include <nlohmann/json.hpp>
 
+#include <fstream>
+
+#include "tests/support/temp_dir.h"
 #include "tests/web/web_fixture.h"
 
 namespace fleetgw::testing {
@@ -159,6 +162,28 @@ TEST_F(WebAccounts, TenWrongPasswordsInARowAreSlowed) {
   EXPECT_EQ(judged, 3);
   EXPECT_EQ(slowed, 7);
   EXPECT_EQ(stack_->login("tina", "tina-password").status, 429) << "even the right one waits";
+}
+
+// --root-key takes the base64 itself (which may hold '/') or a .pub file, repeatable; a key
+// that is neither stops the server at start, naming it.
+TEST(WebRootKeys, RootKeysAreBase64OrPubFilesAndABadOneStopsTheServer) {
+  if (postgres_bin_dir().empty()) GTEST_SKIP() << "PostgreSQL server binaries not installed";
+  const std::string slashes = "//////////////////////////////////////////8=";  // 32 bytes
+  TempDir dir("fleetgw-root-keys");
+  const auto pub = dir.path() / "root-b.pub";
+  std::ofstream(pub) << "AAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAA=\n";
+  ServeStack stack({"--root-key", "root-a=" + slashes, "--root-key", "root-b=" + pub.string()});
+  ASSERT_EQ(stack.add_operator("ada", "admin", "admin-password"), 0);
+  const LoginResult ada = stack.login("ada", "admin-password");
+  const auto r = stack.client().Get("/api/revocations", {{"Cookie", ada.cookie}});
+  ASSERT_TRUE(r);
+  EXPECT_EQ(json::parse(r->body)["roots"], json::array({"root-a", "root-b"})) << r->body;
+  try {
+    ServeStack bad({"--root-key", "root-c=not-a-key"});
+    ADD_FAILURE() << "a malformed --root-key was accepted";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("--root-key root-c"), std::string::npos) << e.what();
+  }
 }
 
 }  // namespace
