@@ -130,14 +130,26 @@ json fleet_row(const PgResult& r, int i) {
   return v;
 }
 
-// The same vehicle as fleet_row(), as one array in the order of kCompactFields: what the map and
-// the list show, about a quarter of the bytes (no field names, no mode/online/connection/range,
-// locks as [kind, name] pairs).
+// The same vehicle as fleet_row(), as one array in the order of kCompactFleetFields: what the map
+// and the list show, about a quarter of the bytes (no field names, no mode/online/connection/
+// range, locks as [kind, name] pairs). Built from the row directly: a quarter of the work too.
 json compact_row(const PgResult& r, int i) {
-  const json full = fleet_row(r, i);
+  const bool online = r.is_null(i, 5) ? r.boolean(i, 4) : r.str(i, 5) == "ONLINE_STATE_ONLINE";
+  const auto soc = r.int64_or_null(i, 7);
+  const std::int64_t active = r.int64_or_null(i, 15).value_or(0);
+  const char* state = "parked";
+  if (active > 0) {
+    state = "alarm";
+  } else if (!online) {
+    state = "offline";
+  } else if (soc && *soc < kLowBatteryPct) {
+    state = "low_battery";
+  } else if (!r.is_null(i, 3) && r.str(i, 3) == "VEHICLE_MODE_RIDING") {
+    state = "riding";
+  }
   json locks = json::array();
-  if (full["locks"].is_array()) {
-    for (const json& l : full["locks"]) {
+  if (r.str(i, 13) != "[]") {
+    for (const json& l : pg_json(r, i, 13)) {
       if (!l.is_object()) continue;
       const json name = l.contains("name") && l["name"].is_string() && !l["name"].empty()
                             ? l["name"]
@@ -145,16 +157,17 @@ json compact_row(const PgResult& r, int i) {
       locks.push_back({l.value("kind", json(nullptr)), name});
     }
   }
-  return {full["id"],
-          full["lat"],
-          full["lon"],
-          full["state"],
-          full["soc_pct"],
-          full["speed_kmh"],
-          full["last_seen_us"],
+  const auto dkmh = r.int64_or_null(i, 9);
+  return {r.str(i, 0),
+          degrees(r, i, 1),
+          degrees(r, i, 2),
+          state,
+          soc ? json(*soc) : json(nullptr),
+          dkmh ? json(static_cast<double>(*dkmh) / 10.0) : json(nullptr),
+          opt_int(r, i, 11),
           std::move(locks),
-          full["alarms"]["active"],
-          full["alarms"]["unacked"]};
+          active,
+          r.int64_or_null(i, 16).value_or(0)};
 }
 
 json alarm_row(const PgResult& r, int i) {
@@ -361,8 +374,8 @@ std::optional<json> vehicle(PgConnection& c, std::string_view vehicle_id) {
   json reported = json::object();
   if (full.rows() == 1) {
     const json row = pg_json(full, 0, 0);
-    for (const char* k : {"locks", "faults", "active_alarms", "speed_limit_dkmh", "assist_name",
-                          "bus_state"}) {
+    for (const char* k :
+         {"locks", "faults", "active_alarms", "speed_limit_dkmh", "assist_name", "bus_state"}) {
       if (row.is_object() && row.contains(k)) reported[k] = row[k];
     }
   }

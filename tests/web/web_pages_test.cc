@@ -21,13 +21,13 @@ namespace {
 
 using nlohmann::json;
 using namespace std::chrono_literals;
-constexpr const char* kHostileId = "<script>window.__xss=1</script>";
-constexpr const char* kHostileRide = "ride-<img src=x onerror=window.__xss=2>";
-constexpr const char* kHostileCampaign = "=HYPERLINK(\"http://evil\")";
-constexpr int kRideSamples = 30;
+constexpr const char* kPagesHostileId = "<script>window.__xss=1</script>";
+constexpr const char* kPagesHostileRide = "ride-<img src=x onerror=window.__xss=2>";
+constexpr const char* kPagesHostileCampaign = "=HYPERLINK(\"http://evil\")";
+constexpr int kPagesRideSamples = 30;
 
 // Percent-encoding of a query value (every byte but unreserved ones).
-std::string pct(std::string_view s) {
+std::string pages_pct(std::string_view s) {
   static constexpr char kHex[] = "0123456789ABCDEF";
   std::string out;
   for (const char ch : s) {
@@ -51,10 +51,10 @@ class WebPages : public ::testing::Test {
     ASSERT_EQ(stack_->add_operator("vera", "viewer", "viewer-password"), 0);
     t_ = now_us();
     stack_->insert_vehicle({.id = "ride-bike", .lat = 48.10, .lon = 11.50});
-    stack_->insert_vehicle({.id = kHostileId, .lat = 48.11, .lon = 11.51});
+    stack_->insert_vehicle({.id = kPagesHostileId, .lat = 48.11, .lon = 11.51});
     // A ride of each: 30 samples, a second apart, going north-east, speed/power/SOC moving.
-    for (const std::string v : {"ride-bike", kHostileId}) {
-      const std::string ride = v == "ride-bike" ? "ride-1" : kHostileRide;
+    for (const std::string v : {"ride-bike", kPagesHostileId}) {
+      const std::string ride = v == "ride-bike" ? "ride-1" : kPagesHostileRide;
       stack_->rows(
           "INSERT INTO telemetry_samples (vehicle_id, store_id, sequence, created_at_us, "
           "sampled_at_us, speed_dkmh, power_w, soc_pct, lat_e7, lon_e7) SELECT $1, 's', i, "
@@ -103,13 +103,13 @@ class WebPages : public ::testing::Test {
         "'hot-pack', 3, 'bms.pack_temp_c', $1::bigint + i * 1000000, (40 + i) * 1000000 - "
         "CASE WHEN v = 'ride-bike' THEN 0 ELSE 45500000 END, false "
         "FROM generate_series(0, 9) i, (VALUES ('ride-bike'), ($2)) b(v)",
-        {std::to_string(t_ - 30'000'000), kHostileId});
+        {std::to_string(t_ - 30'000'000), kPagesHostileId});
     stack_->rows(
         "INSERT INTO campaign_samples (vehicle_id, store_id, sequence, sample_index, "
         "created_at_us, gateway_fw_version, campaign_id, campaign_version, signal, "
         "sampled_at_us, text, invalid) VALUES ('ride-bike', 's', 2, 0, $1::bigint, '0.1.0', $2, "
         "1, 'mc.model', $1::bigint, '=cmd|'' /C calc''!A0', false)",
-        {std::to_string(t_ - 20'000'000), kHostileCampaign});
+        {std::to_string(t_ - 20'000'000), kPagesHostileCampaign});
     viewer_ = stack_->login("vera", "viewer-password");
     ASSERT_EQ(viewer_.status, 200);
   }
@@ -172,7 +172,7 @@ TEST_F(WebPages, CampaignsSeenWithTheirVehiclesSamplesAndOneSignal) {
   ASSERT_EQ(detail["vehicles"].size(), 2u);
   std::map<std::string, json> by_id;
   for (const json& v : detail["vehicles"]) by_id[v["vehicle_id"]] = v;
-  ASSERT_TRUE(by_id.contains(kHostileId)) << detail.dump();
+  ASSERT_TRUE(by_id.contains(kPagesHostileId)) << detail.dump();
   EXPECT_EQ(by_id["ride-bike"]["samples"], 10);
   EXPECT_EQ(by_id["ride-bike"]["last_sample_us"], t_ - 30'000'000 + 9'000'000);
 
@@ -201,7 +201,8 @@ TEST_F(WebPages, CampaignsSeenWithTheirVehiclesSamplesAndOneSignal) {
 }
 
 TEST_F(WebPages, CampaignCsvNeutralisesFormulaCellsAndKeepsNumbers) {
-  auto res = get("/api/campaigns/samples.csv?id=" + pct(kHostileCampaign) + "&version=1");
+  auto res =
+      get("/api/campaigns/samples.csv?id=" + pages_pct(kPagesHostileCampaign) + "&version=1");
   ASSERT_TRUE(res);
   ASSERT_EQ(res->status, 200) << res->body;
   EXPECT_EQ(res->get_header_value("Content-Type"), "text/csv; charset=utf-8");
@@ -214,7 +215,8 @@ TEST_F(WebPages, CampaignCsvNeutralisesFormulaCellsAndKeepsNumbers) {
       << res->body;
   EXPECT_NE(res->body.find(",\"'=cmd|' /C calc'!A0\",false,"), std::string::npos) << res->body;
   // Numbers stay numbers, a negative one too (the rule is for text cells).
-  auto hot = get("/api/campaigns/samples.csv?id=hot-pack&version=3&vehicle=" + pct(kHostileId));
+  auto hot =
+      get("/api/campaigns/samples.csv?id=hot-pack&version=3&vehicle=" + pages_pct(kPagesHostileId));
   ASSERT_TRUE(hot);
   EXPECT_NE(hot->body.find(",bms.pack_temp_c," + std::to_string(t_ - 30'000'000) + ",-5.5,,false,"),
             std::string::npos)
@@ -226,16 +228,16 @@ TEST_F(WebPages, CampaignCsvNeutralisesFormulaCellsAndKeepsNumbers) {
 TEST_F(WebPages, RidePlotHasTheRideSamplesThinnedToTheBound) {
   const json ride = get_json("/api/rides?vehicle=ride-bike&ride=ride-1");
   EXPECT_EQ(ride["fields"], json({"t_us", "speed_kmh", "power_w", "soc_pct", "lat", "lon"}));
-  ASSERT_EQ(ride["samples"].size(), static_cast<std::size_t>(kRideSamples));
-  EXPECT_EQ(ride["samples_in_ride"], kRideSamples);
+  ASSERT_EQ(ride["samples"].size(), static_cast<std::size_t>(kPagesRideSamples));
+  EXPECT_EQ(ride["samples_in_ride"], kPagesRideSamples);
   EXPECT_DOUBLE_EQ(ride["samples"][3][1].get<double>(), 11.5);  // (100 + 3 * 5) / 10 km/h
   EXPECT_EQ(ride["samples"][3][2], 230);
   EXPECT_EQ(ride["samples"][29][3], 88);
   EXPECT_NEAR(ride["samples"][29][4].get<double>(), 48.1029, 1e-6);
   // A hostile ride id of a hostile vehicle is found by its strings (query parameters).
-  const json hostile =
-      get_json("/api/rides?vehicle=" + pct(kHostileId) + "&ride=" + pct(kHostileRide));
-  EXPECT_EQ(hostile["ride"]["ride_id"], kHostileRide);
+  const json hostile = get_json("/api/rides?vehicle=" + pages_pct(kPagesHostileId) +
+                                "&ride=" + pages_pct(kPagesHostileRide));
+  EXPECT_EQ(hostile["ride"]["ride_id"], kPagesHostileRide);
   auto missing = get("/api/rides?vehicle=ride-bike&ride=nope");
   ASSERT_TRUE(missing);
   EXPECT_EQ(missing->status, 404);
@@ -331,13 +333,13 @@ TEST_F(WebPages, BrowserDrawsTheRideTrackPlotAndCampaignPage) {
                      {"name", "vera"},
                      {"password", "viewer-password"},
                      {"screenshots", stack_->dir().string()},
-                     {"vehicle", kHostileId},
-                     {"ride", kHostileRide},
-                     {"ride_samples", kRideSamples},
+                     {"vehicle", kPagesHostileId},
+                     {"ride", kPagesHostileRide},
+                     {"ride_samples", kPagesRideSamples},
                      {"limit_vehicle", "ride-bike"},
                      {"campaign", "hot-pack"},
                      {"campaign_version", 3},
-                     {"hostile_campaign", kHostileCampaign}};
+                     {"hostile_campaign", kPagesHostileCampaign}};
   const auto out = stack_->dir() / "browser-pages.log";
   const int rc =
       run_for_exit_code({std::string(FLEETGW_WEB_TEST_DIR) + "/browser/console-browser.sh",

@@ -111,9 +111,14 @@ function fleetObjects(compact) {
   }));
 }
 
-async function loadFleet() {
+function fetchFleet() {
   const headers = app.fleetEtag ? { 'If-None-Match': app.fleetEtag } : {};
-  const r = await api('/api/fleet?view=compact', { headers, raw: true });
+  return api('/api/fleet?view=compact', { headers, raw: true });
+}
+
+// pending: a fetchFleet() already under way (the first load asks for the list at once).
+async function loadFleet(pending = null) {
+  const r = await (pending || fetchFleet());
   if (r.status !== 304) {
     app.fleet = fleetObjects(r.data);
     app.fleetEtag = r.etag;
@@ -332,6 +337,9 @@ async function route() {
 async function start() {
   document.getElementById('top').hidden = false;
   document.getElementById('who').textContent = `${app.session.name} (${app.session.role})`;
+  // The fleet list is the biggest answer: asked for now, in parallel with the configuration.
+  const firstFleet = fetchFleet();
+  firstFleet.catch(() => {}); // awaited below; a failure is reported there
   app.config = await api('/api/config');
   if (!app.commands) {
     app.commands = new Commands({ api, can, status, config: () => app.config });
@@ -357,7 +365,7 @@ async function start() {
   document.dispatchEvent(new CustomEvent('fleet-session',
     { detail: { session: app.session, map: app.fleetMap.map } }));
   await route();
-  await Promise.all([loadFleet(), loadAlarms()]);
+  await Promise.all([loadFleet(firstFleet), loadAlarms()]);
   app.fleetMap.fit();
   listen();
 }
