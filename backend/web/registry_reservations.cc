@@ -42,7 +42,7 @@ PgResult in_force_row(PgConnection& c, std::string_view vehicle_id, std::int64_t
   return c.query(sql, p, "reservation in force");
 }
 
-void reply(httplib::Response& res, int status, const json& body) {
+void reservation_reply(httplib::Response& res, int status, const json& body) {
   res.status = status;
   res.set_header("Cache-Control", "no-store");
   res.set_content(to_json_text(body), "application/json; charset=utf-8");
@@ -147,7 +147,7 @@ void mount_reservation_routes(httplib::Server& s, PgPool& pool, Auth& auth, Auth
         [&pool, authorise](const httplib::Request& req, httplib::Response& res) {
           if (!authorise(req, res, Role::Viewer, "reservations")) return;
           auto c = pool.lease();
-          reply(res, 200, {{"reservations", reservations_in_force(*c, now_us())}});
+          reservation_reply(res, 200, {{"reservations", reservations_in_force(*c, now_us())}});
         });
   s.Post(kPath, [&pool, &auth, authorise](const httplib::Request& req, httplib::Response& res) {
     const std::string vehicle = req.matches[1].str();
@@ -164,21 +164,21 @@ void mount_reservation_routes(httplib::Server& s, PgPool& pool, Auth& auth, Auth
         case ReserveOutcome::Reserved:
           auth.audit(*who, req.remote_addr, "vehicle_reserve", vehicle, "ok",
                      "expires_in_s=" + std::to_string(expires_in));
-          reply(res, 201, out.reservation);
+          reservation_reply(res, 201, out.reservation);
           return;
         case ReserveOutcome::NotFound:
           auth.audit(*who, req.remote_addr, "vehicle_reserve", vehicle, "not_found");
-          reply(res, 404, {{"error", "no such registered vehicle: " + vehicle}});
+          reservation_reply(res, 404, {{"error", "no such registered vehicle: " + vehicle}});
           return;
         case ReserveOutcome::Conflict:
           auth.audit(*who, req.remote_addr, "vehicle_reserve", vehicle, "conflict",
                      out.reservation.value("error", ""));
-          reply(res, 409, out.reservation);
+          reservation_reply(res, 409, out.reservation);
           return;
       }
     } catch (const std::invalid_argument& e) {
       auth.audit(*who, req.remote_addr, "vehicle_reserve", vehicle, "bad_request", e.what());
-      reply(res, 400, {{"error", e.what()}});
+      reservation_reply(res, 400, {{"error", e.what()}});
     }
   });
   s.Delete(kPath, [&pool, &auth, authorise](const httplib::Request& req, httplib::Response& res) {
@@ -193,10 +193,10 @@ void mount_reservation_routes(httplib::Server& s, PgPool& pool, Auth& auth, Auth
     auth.audit(*who, req.remote_addr, "vehicle_reservation_cancel", vehicle,
                ended ? "ok" : "not_found");
     if (!ended) {
-      reply(res, 404, {{"error", "no reservation in force for " + vehicle}});
+      reservation_reply(res, 404, {{"error", "no reservation in force for " + vehicle}});
       return;
     }
-    reply(res, 200, *ended);
+    reservation_reply(res, 200, *ended);
   });
 }
 

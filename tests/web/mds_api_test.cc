@@ -21,11 +21,6 @@ constexpr std::int64_t kMin = 60'000'000;
 constexpr const char* kHostileId = "mds-\"<script>alert(1)</script>";
 
 // The MDS 2.0 OpenAPI definitions' checks (mds_spec_check.h).
-void expect_gps(const json& g) {
-  mds_spec::Problems p;
-  mds_spec::check_gps(p, g, "$");
-  EXPECT_TRUE(p.empty()) << g.dump() << mds_spec::join(p);
-}
 void expect_event(const json& e) {
   const mds_spec::Problems p = mds_spec::check_event(e);
   EXPECT_TRUE(p.empty()) << e.dump() << mds_spec::join(p);

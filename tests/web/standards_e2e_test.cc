@@ -50,9 +50,9 @@ constexpr int kSimSpeed = 20;
 
 // bike-a's route: north out of its operating area (which ends 220 m north of the start) and
 // back in; it rides 140 s at 24 km/h (~900 m), more than the route's 830 m, so it ends at the
-// route's end, inside. It stands locked for 180 s (9 s of wall time: listed in GBFS), is
-// unlocked (a rental: no longer listed), rides from 200 s, is locked at 380 s (the ride's
-// end); bike-b is ridden away locked at 420 s.
+// route's end, inside. It stands locked for 260 s (13 s of wall time: listed in GBFS), is
+// unlocked (a rental: no longer listed), rides from 280 s, is locked at 440 s (the ride's
+// end); bike-b is ridden away locked at 300 s.
 constexpr RoutePoint kStartA{48.1300, 11.5700};
 constexpr RoutePoint kTurnA{48.1340, 11.5700};
 constexpr RoutePoint kEndA{48.1305, 11.5700};
@@ -266,15 +266,15 @@ TEST_F(StandardsE2E, RealGatewaysFeedGbfsAndMdsThroughARideATheftAndALostConnect
   const std::vector<BikePlan> plans = {
       {"bike-a",
        {kStartA, kTurnA, kEndA},
-       "[[ride]]\nduration_s = 200\nspeed_kmh = 0\n[[ride]]\nduration_s = 140\nspeed_kmh = 24\n"
-       "[[ride]]\nduration_s = 2660\nspeed_kmh = 0\n"
-       "[[event]]\nat_s = 180\naction = \"unlock\"\nnode = \"lock2\"\n"
-       "[[event]]\nat_s = 380\naction = \"lock\"\nnode = \"lock2\"\n",
+       "[[ride]]\nduration_s = 280\nspeed_kmh = 0\n[[ride]]\nduration_s = 140\nspeed_kmh = 24\n"
+       "[[ride]]\nduration_s = 2580\nspeed_kmh = 0\n"
+       "[[event]]\nat_s = 260\naction = \"unlock\"\nnode = \"lock2\"\n"
+       "[[event]]\nat_s = 440\naction = \"lock\"\nnode = \"lock2\"\n",
        true},
       {"bike-b",
        {kStartB, kEndB},
-       "[[ride]]\nduration_s = 420\nspeed_kmh = 0\n[[ride]]\nduration_s = 40\nspeed_kmh = 15\n"
-       "[[ride]]\nduration_s = 2540\nspeed_kmh = 0\n",
+       "[[ride]]\nduration_s = 300\nspeed_kmh = 0\n[[ride]]\nduration_s = 40\nspeed_kmh = 15\n"
+       "[[ride]]\nduration_s = 2660\nspeed_kmh = 0\n",
        false},
       {"bike-c", {kStartC, kEndC}, "[[ride]]\nduration_s = 3000\nspeed_kmh = 0\n", false}};
   for (const BikePlan& p : plans) {
