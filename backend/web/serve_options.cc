@@ -77,7 +77,7 @@ void add_serve_options(CLI::App& app, ServeOptions& o) {
               kib = 0;
             }
             if (kib < 16 || kib > 65536) {
-              throw CLI::ValidationError("--max-body-kib", "a whole number of KiB, 16..65536");
+              throw CLI::ValidationError("a whole number of KiB, 16..65536");
             }
             return std::to_string(kib * 1024);
           },
@@ -91,11 +91,30 @@ void add_serve_options(CLI::App& app, ServeOptions& o) {
   app.add_option("--remove-operator", o.remove_operator, "delete the operator NAME and exit");
   // As for fleetgw-ingest: a service's settings also come from FLEETGW_SERVE_<OPTION> (the
   // unit's environment file keeps the database password out of ps); the command line wins.
-  for (const char* name : {"pg", "listen", "tls-cert", "tls-key", "static-dir", "leaflet-dir",
-                           "tile-url", "tile-attribution", "threads", "db-connections",
-                           "max-event-streams", "poll-ms", "log-level", "broker",
-                           "topic-prefix", "ca-file", "cert-file", "key-file", "username",
-                           "password", "signing-key", "delegation", "key-id", "command-ttl-s"}) {
+  for (const char* name : {"pg",
+                           "listen",
+                           "tls-cert",
+                           "tls-key",
+                           "static-dir",
+                           "leaflet-dir",
+                           "tile-url",
+                           "tile-attribution",
+                           "threads",
+                           "db-connections",
+                           "max-event-streams",
+                           "poll-ms",
+                           "log-level",
+                           "broker",
+                           "topic-prefix",
+                           "ca-file",
+                           "cert-file",
+                           "key-file",
+                           "username",
+                           "password",
+                           "signing-key",
+                           "delegation",
+                           "key-id",
+                           "command-ttl-s"}) {
     std::string env = "FLEETGW_SERVE_";
     for (const char* c = name; *c != '\0'; ++c) {
       env += *c == '-' ? '_' : static_cast<char>(std::toupper(static_cast<unsigned char>(*c)));

@@ -140,6 +140,9 @@ TEST_F(WebAccounts, ZoneUploadsAreRefusedWithTheFieldAndThePlace) {
   EXPECT_EQ(p["zones"], 3);
   EXPECT_EQ(p["geojson"]["features"][2]["properties"]["kind"], "no_start");
   EXPECT_EQ(post(olga, "/api/zones/preview", doc)->status, 403);
+  json big = doc;
+  big["comment"] = std::string(100 * 1024, 'x');
+  EXPECT_EQ(post(ada, "/api/zones/preview", big)->status, 413) << "64 KiB by default";
   // Without --broker and --signing-key nothing can be signed: said so, audited.
   EXPECT_EQ(post(ada, "/api/zones/publish", doc)->status, 503);
   EXPECT_EQ(stack_->rows("SELECT result FROM console_audit WHERE action = 'zones_publish'"),
@@ -172,12 +175,22 @@ TEST(WebRootKeys, RootKeysAreBase64OrPubFilesAndABadOneStopsTheServer) {
   TempDir dir("fleetgw-root-keys");
   const auto pub = dir.path() / "root-b.pub";
   std::ofstream(pub) << "AAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAA=\n";
-  ServeStack stack({"--root-key", "root-a=" + slashes, "--root-key", "root-b=" + pub.string()});
+  ServeStack stack({"--root-key", "root-a=" + slashes, "--root-key", "root-b=" + pub.string(),
+                    "--max-body-kib", "256"});
   ASSERT_EQ(stack.add_operator("ada", "admin", "admin-password"), 0);
   const LoginResult ada = stack.login("ada", "admin-password");
   const auto r = stack.client().Get("/api/revocations", {{"Cookie", ada.cookie}});
   ASSERT_TRUE(r);
   EXPECT_EQ(json::parse(r->body)["roots"], json::array({"root-a", "root-b"})) << r->body;
+  // --max-body-kib 256 takes a 100 KiB zone upload that the default 64 KiB refuses (413).
+  const json big = {{"type", "FeatureCollection"},
+                    {"features", json::array()},
+                    {"comment", std::string(100 * 1024, 'x')}};
+  const auto preview = stack.client().Post("/api/zones/preview",
+                                           {{"Cookie", ada.cookie}, {"X-CSRF-Token", ada.csrf}},
+                                           big.dump(), "application/json");
+  ASSERT_TRUE(preview);
+  EXPECT_EQ(preview->status, 200) << preview->body;
   try {
     ServeStack bad({"--root-key", "root-c=not-a-key"});
     ADD_FAILURE() << "a malformed --root-key was accepted";
