@@ -253,7 +253,7 @@ void CommandService::on_message(const motinova::DecodedMessage& msg, Micros now)
   }
   impl_->mc.on_message(msg, now);
   impl_->diag.on_message(msg, now);
-  impl_->capture.on_message(msg, impl_->wall(now).count(), now);
+  impl_->capture.on_message(msg, impl_->wall(now).count());
 }
 
 void CommandService::tick(Micros now) {

@@ -83,16 +83,15 @@ DiagCapture::DiagCapture(storage::Store& store, Micros persist_interval)
   }
 }
 
-void DiagCapture::on_message(const motinova::DecodedMessage& msg, std::int64_t wall_us,
-                             Micros now) {
+void DiagCapture::on_message(const motinova::DecodedMessage& msg, std::int64_t wall_us) {
   if (msg.frame == nullptr || msg.status != motinova::DecodeStatus::kOk) return;
   const auto* k = captured_kind_of(*msg.frame);
   if (k == nullptr) return;
   Slot& slot = slots_[std::string(k->name)];
   const bool changed = !slot.record || !(slot.record->frame == *msg.frame);
   slot.record = Record{*msg.frame, wall_us};
+  // Written at the next tick, not from the frame handler.
   if (changed) slot.dirty = true;
-  tick(now);
 }
 
 void DiagCapture::tick(Micros now) {

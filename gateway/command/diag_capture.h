@@ -5,9 +5,9 @@
 //
 // Contract:
 //  * Single-threaded; fed every decoded message (on_message) and ticked (tick).
-//  * Each record is kept in memory and written to the store's meta table
-//    (`diag.captured.<message>` = "<heard wall µs> <data hex>") when its bytes changed, at most
-//    once per `persist_interval` per record (the pack statistics arrive every minute and their
+//  * Each record is kept in memory at once and written, at the next tick(), to the store's meta
+//    table (`diag.captured.<message>` = "<heard wall µs> <data hex>") when its bytes changed, at
+//    most once per `persist_interval` per record (the pack statistics arrive every minute and their
 //    run time changes each time: a minute's write, not a write per frame) -- so a restart keeps
 //    the last one, up to that interval old. A store failure is logged; the record stays in
 //    memory and is written at a later tick.
@@ -43,7 +43,7 @@ class DiagCapture {
 
   explicit DiagCapture(storage::Store& store, Micros persist_interval = Micros{60'000'000});
 
-  void on_message(const motinova::DecodedMessage& msg, std::int64_t wall_us, Micros now);
+  void on_message(const motinova::DecodedMessage& msg, std::int64_t wall_us);
   void tick(Micros now);
   // The last record of this catalogue message ("mc_lifetime_1", "mc_lifetime_2",
   // "pack_stats"), or nullptr.
