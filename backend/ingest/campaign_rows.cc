@@ -21,7 +21,8 @@ std::optional<Reject> campaign_rows(const v1::Envelope& e, Decoded& d) {
     return Reject{"too_many_samples", fmt::format("campaign record of {} samples (at most {})",
                                                   c.samples_size(), kMaxCampaignSamples)};
   }
-  RowSet& rows = rows::new_rows(d, kCampaignSamplesTable);
+  RowSet& rows =
+      rows::new_rows(d, kCampaignSamplesTable, static_cast<std::size_t>(c.samples_size()));
   rows::RowBuilder b(rows.values);
   for (int i = 0; i < c.samples_size(); ++i) {
     const v1::CampaignSample& s = c.samples(i);

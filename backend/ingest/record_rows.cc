@@ -48,7 +48,11 @@ const TableSpec kResults{"command_results",
 const TableSpec kCommands{"commands",
                           "command_id, vehicle_id, key_id, issued_at_us, expires_at_us, action, "
                           "target",
-                          7, kIgnore, false, false, false};
+                          7,
+                          kIgnore,
+                          false,
+                          false,
+                          false};
 const TableSpec kInfo{"device_info",
                       "vehicle_id, store_id, sequence, created_at_us, gateway_fw_version, nodes", 6,
                       kIgnore};
@@ -117,8 +121,10 @@ const TableSpec kStatusHistory{
     false,
     true};
 
-RowSet& new_rows(Decoded& d, const TableSpec& t) {
+RowSet& new_rows(Decoded& d, const TableSpec& t, std::size_t rows) {
   d.rows.push_back(RowSet{&t, {}});
+  // Sized once: growing it would move every value built so far, again and again.
+  d.rows.back().values.reserve(rows * static_cast<std::size_t>(t.column_count));
   return d.rows.back();
 }
 
@@ -448,7 +454,7 @@ std::optional<Reject> telemetry_rows(const v1::Envelope& e, Decoded& d) {
     return Reject{"too_many_samples", fmt::format("telemetry batch of {} samples (at most {})",
                                                   e.telemetry().samples_size(), kMaxSamples)};
   }
-  RowSet& rows = new_rows(d, kTelemetry);
+  RowSet& rows = new_rows(d, kTelemetry, static_cast<std::size_t>(e.telemetry().samples_size()));
   RowBuilder b(rows.values);
   std::vector<std::uint64_t> seqs;
   seqs.reserve(e.telemetry().samples_size());

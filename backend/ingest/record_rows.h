@@ -109,7 +109,8 @@ struct Header {
   }
 };
 
-RowSet& new_rows(Decoded& d, const TableSpec& t);
+// A RowSet of t in d, with room for `rows` rows.
+RowSet& new_rows(Decoded& d, const TableSpec& t, std::size_t rows = 1);
 
 void ride_rows(const v1::Envelope& e, Decoded& d, RowBuilder& b);
 void fault_rows(const v1::Envelope& e, Decoded& d, RowBuilder& b);
