@@ -47,12 +47,18 @@ bool revocation_tool_id(std::string_view s) {
 
 std::string join_serials(const v1::RevocationList& l) {
   std::string out;
-  for (const auto s : l.revoked_serials()) out += (out.empty() ? "" : ",") + std::to_string(s);
+  for (const auto s : l.revoked_serials()) {
+    if (!out.empty()) out += ',';
+    out += std::to_string(s);
+  }
   return out;
 }
 std::string join_key_ids(const v1::RevocationList& l) {
   std::string out;
-  for (const auto& k : l.revoked_key_ids()) out += (out.empty() ? "" : ",") + k;
+  for (const auto& k : l.revoked_key_ids()) {
+    if (!out.empty()) out += ',';
+    out += k;
+  }
   return out;
 }
 
@@ -141,7 +147,10 @@ std::variant<CheckedList, std::string> check_list(const RootKeys& roots, std::st
   const auto root = roots.find(sl.root_key_id());
   if (root == roots.end()) {
     std::string known;
-    for (const auto& [id, key] : roots) known += (known.empty() ? "" : ", ") + id;
+    for (const auto& [id, key] : roots) {
+      if (!known.empty()) known += ", ";
+      known += id;
+    }
     return "root_key_id '" + sl.root_key_id() + "' is not one of this server's --root-key (" +
            (known.empty() ? std::string("none configured") : known) + ")";
   }
