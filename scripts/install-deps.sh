@@ -27,6 +27,7 @@ GCC_BUILD_PACKAGES=(
   libpq-dev
   libmosquitto-dev  # fleetgw-fleet-sim: thousands of MQTT 5 sessions on one event loop
   libcpp-httplib-dev libsodium-dev  # fleetgw serve: HTTPS server, Argon2id (docs/console.md)
+  zlib1g-dev  # fleetgw serve: the fleet list's gzip copy, made once per build (libprotobuf-dev pulls it in; named so nobody relies on that)
 )
 # The sanitizer and fuzzing trees of scripts/test.sh.
 CLANG_PACKAGES=(clang libclang-rt-14-dev lld)
