@@ -22,7 +22,8 @@ const fail = (why) => { throw new Error(why); };
 const problems = [];
 const steps = {};
 const t0 = Date.now();
-const step = (name) => { steps[name] = Date.now() - t0; };
+let doing = 'start';
+const step = (name) => { steps[name] = Date.now() - t0; doing = `after ${name}`; };
 const BACKGROUND = [0xde, 0xe2, 0xe6];
 const NO_PARKING = [0x70, 0x48, 0xe8]; // zones.js ZONE_COLOURS.no_parking, fill opacity .2
 
@@ -113,9 +114,14 @@ try {
   await op.goto(`${spec.url}/#alarms`);
   await op.waitForSelector('#alarms-view:not([hidden])');
   fs.writeFileSync(spec.want_alarm, '');
-  const row = await op.waitForFunction((id) => [...document.querySelectorAll('#alarm-table tbody tr')]
-    .find((r) => r.children[1].textContent === id && r.querySelector('button.ack')), {}, spec.vehicle);
-  await (await row.asElement().$('button.ack')).click();
+  // The feed re-renders on every change event: find the row and click its button in one go
+  // (a handle kept across a re-render would be detached).
+  await op.waitForFunction((id) => {
+    const row = [...document.querySelectorAll('#alarm-table tbody tr')]
+      .find((r) => r.children[1].textContent === id && r.querySelector('button.ack:not([disabled])'));
+    if (row) row.querySelector('button.ack').click();
+    return Boolean(row);
+  }, {}, spec.vehicle);
   await op.waitForFunction((id, name) => [...document.querySelectorAll('#alarm-table tbody tr')]
     .some((r) => r.children[1].textContent === id && r.children[5].textContent.startsWith(name)),
   {}, spec.vehicle, spec.operator.name);
@@ -185,7 +191,7 @@ try {
   if (problems.length) fail(problems.join('\n'));
   console.log(JSON.stringify({ step_ms: steps }));
 } catch (e) {
-  console.error(`console story test failed: ${e.message}`);
+  console.error(`console story test failed (${doing}): ${e.message}`);
   if (problems.length) console.error(problems.join('\n'));
   exitCode = 1;
 } finally {
