@@ -130,6 +130,49 @@ TEST(IngestRows, StatusAndStateAreLatestValuesNotRecords) {
   EXPECT_EQ(value(d, "attention"), R"({"storage \"full\""})");
 }
 
+// A state's locks and faults go to jsonb as arrays of objects with their keys in name order:
+// plain strings as they are, a quote or a control byte escaped (the worker writes plain entries
+// itself, issue 25; the others through nlohmann::json, as before).
+TEST(IngestRows, StateLocksAndFaultsAreJsonArraysWithEscapedText) {
+  v1::Envelope e = envelope(0);
+  v1::VehicleState* s = e.mutable_state();
+  s->set_updated_at_us(5);
+  v1::VehicleLock* l = s->add_locks();
+  l->set_node("lock1");
+  l->set_kind("seat");
+  l->set_state(v1::LOCK_STATE_LOCKED);
+  l->set_state_name("locked");
+  v1::VehicleFault* f = s->add_faults();
+  f->set_node("mc");
+  f->set_name("over_temp");
+  f->set_code(12);
+  f->set_severity("error");
+  v1::VehicleFault* g = s->add_faults();
+  g->set_node("bms");
+  g->set_name("undefined_bit_3");
+  g->set_severity("info");
+  Decoded d = decoded("fleet/v1/bike-1/state", e);
+  EXPECT_EQ(
+      value(d, "locks"),
+      R"([{"kind":"seat","node":"lock1","state":"LOCK_STATE_LOCKED","state_name":"locked"}])");
+  EXPECT_EQ(value(d, "faults"),
+            R"([{"code":12,"name":"over_temp","node":"mc","severity":"error"},)"
+            R"({"code":null,"name":"undefined_bit_3","node":"bms","severity":"info"}])");
+  l->set_state_name("say \"hi\"\t");
+  g->set_name("back\\slash");
+  d = decoded("fleet/v1/bike-1/state", e);
+  EXPECT_EQ(value(d, "locks"), R"([{"kind":"seat","node":"lock1","state":"LOCK_STATE_LOCKED",)"
+                               R"("state_name":"say \"hi\"\t"}])");
+  EXPECT_EQ(value(d, "faults"),
+            R"([{"code":12,"name":"over_temp","node":"mc","severity":"error"},)"
+            R"({"code":null,"name":"back\\slash","node":"bms","severity":"info"}])");
+  s->clear_locks();
+  s->clear_faults();
+  d = decoded("fleet/v1/bike-1/state", e);
+  EXPECT_EQ(value(d, "locks"), "[]");
+  EXPECT_EQ(value(d, "faults"), "[]");
+}
+
 TEST(IngestRows, StatusKeepsThePublishRefusalFields) {
   v1::Envelope e = envelope(0);
   e.mutable_status()->set_publish_refusals(3);
