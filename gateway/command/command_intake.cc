@@ -92,16 +92,37 @@ std::optional<Disposition> CommandService::Impl::answer_known(const VerifiedComm
 // Never rate limited: each one is an authenticated command, and its sender waits for an answer.
 Disposition CommandService::Impl::answer_busy(VerifiedCommand cmd, Micros now) {
   ++stats.payloads;
+  return answer_not_run(std::move(cmd), now,
+                        "busy: the gateway's command queue was full; not executed and not "
+                        "recorded as used, send it again",
+                        "busy (command queue full)");
+}
+
+// Issue 24: the service stops with commands still in the uplink's queue (or arriving while the
+// outbox drains). Running them is no longer possible (the bus is stopped), dropping them left
+// their senders without any result.
+Disposition CommandService::Impl::answer_stopping(std::span<const std::uint8_t> payload,
+                                                  Micros now) {
+  ++stats.payloads;
+  VerifyResult auth = verifier.authenticate(payload);
+  if (auto* rej = std::get_if<Rejection>(&auth)) return reject(*rej, now, std::nullopt);
+  return answer_not_run(std::get<VerifiedCommand>(std::move(auth)), now,
+                        "shutting_down: the gateway stopped before running it; not executed and "
+                        "not recorded as used, send it again",
+                        "shutting_down (arrived while the gateway stopped)");
+}
+
+Disposition CommandService::Impl::answer_not_run(VerifiedCommand cmd, Micros now,
+                                                 std::string reason, std::string_view why_logged) {
   if (auto known_answer = answer_known(cmd, now)) return *known_answer;
   v1::CommandResult r;
   r.set_command_id(cmd.command_id);
   r.set_command_sha256(cmd.command_sha256);
+  r.set_operator_id(cmd.operator_id);
   r.set_result(v1::COMMAND_RESULT_CODE_REJECTED);
-  r.set_reason(
-      "busy: the gateway's command queue was full; not executed and not recorded as used, send "
-      "it again");
+  r.set_reason(std::move(reason));
   count(r);
-  spdlog::warn("command {}: rejected: busy (command queue full)", cmd.command_id);
+  spdlog::warn("command {}: rejected: {}", cmd.command_id, why_logged);
   store_result(std::move(r), now, std::nullopt, std::nullopt);
   return Disposition::kBusy;
 }

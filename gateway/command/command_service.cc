@@ -138,8 +138,9 @@ CommandService::Impl::Impl(CommandServiceConfig c, CommandContext ctx)
         spdlog::error("command: {}; not in force", problem);
       }
       if (verifier.revocations().unknown()) {
-        spdlog::error("command: delegated keys are refused until a root's revocation list is "
-                      "received (the stored lists could not be restored)");
+        spdlog::error(
+            "command: delegated keys are refused until a root's revocation list is "
+            "received (the stored lists could not be restored)");
       }
       if (const auto v = verifier.revocations().version()) {
         spdlog::info("command: revocation list version {} restored", v);
@@ -225,6 +226,10 @@ Disposition CommandService::answer_busy(std::string_view command_id,
   cmd.command_id = std::string(command_id);
   cmd.command_sha256 = std::string(command_sha256);
   return impl_->answer_busy(std::move(cmd), now);
+}
+
+Disposition CommandService::answer_stopping(std::span<const std::uint8_t> payload, Micros now) {
+  return impl_->answer_stopping(payload, now);
 }
 
 PayloadAuthenticator CommandService::authenticator() const {

@@ -229,6 +229,12 @@ class CommandService {
   // treated as the redelivery it is (the stored result again, or nothing while it runs), and a
   // different command reusing such an id as `replayed`: never two different answers for one id.
   Disposition answer_busy(std::string_view command_id, std::string_view command_sha256, Micros now);
+  // A command that reached the gateway while it stops (still in the uplink's queue, or arriving
+  // during the drain): authenticated like any payload (junk gets its rate-limited answer), then
+  // answered `rejected`, reason "shutting_down: ...", exactly like answer_busy() (not journaled,
+  // not marked as seen, a known id answered as the redelivery it is): never run, never lost
+  // without a result; the sender may send it again once the bike is back.
+  Disposition answer_stopping(std::span<const std::uint8_t> payload, Micros now);
   // A stateless, thread-safe signature check over an immutable copy of the trusted keys (it
   // shares nothing with this service and may outlive it): for the uplink's Paho thread. One
   // SignedCommand and one Command parse and at most one Ed25519 verification per call.

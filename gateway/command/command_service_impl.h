@@ -116,6 +116,11 @@ struct CommandService::Impl : std::enable_shared_from_this<CommandService::Impl>
   // answer. nullopt: a new id. Needs only cmd.command_id and cmd.command_sha256.
   std::optional<Disposition> answer_known(const VerifiedCommand& cmd, Micros now);
   Disposition answer_busy(VerifiedCommand cmd, Micros now);
+  Disposition answer_stopping(std::span<const std::uint8_t> payload, Micros now);
+  // answer_busy() and answer_stopping(): the command is answered `rejected` with `reason`, not
+  // judged beyond its signature, not journaled, not marked as seen.
+  Disposition answer_not_run(VerifiedCommand cmd, Micros now, std::string reason,
+                             std::string_view why_logged);
   std::optional<Rejection> preflight(const VerifiedCommand& cmd, Micros now);
   std::vector<int> lock_indices(const VerifiedCommand& cmd) const;
   std::optional<Rejection> interlock(int k, node::LockTarget target, Micros now);

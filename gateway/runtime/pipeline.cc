@@ -125,15 +125,16 @@ Pipeline::Pipeline(asio::io_context& io, const config::Config& config, BusTransp
       add_campaign_topics(config, uplink_config);
       // Issue 28: the root's revocation list, retained; judged by the command service.
       if (!config.command.root_keys.empty()) {
-        revocations_topic_ = uplink::Topics(config.mqtt.topic_prefix, config.vehicle.id).revocations;
+        revocations_topic_ =
+            uplink::Topics(config.mqtt.topic_prefix, config.vehicle.id).revocations;
         uplink_config.zone_topics.push_back(revocations_topic_);
       }
       // Every retained document topic (zones fleet-wide and per vehicle, campaigns, the
       // revocation list) delivers its message at each connect, in one burst: the queue holds one
       // per topic and one live update more, so the burst never drops a document. The memory
       // bound stays (topics + 1) x the largest accepted payload.
-      uplink_config.max_queued_zone_bundles = std::max(uplink_config.max_queued_zone_bundles,
-                                                       uplink_config.zone_topics.size() + 1);
+      uplink_config.max_queued_zone_bundles =
+          std::max(uplink_config.max_queued_zone_bundles, uplink_config.zone_topics.size() + 1);
       uplink_ = std::make_unique<uplink::Uplink>(std::move(uplink_config), outbox_);
     } catch (const std::exception& e) {
       throw PipelineError(std::string("invalid [mqtt] configuration: ") + e.what());
@@ -297,13 +298,12 @@ void Pipeline::settle() {
         // Zone bundles: judged here, on the loop, like commands (Paho only queued them).
         for (const auto& bundle : uplink_->take_zone_bundles()) {
           if (!revocations_topic_.empty() && bundle.topic == revocations_topic_) {
-            commands_->on_revocations(
-                {reinterpret_cast<const std::uint8_t*>(bundle.payload.data()),
-                 bundle.payload.size()},
-                system_now());
+            commands_->on_revocations({reinterpret_cast<const std::uint8_t*>(bundle.payload.data()),
+                                       bundle.payload.size()},
+                                      system_now());
           } else if (campaigns_ && campaigns_->handles(bundle.topic)) {
-            campaigns_->on_payload(bundle.topic, bundle.payload, bundle.oversized_bytes,
-                                   bus_now(), bus_now());
+            campaigns_->on_payload(bundle.topic, bundle.payload, bundle.oversized_bytes, bus_now(),
+                                   bus_now());
           } else if (zones_) {
             on_zone_bundle(bundle);
           }
@@ -462,6 +462,18 @@ fleetgw::v1::BusState Pipeline::bus_state() const {
              : fleetgw::v1::BUS_STATE_ACTIVE;
 }
 
+void Pipeline::answer_commands_at_stop() {
+  for (const auto& payload : uplink_->take_commands()) {
+    ++counters_.commands;
+    commands_->answer_stopping(
+        {reinterpret_cast<const std::uint8_t*>(payload.data()), payload.size()}, bus_now());
+  }
+  for (const auto& busy : uplink_->take_busy_commands()) {
+    ++counters_.commands;
+    commands_->answer_busy(busy.command_id, busy.command_sha256, bus_now());
+  }
+}
+
 void Pipeline::finish() {
   // Everything the trackers hold goes to the store, and a clean stop then drains the outbox
   // (the last telemetry batch included: it no longer waits for its batch delay) within the
@@ -475,14 +487,20 @@ void Pipeline::finish() {
     state_throttle_.touch();
     update_vehicle_state();
   }
+  // Commands still queued, or arriving while the outbox drains, are answered shutting_down
+  // (never run: the bus is stopped), so none is left without a result. What the drain does not
+  // publish stays in the outbox for the next start.
+  answer_commands_at_stop();
   uplink_->drain_for_stop();
   const auto deadline = Clock::now() + std::chrono::seconds(5);
-  while (Clock::now() < deadline && outbox_.stats().depth > 0 &&
-         uplink_->state() == uplink::UplinkState::kConnected) {
+  while (Clock::now() < deadline && uplink_->state() == uplink::UplinkState::kConnected) {
+    answer_commands_at_stop();
+    if (outbox_.stats().depth == 0) break;
     uplink_->poll(system_now());
     uplink_->wait_for_events(std::chrono::milliseconds(50));
   }
   uplink_->stop(system_now());
+  answer_commands_at_stop();
   const auto s = uplink_->stats();
   spdlog::info("uplink: {} records acked in {} messages, {} reconnects, {} still queued",
                s.acked_records, s.acked_messages, s.reconnects, outbox_.stats().depth);

@@ -46,8 +46,8 @@
 #include <string>
 #include <vector>
 
-#include "gateway/can/replay_transport.h"
 #include "gateway/campaign/campaign_service.h"
+#include "gateway/can/replay_transport.h"
 #include "gateway/can/transport.h"
 #include "gateway/command/command_service.h"
 #include "gateway/config/config.h"
@@ -123,6 +123,8 @@ class Pipeline {
   void stop(const char* why);
   // After io.run() returned: final flush, last publishes, offline status.
   void finish();
+  // finish(): every command the uplink still holds is answered (shutting_down or busy).
+  void answer_commands_at_stop();
 
   // The transport's timeline (see the contract).
   Micros bus_now() const;

@@ -173,6 +173,63 @@ TEST(CommandMqttBurst, EveryAuthenticatedCommandTheQueueCannotTakeIsAnsweredBusy
   EXPECT_EQ(gw.rig.sender.lock_writes(), 2u) << "the first unlock and the re-sent lock only";
 }
 
+// The service stops with a burst still in the uplink's queue (Pipeline::finish answers what
+// the uplink holds, before, during and after its drain, with these two calls): every command
+// gets exactly one result -- shutting_down for the 16 queued, busy for the 24 busy notices --
+// nothing runs on the bus, and a command answered shutting_down runs when sent again.
+TEST(CommandMqttBurst, CommandsStillQueuedWhenTheGatewayStopsAreAnsweredShuttingDown) {
+  fleetgw::testing::MosquittoBroker broker;
+  broker.start();
+  QueueGateway gw(broker.uri());
+  BurstClient backend(broker.uri(), kVehicle);
+  ASSERT_TRUE(gw.ready(backend)) << broker.log();
+  const std::uint64_t before = gw.accounted();
+  constexpr int kBurst = 40;
+  std::map<std::string, SentCommand> sent;
+  std::vector<std::string> ids, payloads;
+  for (int i = 0; i < kBurst; ++i) {
+    ids.push_back("stop-" + std::to_string(i));
+    sent[ids.back()] = signed_seat(gw.rig, ids.back(), "unlock");
+    payloads.push_back(sent[ids.back()].payload);
+  }
+  backend.publish(payloads);
+  ASSERT_TRUE(gw.step_until([&] { return gw.accounted() - before == kBurst; }, 20s));
+
+  // The stop: what the uplink holds is answered, nothing is run.
+  const Micros now = wall_now();
+  for (const auto& payload : gw.link->take_commands()) {
+    EXPECT_EQ(gw.rig.service->answer_stopping(
+                  {reinterpret_cast<const std::uint8_t*>(payload.data()), payload.size()}, now),
+              Disposition::kBusy);
+  }
+  for (const auto& b : gw.link->take_busy_commands()) {
+    gw.rig.service->answer_busy(b.command_id, b.command_sha256, now);
+  }
+  ASSERT_TRUE(gw.step_until([&] { return backend.answers(sent).size() == sent.size(); }, 20s))
+      << backend.answers(sent).size() << " of " << sent.size() << " answered";
+  std::map<std::string, int> by_code;
+  for (const auto& [id, answers] : backend.answers(sent)) {
+    ASSERT_EQ(answers.size(), 1u) << id;
+    EXPECT_EQ(answers[0].result(), v1::COMMAND_RESULT_CODE_REJECTED) << id;
+    ++by_code[reason_code_of(answers[0])];
+  }
+  EXPECT_EQ(by_code["shutting_down"], 16);
+  EXPECT_EQ(by_code["busy"], kBurst - 16);
+  EXPECT_EQ(gw.rig.sender.lock_writes(), 0u) << "nothing runs at a stop";
+  EXPECT_EQ(gw.rig.lock_state(0), sim::LockState::kLocked);
+
+  // Not recorded as used: sent again (after the restart), it runs.
+  const std::string again = ids.front();
+  ASSERT_EQ(reason_code_of(backend.answers(sent)[again][0]), "shutting_down");
+  gw.take = true;
+  backend.publish({sent[again].payload});
+  ASSERT_TRUE(gw.step_until([&] { return backend.answers(sent)[again].size() == 2; }, 20s));
+  const auto second = backend.answers(sent)[again][1];
+  EXPECT_EQ(second.result(), v1::COMMAND_RESULT_CODE_SUCCEEDED) << second.ShortDebugString();
+  EXPECT_TRUE(
+      gw.step_until([&] { return gw.rig.lock_state(0) == sim::LockState::kUnlocked; }, 10s));
+}
+
 TEST(CommandMqttBurst, JunkNeverTakesAnAuthenticatedCommandsPlaceAndEveryDropIsCounted) {
   fleetgw::testing::MosquittoBroker broker;
   broker.start();
