@@ -201,7 +201,9 @@ TEST(Diag, ASilentNodeAnswersNodeOffline) {
     EXPECT_EQ(r->diagnostic().requests_sent(), 5u) << r->reason();
     EXPECT_LE(r->duration_ms(), 7100u);
     EXPECT_GE(r->duration_ms(), 1000u);
-    if (block == v1::DIAGNOSTIC_BLOCK_MC_LIFETIME) EXPECT_LE(r->duration_ms(), 1100u);
+    if (block == v1::DIAGNOSTIC_BLOCK_MC_LIFETIME) {
+      EXPECT_LE(r->duration_ms(), 1100u);
+    }
     expect_only_reads_since(rig.sender, sent);
   }
   // The OBC still answers.
