@@ -15,6 +15,8 @@
 #include <fstream>
 #include <thread>
 
+#include "tests/support/gateway_config.h"
+#include "tests/support/process.h"
 #include "tests/support/wait.h"
 #include "tests/web/web_command_e2e.h"
 #include "tests/web/web_fixture.h"
@@ -59,15 +61,48 @@ TEST(WebStory, OperatorAndAdminWalkTheWholeConsoleStoryInABrowser) {
   const fs::path zones = dir / "zones.geojson";
   std::ofstream(zones) << zone.dump(1);
 
-  // The theft alarm arrives while the operator watches the feed: the script asks for it by
-  // creating this file, and the alarm is then written as the ingest writes a bike's alarm.
+  // The theft alarm arrives while the operator watches the feed, from a real bike through the
+  // real ingest: the script asks for it by creating this file, and a second `fleetgw run`
+  // (config/scenarios/theft.toml: parked and locked, then ridden away) starts; its
+  // UNAUTHORISED_MOVEMENT alarm goes through mosquitto to fleetgw-ingest into PostgreSQL, and
+  // the console's feed shows it. The thief's fleet has a topic prefix of its own, which the
+  // ingest alone reads: story-bike's own state stays the one the map step placed.
+  ChildProcess ingest(
+      {FLEETGW_INGEST_BINARY, "--broker", rig.broker.uri(), "--client-id", "story-ingest",
+       "--topic-prefix", "street/v1", "--pg", rig.stack->conninfo(), "--batch-delay-ms", "100"},
+      dir / "ingest.log");
+  ASSERT_TRUE(
+      wait_until([&] { return !ingest.running() || ingest.log_contains("subscribed to"); }, 30s))
+      << ingest.log();
+  ASSERT_TRUE(ingest.running()) << ingest.log();
+  GatewayConfig thief("thief-bike", dir / "thief.db");
+  thief.sim(std::string(FLEETGW_SOURCE_DIR) + "/config/scenarios/theft.toml", 10);
+  thief.mqtt(rig.broker.uri()).set_string("mqtt", "topic_prefix", "street/v1");
+  const fs::path thief_config = thief.write(dir / "thief.toml");
+  std::unique_ptr<GatewayProcess> thief_bike;
+  std::string thief_log_text = "(not started)";
   const fs::path want_alarm = dir / "want-alarm";
   std::atomic<bool> done{false};
+  std::atomic<bool> thief_started{false};
   std::thread alarm([&] {
     if (wait_until([&] { return done.load() || fs::exists(want_alarm); }, 90s, 20ms) &&
         !done.load()) {
-      rig.stack->insert_alarm("story-bike", 1, "ALARM_KIND_UNAUTHORISED_MOVEMENT",
-                              "ALARM_TRANSITION_RAISED", now_us(), "moved while locked");
+      thief_bike = std::make_unique<GatewayProcess>(FLEETGW_BINARY, thief_config,
+                                                    std::vector<std::string>{"--duration", "600"});
+      thief_started = true;
+      // Its part is played once the alarm is acknowledged: stopped then, so its telemetry
+      // does not keep re-rendering the pages of the steps after.
+      wait_until(
+          [&] {
+            return done.load() || !rig.stack
+                                       ->rows(
+                                           "SELECT 1 FROM console_alarm_acks WHERE vehicle_id = "
+                                           "'thief-bike'")
+                                       .empty();
+          },
+          90s, 50ms);
+      thief_log_text = thief_bike->log();
+      thief_bike->stop(10s);
     }
   });
   const char* doc_dir = std::getenv("FLEETGW_DOC_SCREENSHOTS");
@@ -80,6 +115,7 @@ TEST(WebStory, OperatorAndAdminWalkTheWholeConsoleStoryInABrowser) {
                      {"zones_file", zones.string()},
                      {"zone", {{"id", "station-square"}}},
                      {"want_alarm", want_alarm.string()},
+                     {"alarm_vehicle", "thief-bike"},
                      {"screenshots", doc_dir != nullptr ? std::string(doc_dir) : dir.string()}};
   const auto out = dir / "browser-story.log";
   const int rc =
@@ -88,8 +124,17 @@ TEST(WebStory, OperatorAndAdminWalkTheWholeConsoleStoryInABrowser) {
                         out);
   done = true;
   alarm.join();
+  const std::string& thief_log = thief_log_text;
   if (rc == 77) GTEST_SKIP() << read_text_file(out);
-  ASSERT_EQ(rc, 0) << read_text_file(out) << "\n" << rig.logs();
+  ASSERT_EQ(rc, 0) << read_text_file(out) << "\n"
+                   << rig.logs() << "\n--- thief-bike:\n"
+                   << thief_log << "\n--- ingest:\n"
+                   << ingest.log();
+  EXPECT_TRUE(thief_started.load());
+  // The alarm the operator acknowledged is the bike's own, as the ingest wrote it.
+  EXPECT_EQ(rig.stack->rows("SELECT vehicle_id, kind, transition FROM alarms WHERE vehicle_id = "
+                            "'thief-bike' ORDER BY sequence LIMIT 1"),
+            (Rows{{"thief-bike", "ALARM_KIND_UNAUTHORISED_MOVEMENT", "ALARM_TRANSITION_RAISED"}}));
   std::cout << read_text_file(out);
 
   // The database agrees with what the browser showed: the lock by olga succeeded, the next one
@@ -104,7 +149,7 @@ TEST(WebStory, OperatorAndAdminWalkTheWholeConsoleStoryInABrowser) {
   EXPECT_EQ(sent.back(), (std::vector<std::string>{"lock", "olga", "rejected", "revoked"}))
       << rig.logs();
   EXPECT_EQ(rig.stack->rows("SELECT vehicle_id, acked_by FROM console_alarm_acks"),
-            (Rows{{"story-bike", "olga"}}));
+            (Rows{{"thief-bike", "olga"}}));
   EXPECT_EQ(rig.stack->rows("SELECT published_by FROM zone_bundles WHERE vehicle_id = ''"),
             (Rows{{"ada"}}));
   EXPECT_EQ(rig.stack->rows("SELECT operator, action, result FROM console_audit WHERE action IN "

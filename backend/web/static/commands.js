@@ -99,7 +99,13 @@ export class Commands {
     }
   }
 
-  watch(commandId, cb) { this.pending.set(commandId, cb); }
+  // Also asks once now: a fast answer (a refusal on the bike takes milliseconds) can reach the
+  // server, and its `commands` event the page, before the POST's reply registered the watch;
+  // waiting for the next event would leave "waiting for the bike" on screen for good.
+  watch(commandId, cb) {
+    this.pending.set(commandId, cb);
+    this.refresh().catch(() => {});
+  }
 }
 
 export function resultText(c) {

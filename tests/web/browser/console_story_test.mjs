@@ -79,7 +79,14 @@ async function pixel(png, x, y) {
 // The bike's answer line once it holds a new command's final result.
 async function clickAndWait(page, action) {
   const before = await page.$eval('#v-last-result', (e) => e.dataset.command || '');
-  await page.click(`#v-buttons button.cmd[data-action="${action}"]`);
+  // Found and clicked in one turn of the page: the vehicle page re-renders on every live
+  // update (another bike's telemetry included), and a handle kept across one is detached.
+  await page.waitForFunction((sel) => {
+    const b = document.querySelector(sel);
+    if (!b || b.disabled) return false;
+    b.click();
+    return true;
+  }, {}, `#v-buttons button.cmd[data-action="${action}"]`);
   const handle = await page.waitForFunction((prev) => {
     const e = document.getElementById('v-last-result');
     const r = e.dataset.result;
@@ -121,10 +128,10 @@ try {
       .find((r) => r.children[1].textContent === id && r.querySelector('button.ack:not([disabled])'));
     if (row) row.querySelector('button.ack').click();
     return Boolean(row);
-  }, {}, spec.vehicle);
+  }, { timeout: 60000 }, spec.alarm_vehicle || spec.vehicle);
   await op.waitForFunction((id, name) => [...document.querySelectorAll('#alarm-table tbody tr')]
     .some((r) => r.children[1].textContent === id && r.children[5].textContent.startsWith(name)),
-  {}, spec.vehicle, spec.operator.name);
+  {}, spec.alarm_vehicle || spec.vehicle, spec.operator.name);
   await op.screenshot({ path: `${spec.screenshots}/console-alarms.png` });
   step('alarm_acknowledged');
 
