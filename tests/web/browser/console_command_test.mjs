@@ -119,7 +119,14 @@ try {
     const action = i % 2 === 0 ? 'unlock' : 'lock';
     const before = await op.$eval('#v-last-result', (e) => e.dataset.command || '');
     const t0 = Date.now();
-    await op.click(button(action));
+    // Found and pressed in one turn of the page: a handle kept across a live re-render of the
+    // vehicle page would be detached.
+    await op.waitForFunction((sel) => {
+      const b = document.querySelector(sel);
+      if (!b || b.disabled) return false;
+      b.click();
+      return true;
+    }, {}, button(action));
     const handle = await op.waitForFunction((prev) => {
       const e = document.getElementById('v-last-result');
       const r = e.dataset.result;
