@@ -3,29 +3,12 @@
 // role, change the role, reset the password, remove) and API tokens (create: shown once; list;
 // revoke), and the latest audit rows. Admin-only: the link shows for admins, and the server
 // answers 403 to anyone else whatever the page does. Text goes through el() (textContent) only.
-import { el, clear, when } from './dom.js';
+import { el, clear, when, jsonCall } from './dom.js';
 
 let session = null;
 
-async function call(path, { method = 'GET', body } = {}) {
-  const headers = {};
-  if (method !== 'GET') {
-    headers['Content-Type'] = 'application/json';
-    if (session) headers['X-CSRF-Token'] = session.csrf_token;
-  }
-  const res = await fetch(path, {
-    method, headers, credentials: 'same-origin',
-    body: method === 'GET' ? undefined : JSON.stringify(body ?? {}),
-  });
-  let data = null;
-  try { data = await res.json(); } catch { data = null; }
-  if (!res.ok) {
-    const e = new Error((data && data.error) || res.statusText);
-    e.status = res.status;
-    throw e;
-  }
-  return data;
-}
+// JSON in and out with the session's CSRF token on state-changing requests (dom.js).
+const call = (path, opts) => jsonCall(path, opts, session && session.csrf_token);
 
 const $ = (id) => document.getElementById(id);
 function say(id, text, ok) {

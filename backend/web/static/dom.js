@@ -36,3 +36,26 @@ export function ago(us) {
   if (s < 86400) return `${Math.round(s / 3600)} h ago`;
   return `${Math.round(s / 86400)} d ago`;
 }
+
+// A JSON request to the console's API: the CSRF token on every state-changing request (the
+// server refuses one without it), the server's `error` text as the thrown Error's message and
+// the HTTP status as its `status`.
+export async function jsonCall(path, { method = 'GET', body } = {}, csrfToken = null) {
+  const headers = {};
+  if (method !== 'GET') {
+    headers['Content-Type'] = 'application/json';
+    if (csrfToken) headers['X-CSRF-Token'] = csrfToken;
+  }
+  const res = await fetch(path, {
+    method, headers, credentials: 'same-origin',
+    body: method === 'GET' ? undefined : JSON.stringify(body ?? {}),
+  });
+  let data = null;
+  try { data = await res.json(); } catch { data = null; }
+  if (!res.ok) {
+    const e = new Error((data && data.error) || res.statusText);
+    e.status = res.status;
+    throw e;
+  }
+  return data;
+}

@@ -4,7 +4,7 @@
 // and place), publish it (the server signs it under its delegation, publishes it retained on
 // the fleet's bundle topic and records it). Text from files and the server goes through el()
 // (textContent) only; Leaflet tooltips get DOM nodes.
-import { el, when } from './dom.js';
+import { el, when, jsonCall } from './dom.js';
 
 // Zone colours by kind: outlines and a light fill, so bikes stay visible on top.
 export const ZONE_COLOURS = {
@@ -18,25 +18,8 @@ let pageMap = null;
 let pageLayer = null;
 let uploaded = null; // the document previewed (parsed JSON)
 
-async function call(path, { method = 'GET', body } = {}) {
-  const headers = {};
-  if (method !== 'GET') {
-    headers['Content-Type'] = 'application/json';
-    if (session) headers['X-CSRF-Token'] = session.csrf_token;
-  }
-  const res = await fetch(path, {
-    method, headers, credentials: 'same-origin',
-    body: method === 'GET' ? undefined : JSON.stringify(body ?? {}),
-  });
-  let data = null;
-  try { data = await res.json(); } catch { data = null; }
-  if (!res.ok) {
-    const e = new Error((data && data.error) || res.statusText);
-    e.status = res.status;
-    throw e;
-  }
-  return data;
-}
+// JSON in and out with the session's CSRF token on state-changing requests (dom.js).
+const call = (path, opts) => jsonCall(path, opts, session && session.csrf_token);
 
 function zoneTooltip(p) {
   const what = p.kind === 'slow' ? `slow, ${p.speed_limit_kmh} km/h`
