@@ -41,8 +41,8 @@ class BenchDir {
   fs::path path_;
 };
 
-TelemetrySample sample(std::int64_t ts) {
-  TelemetrySample t;
+TelemetryRow sample(std::int64_t ts) {
+  TelemetryRow t;
   t.ts_us = ts;
   t.speed_kmh = 21.5;
   t.assist_level = 3;
@@ -57,8 +57,8 @@ TelemetrySample sample(std::int64_t ts) {
   return t;
 }
 
-Ride ride(const std::string& id, std::int64_t start, bool closed) {
-  Ride r;
+RideRow ride(const std::string& id, std::int64_t start, bool closed) {
+  RideRow r;
   r.ride_id = id;
   r.start_us = start;
   r.state = closed ? RideState::kClosed : RideState::kOpen;
@@ -117,19 +117,19 @@ void BM_WriteMixed(benchmark::State& state) {
     b.clear();
     b.now_us = t;
     for (int i = 0; i < 20; ++i, t += 10'000) b.telemetry.push_back({sample(t), Bytes(48, 1)});
-    PackSnapshot p;
+    PackSnapshotRow p;
     p.ts_us = t;
     p.temps_c = {24, 25};
     b.packs.push_back({p, Bytes(64, 2)});
     b.rides.push_back({ride("ride-" + std::to_string(round / 100), t, false), std::nullopt});
     if (round % 50 == 0) {
-      FaultEvent f;
+      FaultEventRow f;
       f.name = "hall";
       f.severity = "error";
       f.first_seen_us = f.last_seen_us = t;
       b.faults.push_back({f, Bytes(32, 3)});
       b.locks.push_back(
-          {LockEvent{0, t, 7, "wheel", "locked", "unlocked", "manual"}, Bytes(24, 4)});
+          {LockEventRow{0, t, 7, "wheel", "locked", "unlocked", "manual"}, Bytes(24, 4)});
     }
     ++round;
     records += static_cast<std::int64_t>(b.size());

@@ -6,13 +6,13 @@
 
 namespace fleetgw::storage {
 
-std::vector<OutboxEntry> Store::peek_outbox(std::size_t limit, std::size_t max_bytes) {
+std::vector<OutboxRow> Store::peek_outbox(std::size_t limit, std::size_t max_bytes) {
   return peek_outbox(limit, max_bytes, {});
 }
 
-std::vector<OutboxEntry> Store::peek_outbox(std::size_t limit, std::size_t max_bytes,
+std::vector<OutboxRow> Store::peek_outbox(std::size_t limit, std::size_t max_bytes,
                                             std::span<const OutboxKind> skip_kinds) {
-  std::vector<OutboxEntry> out;
+  std::vector<OutboxRow> out;
   if (limit == 0) return out;
   try {
     auto& db = impl_->db;
@@ -35,7 +35,7 @@ std::vector<OutboxEntry> Store::peek_outbox(std::size_t limit, std::size_t max_b
     while (out.size() < limit && st->step()) {
       const auto seq = static_cast<std::uint64_t>(st->column_int64(0));
       if (in_flight.contains(seq)) continue;
-      OutboxEntry e;
+      OutboxRow e;
       e.seq = seq;
       e.priority = static_cast<int>(st->column_int64(1));
       const std::string kind = st->column_text(2);
@@ -117,14 +117,14 @@ std::vector<OutboxDepth> Store::outbox_depth() {
 }
 
 std::uint64_t Store::visit_outbox(OutboxKind kind,
-                                  const std::function<void(const OutboxEntry&)>& visit) {
+                                  const std::function<void(const OutboxRow&)>& visit) {
   std::uint64_t n = 0;
   try {
     auto st = impl_->db.cached(
         "SELECT seq, priority, created_us, payload, source_id FROM outbox WHERE kind = ? "
         "ORDER BY seq");
     st->bind(1, to_string(kind));
-    OutboxEntry e;
+    OutboxRow e;
     e.kind = kind;
     while (st->step()) {
       e.seq = static_cast<std::uint64_t>(st->column_int64(0));

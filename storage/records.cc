@@ -71,7 +71,7 @@ std::string_view to_string(RideState state) {
   return "invalid";
 }
 
-std::string EvictionReport::to_json() const {
+std::string EvictionPass::to_json() const {
   nlohmann::json j = {
       {"at_us", at_us},
       {"budget_bytes", budget_bytes},

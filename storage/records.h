@@ -26,7 +26,7 @@ using Bytes = std::vector<std::uint8_t>;
 
 enum class RideState : std::uint8_t { kOpen = 0, kClosed = 1 };
 
-struct Ride {
+struct RideRow {
   std::int64_t id = 0;
   std::string ride_id;  // unique key chosen by the ride tracker
   RideState state = RideState::kOpen;
@@ -57,12 +57,12 @@ struct Ride {
   std::optional<double> end_lon_deg;
   std::optional<double> gnss_distance_m;
   std::optional<std::string> track;
-  friend bool operator==(const Ride&, const Ride&) = default;
+  friend bool operator==(const RideRow&, const RideRow&) = default;
 };
 
 enum class FaultEventKind : std::uint8_t { kRaised = 0, kCleared = 1, kUnknown = 2 };
 
-struct FaultEvent {
+struct FaultEventRow {
   std::int64_t id = 0;
   int node = 0;  // MOTINOVA node number of the reporter
   int bit = 0;   // bit index in the node's fault word
@@ -73,10 +73,10 @@ struct FaultEvent {
   std::int64_t first_seen_us = 0;
   std::int64_t last_seen_us = 0;
   std::int64_t occurrences = 1;
-  friend bool operator==(const FaultEvent&, const FaultEvent&) = default;
+  friend bool operator==(const FaultEventRow&, const FaultEventRow&) = default;
 };
 
-struct PackSnapshot {
+struct PackSnapshotRow {
   std::int64_t id = 0;
   std::int64_t ts_us = 0;
   std::optional<double> voltage_v;
@@ -91,10 +91,10 @@ struct PackSnapshot {
   std::optional<int> cell_min_index;
   std::optional<int> cell_max_index;
   std::string lifetime_json = "{}";  // lifetime counters, JSON object text (owned by the tracker)
-  friend bool operator==(const PackSnapshot&, const PackSnapshot&) = default;
+  friend bool operator==(const PackSnapshotRow&, const PackSnapshotRow&) = default;
 };
 
-struct TelemetrySample {
+struct TelemetryRow {
   std::int64_t id = 0;
   std::int64_t ts_us = 0;
   std::optional<double> speed_kmh;
@@ -107,10 +107,10 @@ struct TelemetrySample {
   std::optional<double> battery_temp_c;
   std::optional<int> wheel_lock_state;    // lock node state code
   std::optional<int> battery_lock_state;  // lock node state code
-  friend bool operator==(const TelemetrySample&, const TelemetrySample&) = default;
+  friend bool operator==(const TelemetryRow&, const TelemetryRow&) = default;
 };
 
-struct LockEvent {
+struct LockEventRow {
   std::int64_t id = 0;
   std::int64_t ts_us = 0;
   int lock_node = 0;
@@ -118,7 +118,7 @@ struct LockEvent {
   std::string old_state;
   std::string new_state;
   std::string cause;  // e.g. "command:<id>", "manual", "timeout"
-  friend bool operator==(const LockEvent&, const LockEvent&) = default;
+  friend bool operator==(const LockEventRow&, const LockEventRow&) = default;
 };
 
 enum class AlarmTransition : std::uint8_t { kRaised = 0, kCleared = 1 };
@@ -126,7 +126,7 @@ enum class AlarmTransition : std::uint8_t { kRaised = 0, kCleared = 1 };
 // One operator alarm transition (schema v4). `kind` is the snake_case alarm name
 // ("unauthorised_movement", "lock_forced", "lock_tamper", "low_battery", "battery_removed",
 // "battery_swapped"); evidence fields that do not apply to the kind stay empty.
-struct AlarmRecord {
+struct AlarmRow {
   std::int64_t id = 0;
   std::int64_t ts_us = 0;              // when the transition was decided
   std::int64_t first_evidence_us = 0;  // first evidence of the episode
@@ -142,12 +142,12 @@ struct AlarmRecord {
   std::string old_bms_serial;
   std::string new_bms_serial;
   std::string detail;
-  friend bool operator==(const AlarmRecord&, const AlarmRecord&) = default;
+  friend bool operator==(const AlarmRow&, const AlarmRow&) = default;
 };
 
 // One geofence event (gateway/geofence/zone_engine.h ZoneEvent): a zone entered or left, or a
 // lock in a no-parking zone. The position is absent when the event had none (never "0,0").
-struct ZoneEventRecord {
+struct ZoneEventRow {
   std::int64_t id = 0;
   std::int64_t ts_us = 0;  // when the engine decided it
   std::string zone_id;
@@ -158,10 +158,10 @@ struct ZoneEventRecord {
   std::optional<double> lat_deg;
   std::optional<double> lon_deg;
   std::optional<int> speed_limit_kmh;  // slow zones
-  friend bool operator==(const ZoneEventRecord&, const ZoneEventRecord&) = default;
+  friend bool operator==(const ZoneEventRow&, const ZoneEventRow&) = default;
 };
 
-struct CommandResult {
+struct CommandResultRow {
   std::int64_t id = 0;
   std::string command_id;
   std::int64_t ts_us = 0;
@@ -169,13 +169,13 @@ struct CommandResult {
   std::string reason;
   std::string final_state;
   std::int64_t duration_ms = 0;
-  friend bool operator==(const CommandResult&, const CommandResult&) = default;
+  friend bool operator==(const CommandResultRow&, const CommandResultRow&) = default;
 };
 
 // One row of the commands journal: what the gateway has accepted and how far it got. Writing a
 // journal entry also records the command id as seen until expires_at_us (duplicate delivery
 // protection for QoS-1 MQTT).
-struct CommandJournalEntry {
+struct CommandJournalRow {
   std::string command_id;
   std::int64_t received_us = 0;
   std::string state;  // e.g. "received", "executing", "done"
@@ -183,7 +183,7 @@ struct CommandJournalEntry {
   // SHA-256 of the signed command bytes (32 raw bytes); empty when unknown (a row journaled by
   // a version before schema v3). An update with an empty digest keeps the stored one.
   std::string command_sha256{};
-  friend bool operator==(const CommandJournalEntry&, const CommandJournalEntry&) = default;
+  friend bool operator==(const CommandJournalRow&, const CommandJournalRow&) = default;
 };
 
 enum class OutboxKind : std::uint8_t {
@@ -226,21 +226,21 @@ std::string_view to_string(FaultEventKind kind);
 std::string_view to_string(AlarmTransition transition);
 std::string_view to_string(RideState state);
 
-struct OutboxEntry {
+struct OutboxRow {
   std::uint64_t seq = 0;  // per-vehicle sequence number, never reused
   int priority = 0;
   OutboxKind kind = OutboxKind::kInfo;
   std::int64_t created_us = 0;
   Bytes payload;                          // opaque bytes produced by the gateway
   std::optional<std::int64_t> source_id;  // rowid in the kind's table, if any
-  friend bool operator==(const OutboxEntry&, const OutboxEntry&) = default;
+  friend bool operator==(const OutboxRow&, const OutboxRow&) = default;
 };
 
 // What one eviction pass removed to bring the database back under its disk budget. The store
 // logs it, persists the per-table counters and queues it as an outbox entry of kind
 // kEvictionReport with a JSON payload (to_json()); write() also returns it so the gateway can
 // build its own protobuf report instead.
-struct EvictionReport {
+struct EvictionPass {
   std::int64_t at_us = 0;
   std::uint64_t budget_bytes = 0;
   std::uint64_t bytes_before = 0;
@@ -252,7 +252,7 @@ struct EvictionReport {
   std::optional<std::int64_t> oldest_telemetry_kept_us;
   bool budget_exhausted = false;  // nothing evictable left; database stays above budget
   std::string to_json() const;
-  friend bool operator==(const EvictionReport&, const EvictionReport&) = default;
+  friend bool operator==(const EvictionPass&, const EvictionPass&) = default;
 };
 
 }  // namespace fleetgw::storage

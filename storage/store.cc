@@ -20,8 +20,8 @@ constexpr std::string_view kRideColumns =
     "energy_mah, soc_start_pct, soc_end_pct, assist_time_json, fault_count, start_lat_deg, "
     "start_lon_deg, end_lat_deg, end_lon_deg, gnss_distance_m, track";
 
-Ride read_ride(const Statement& st) {
-  Ride r;
+RideRow read_ride(const Statement& st) {
+  RideRow r;
   r.id = st.column_int64(0);
   r.ride_id = st.column_text(1);
   r.state = st.column_text(2) == "closed" ? RideState::kClosed : RideState::kOpen;
@@ -200,15 +200,15 @@ void Store::Impl::record_failure(const StoreError& error, std::string_view what)
                    "': " + health.last_error);
 }
 
-std::vector<Ride> Store::open_rides() {
-  std::vector<Ride> out;
+std::vector<RideRow> Store::open_rides() {
+  std::vector<RideRow> out;
   auto st = impl_->db.cached("SELECT " + std::string(kRideColumns) +
                              " FROM rides WHERE state = 'open' ORDER BY id");
   while (st->step()) out.push_back(read_ride(*st));
   return out;
 }
 
-std::optional<Ride> Store::ride(std::string_view ride_id) {
+std::optional<RideRow> Store::ride(std::string_view ride_id) {
   auto st =
       impl_->db.cached("SELECT " + std::string(kRideColumns) + " FROM rides WHERE ride_id = ?");
   st->bind(1, ride_id);
@@ -216,14 +216,14 @@ std::optional<Ride> Store::ride(std::string_view ride_id) {
   return read_ride(*st);
 }
 
-std::optional<CommandJournalEntry> Store::command(std::string_view command_id) {
+std::optional<CommandJournalRow> Store::command(std::string_view command_id) {
   auto st = impl_->db.cached(
       "SELECT command_id, received_us, state, expires_at_us, command_sha256 FROM commands "
       "WHERE command_id = ?");
   st->bind(1, command_id);
   if (!st->step()) return std::nullopt;
   const std::vector<std::uint8_t> sha = st->column_blob(4);  // empty for NULL (pre-v3 rows)
-  return CommandJournalEntry{st->column_text(0), st->column_int64(1), st->column_text(2),
+  return CommandJournalRow{st->column_text(0), st->column_int64(1), st->column_text(2),
                              st->column_int64(3), std::string(sha.begin(), sha.end())};
 }
 

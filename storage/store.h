@@ -110,7 +110,7 @@ struct StoreOptions {
 // outbox in the same transaction; without one it is only stored (e.g. an open ride's periodic
 // checkpoint, which is sent once the ride closes).
 template <typename T>
-struct Pending {
+struct PendingRow {
   T record;
   std::optional<Bytes> uplink;
 };
@@ -127,15 +127,15 @@ struct UplinkMessage {
 // are upserted by command_id; all other records are appended.
 struct Batch {
   std::int64_t now_us = 0;  // created_us of the outbox entries queued by this batch
-  std::vector<Pending<TelemetrySample>> telemetry;
-  std::vector<Pending<Ride>> rides;
-  std::vector<Pending<FaultEvent>> faults;
-  std::vector<Pending<PackSnapshot>> packs;
-  std::vector<Pending<LockEvent>> locks;
-  std::vector<Pending<AlarmRecord>> alarms;
-  std::vector<Pending<ZoneEventRecord>> zone_events;
-  std::vector<Pending<CommandResult>> command_results;
-  std::vector<CommandJournalEntry> commands;
+  std::vector<PendingRow<TelemetryRow>> telemetry;
+  std::vector<PendingRow<RideRow>> rides;
+  std::vector<PendingRow<FaultEventRow>> faults;
+  std::vector<PendingRow<PackSnapshotRow>> packs;
+  std::vector<PendingRow<LockEventRow>> locks;
+  std::vector<PendingRow<AlarmRow>> alarms;
+  std::vector<PendingRow<ZoneEventRow>> zone_events;
+  std::vector<PendingRow<CommandResultRow>> command_results;
+  std::vector<CommandJournalRow> commands;
   std::vector<UplinkMessage> messages;
   std::vector<std::pair<std::string, std::string>> meta;  // keys "storage.*" are reserved
 
@@ -165,7 +165,7 @@ struct WriteResult {
   std::uint64_t first_seq = 0;
   std::uint64_t end_seq = 0;
   std::size_t records = 0;  // table rows written
-  std::optional<EvictionReport> eviction;
+  std::optional<EvictionPass> eviction;
   std::optional<StoreError> error;  // set when nothing of the batch was stored
   bool ok() const { return !error.has_value(); }
 };
@@ -226,11 +226,11 @@ class Store {
   // Up to `limit` entries, in (priority, seq) order, not in flight, whose payloads total at most
   // `max_bytes` -- except that the first entry is always returned so a single large payload
   // cannot block the queue. The returned entries become in flight.
-  std::vector<OutboxEntry> peek_outbox(std::size_t limit, std::size_t max_bytes);
+  std::vector<OutboxRow> peek_outbox(std::size_t limit, std::size_t max_bytes);
   // Same, leaving out every entry whose kind is in `skip_kinds` (the uplink's kinds the broker
   // refuses, waiting for their retry): filtered in the query, so a backlog of a refused kind
   // costs no reads and does not hold back the kinds behind it.
-  std::vector<OutboxEntry> peek_outbox(std::size_t limit, std::size_t max_bytes,
+  std::vector<OutboxRow> peek_outbox(std::size_t limit, std::size_t max_bytes,
                                        std::span<const OutboxKind> skip_kinds);
   // Deletes the acknowledged entries (only those); returns how many rows existed and were
   // deleted (an entry evicted meanwhile is not counted). Clears their in-flight mark. On a
@@ -245,7 +245,7 @@ class Store {
   // Calls `visit` with every outbox entry of `kind`, in flight or not, in seq order (the
   // campaign service recomputes each campaign's bytes in the store from them at start-up).
   // Returns how many; never throws (an error is recorded in health() and ends the walk).
-  std::uint64_t visit_outbox(OutboxKind kind, const std::function<void(const OutboxEntry&)>& visit);
+  std::uint64_t visit_outbox(OutboxKind kind, const std::function<void(const OutboxRow&)>& visit);
   std::optional<std::int64_t> oldest_unsent_us();
   std::uint64_t next_seq() const;
   // Random identifier (a UUID) created with the store and kept in its meta table
@@ -267,11 +267,11 @@ class Store {
   bool read_only() const;
 
   // State the gateway restores at start-up.
-  std::vector<Ride> open_rides();
-  std::optional<Ride> ride(std::string_view ride_id);
+  std::vector<RideRow> open_rides();
+  std::optional<RideRow> ride(std::string_view ride_id);
   // Telemetry samples with from_us <= ts_us <= to_us, in time order (`fleetgw ride plot`).
-  std::vector<TelemetrySample> telemetry_between(std::int64_t from_us, std::int64_t to_us);
-  std::optional<CommandJournalEntry> command(std::string_view command_id);
+  std::vector<TelemetryRow> telemetry_between(std::int64_t from_us, std::int64_t to_us);
+  std::optional<CommandJournalRow> command(std::string_view command_id);
   // True when the command id was recorded and has not expired at now_us.
   bool command_seen(std::string_view command_id, std::int64_t now_us);
   // Forgets seen command ids (and finished journal entries) that expired before now_us.

@@ -143,7 +143,7 @@ std::uint64_t Store::Impl::live_bytes() {
   return static_cast<std::uint64_t>(std::max<std::int64_t>(page_count - freelist, 0) * size);
 }
 
-std::optional<EvictionReport> Store::Impl::enforce_budget(std::int64_t now_us, Statement& outbox,
+std::optional<EvictionPass> Store::Impl::enforce_budget(std::int64_t now_us, Statement& outbox,
                                                           std::uint64_t& seq) {
   if (budget.effective == 0) return std::nullopt;
   const std::uint64_t limit = budget.evictable_limit();
@@ -153,7 +153,7 @@ std::optional<EvictionReport> Store::Impl::enforce_budget(std::int64_t now_us, S
     return std::nullopt;
   }
 
-  EvictionReport report;
+  EvictionPass report;
   report.at_us = now_us;
   report.budget_bytes = limit;
   report.bytes_before = live;

@@ -122,7 +122,7 @@ struct Store::Impl {
 
   // store_budget.cc
   std::uint64_t live_bytes();
-  std::optional<EvictionReport> enforce_budget(std::int64_t now_us, Statement& outbox,
+  std::optional<EvictionPass> enforce_budget(std::int64_t now_us, Statement& outbox,
                                                std::uint64_t& seq);
   // After SQLITE_FULL: restarts the WAL and evicts the oldest telemetry (then pack snapshots)
   // in its own transaction, without giving the pages back to the file system (the retry reuses

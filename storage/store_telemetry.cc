@@ -4,7 +4,7 @@
 
 namespace fleetgw::storage {
 
-std::vector<TelemetrySample> Store::telemetry_between(std::int64_t from_us, std::int64_t to_us) {
+std::vector<TelemetryRow> Store::telemetry_between(std::int64_t from_us, std::int64_t to_us) {
   // The table has no index on ts_us (eviction and the uplink go by rowid): one scan, filtered
   // by SQLite, only the window converted.
   Statement st = impl_->db.prepare(
@@ -13,13 +13,13 @@ std::vector<TelemetrySample> Store::telemetry_between(std::int64_t from_us, std:
       "WHERE ts_us BETWEEN ?1 AND ?2 ORDER BY ts_us, id");
   st.bind(1, from_us);
   st.bind(2, to_us);
-  std::vector<TelemetrySample> out;
+  std::vector<TelemetryRow> out;
   const auto opt_int = [&st](int col) -> std::optional<int> {
     if (const auto v = st.column_opt_int64(col)) return static_cast<int>(*v);
     return std::nullopt;
   };
   while (st.step()) {
-    TelemetrySample s;
+    TelemetryRow s;
     s.id = st.column_int64(0);
     s.ts_us = st.column_int64(1);
     s.speed_kmh = st.column_opt_double(2);

@@ -87,7 +87,7 @@ std::string json_text(const std::vector<double>& v) {
 }
 
 template <typename T>
-void check_uplink(const std::vector<Pending<T>>& items, std::string_view field) {
+void check_uplink(const std::vector<PendingRow<T>>& items, std::string_view field) {
   for (std::size_t i = 0; i < items.size(); ++i) {
     if (items[i].uplink && items[i].uplink->size() > Store::kMaxPayloadBytes) {
       reject(field, i, "uplink",
@@ -129,7 +129,7 @@ void validate(const Batch& b) {
     check_time(b.telemetry[i].record.ts_us, "telemetry", i, "ts_us");
   }
   for (std::size_t i = 0; i < b.rides.size(); ++i) {
-    const Ride& r = b.rides[i].record;
+    const RideRow& r = b.rides[i].record;
     if (r.ride_id.empty()) reject("rides", i, "ride_id", "empty");
     if (r.state != RideState::kOpen && r.state != RideState::kClosed) {
       reject("rides", i, "state", "invalid value");
@@ -148,7 +148,7 @@ void validate(const Batch& b) {
     }
   }
   for (std::size_t i = 0; i < b.faults.size(); ++i) {
-    const FaultEvent& f = b.faults[i].record;
+    const FaultEventRow& f = b.faults[i].record;
     if (to_string(f.event) == "invalid") reject("faults", i, "event", "invalid value");
     check_time(f.first_seen_us, "faults", i, "first_seen_us");
     if (f.last_seen_us < f.first_seen_us) {
@@ -165,14 +165,14 @@ void validate(const Batch& b) {
     check_time(b.locks[i].record.ts_us, "locks", i, "ts_us");
   }
   for (std::size_t i = 0; i < b.alarms.size(); ++i) {
-    const AlarmRecord& a = b.alarms[i].record;
+    const AlarmRow& a = b.alarms[i].record;
     if (a.kind.empty()) reject("alarms", i, "kind", "empty");
     if (to_string(a.transition) == "invalid") reject("alarms", i, "transition", "invalid value");
     check_time(a.ts_us, "alarms", i, "ts_us");
     check_time(a.first_evidence_us, "alarms", i, "first_evidence_us");
   }
   for (std::size_t i = 0; i < b.zone_events.size(); ++i) {
-    const ZoneEventRecord& z = b.zone_events[i].record;
+    const ZoneEventRow& z = b.zone_events[i].record;
     if (z.zone_id.empty()) reject("zone_events", i, "zone_id", "empty");
     if (z.kind.empty()) reject("zone_events", i, "kind", "empty");
     if (z.transition.empty()) reject("zone_events", i, "transition", "empty");
@@ -418,7 +418,7 @@ WriteResult Store::Impl::write_once(const Batch& b) {
                    b.locks.size() + b.alarms.size() + b.command_results.size() + b.commands.size();
   next_seq = seq;  // only now: a rolled-back batch must not burn numbers in memory either
   if (result.eviction) {
-    const EvictionReport& r = *result.eviction;
+    const EvictionPass& r = *result.eviction;
     log->warn(
         "storage: disk budget {} B reached on '{}' ({} -> {} B live): evicted {} "
         "telemetry samples, {} pack snapshots, {} campaign records, {} unsent outbox entries{}",

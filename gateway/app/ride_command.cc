@@ -26,7 +26,7 @@ namespace {
 constexpr std::int64_t kMicros = 1'000'000;
 
 // The ride `id` names, or the latest when no ride has that id and it is "latest".
-std::optional<storage::Ride> find_ride(storage::Store& store, const std::string& id) {
+std::optional<storage::RideRow> find_ride(storage::Store& store, const std::string& id) {
   if (auto ride = store.ride(id)) return ride;
   if (id != "latest") return std::nullopt;
   std::string newest;
@@ -39,7 +39,7 @@ std::optional<storage::Ride> find_ride(storage::Store& store, const std::string&
   return store.ride(newest);
 }
 
-RidePlot plot_of(const storage::Ride& ride, const std::vector<storage::TelemetrySample>& telemetry,
+RidePlot plot_of(const storage::RideRow& ride, const std::vector<storage::TelemetryRow>& telemetry,
                  const motinova::DecodeOptions& protocol, std::ostream& err) {
   RidePlot plot;
   plot.ride_id = ride.ride_id;

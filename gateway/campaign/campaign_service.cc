@@ -62,7 +62,7 @@ void CampaignService::restore(Micros wall_now, Micros bus_now) {
 void CampaignService::count_stored_records() {
   std::map<std::string, std::uint64_t, std::less<>> bytes;
   v1::CampaignSamples rec;
-  store_.visit_outbox(storage::OutboxKind::kCampaign, [&](const storage::OutboxEntry& e) {
+  store_.visit_outbox(storage::OutboxKind::kCampaign, [&](const storage::OutboxRow& e) {
     // Only the id is needed; a payload that does not parse is counted nowhere (it still leaves
     // the store with the outbox).
     if (rec.ParseFromArray(e.payload.data(), static_cast<int>(e.payload.size()))) {

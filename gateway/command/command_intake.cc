@@ -70,7 +70,7 @@ std::optional<Disposition> CommandService::Impl::answer_known(const VerifiedComm
   }
 
   // A command we journaled before: never judged (or acted on) a second time.
-  std::optional<storage::CommandJournalEntry> entry;
+  std::optional<storage::CommandJournalRow> entry;
   try {
     entry = context.store.command(cmd.command_id);
   } catch (const std::exception& e) {

@@ -31,8 +31,8 @@ void ensure_utf8(v1::CommandResult& r) {
   }
 }
 
-storage::CommandResult row_of(const v1::CommandResult& r, Micros at) {
-  storage::CommandResult row;
+storage::CommandResultRow row_of(const v1::CommandResult& r, Micros at) {
+  storage::CommandResultRow row;
   row.command_id = r.command_id();
   row.ts_us = at.count();
   row.result = std::string(command_result_name(r.result()));
@@ -42,7 +42,7 @@ storage::CommandResult row_of(const v1::CommandResult& r, Micros at) {
   return row;
 }
 
-storage::CommandJournalEntry journal_of(const v1::CommandResult& r, Micros received,
+storage::CommandJournalRow journal_of(const v1::CommandResult& r, Micros received,
                                         Micros expires) {
   return {r.command_id(), received.count(), std::string(command_result_name(r.result())),
           expires.count(), r.command_sha256()};
@@ -205,7 +205,7 @@ Disposition CommandService::Impl::reject(const Rejection& rej, Micros now,
   return Disposition::kRejected;
 }
 
-Disposition CommandService::Impl::duplicate(const storage::CommandJournalEntry& entry,
+Disposition CommandService::Impl::duplicate(const storage::CommandJournalRow& entry,
                                             const std::string& sha, Micros now,
                                             const std::string& operator_id) {
   ++stats.duplicates;
@@ -286,7 +286,7 @@ Disposition CommandService::Impl::duplicate_unjournaled(const Unjournaled& u, Mi
   return Disposition::kDuplicateAnswered;
 }
 
-void CommandService::Impl::finish_interrupted(const storage::CommandJournalEntry& entry, Micros now,
+void CommandService::Impl::finish_interrupted(const storage::CommandJournalRow& entry, Micros now,
                                               const std::string& sha,
                                               const std::string& operator_id) {
   v1::CommandResult r;

@@ -192,7 +192,7 @@ CommandService::CommandService(CommandServiceConfig config, CommandContext conte
 CommandService::~CommandService() = default;
 
 std::size_t CommandService::recover(Micros now) {
-  std::vector<storage::CommandJournalEntry> stuck;
+  std::vector<storage::CommandJournalRow> stuck;
   try {
     std::vector<std::string> ids;
     impl_->context.store.export_table("commands", 0, [&](const nlohmann::json& row) {

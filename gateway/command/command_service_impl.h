@@ -154,13 +154,13 @@ struct CommandService::Impl : std::enable_shared_from_this<CommandService::Impl>
   void retry_unjournaled(Micros now);
   Disposition reject(const Rejection& rej, Micros now, std::optional<Micros> expires,
                      bool always_answer = false);
-  Disposition duplicate(const storage::CommandJournalEntry& entry, const std::string& sha,
+  Disposition duplicate(const storage::CommandJournalRow& entry, const std::string& sha,
                         Micros now, const std::string& operator_id = {});
   Disposition duplicate_unjournaled(const Unjournaled& u, Micros now);
   // Answers a command a previous run left "executing"; bound to `sha` (the digest of the bytes
   // just received again) or, when empty, to the digest the journal kept.
   // operator_id: the redelivered command's (the journal does not keep it).
-  void finish_interrupted(const storage::CommandJournalEntry& entry, Micros now,
+  void finish_interrupted(const storage::CommandJournalRow& entry, Micros now,
                           const std::string& sha = {}, const std::string& operator_id = {});
   void count(const v1::CommandResult& r);
   bool take_token(Micros now);

@@ -34,7 +34,7 @@ int alarm_kind_number(std::string_view kind) {
   return static_cast<int>(v1::ALARM_KIND_UNSPECIFIED);
 }
 
-storage::Bytes alarm_payload(const storage::AlarmRecord& rec, const AlarmExtras& extras) {
+storage::Bytes alarm_payload(const storage::AlarmRow& rec, const AlarmExtras& extras) {
   v1::Alarm a;
   for (const auto& [name, kind] : kKinds) {
     if (name == rec.kind) a.set_kind(kind);

@@ -23,6 +23,6 @@ struct AlarmExtras {
 // The fleetgw.v1.AlarmKind number of a kind text (0, UNSPECIFIED, when unknown).
 int alarm_kind_number(std::string_view kind);
 
-storage::Bytes alarm_payload(const storage::AlarmRecord& rec, const AlarmExtras& extras);
+storage::Bytes alarm_payload(const storage::AlarmRow& rec, const AlarmExtras& extras);
 
 }  // namespace fleetgw::domain

@@ -192,7 +192,7 @@ void AlarmTracker::on_mc_status(const motinova::DecodedMessage& msg, Micros now)
   if (!movement_.active && now - *evidence_since_ >= config_.movement_debounce) {
     movement_ = Episode{true, *evidence_since_};
     ++raised_total_;
-    storage::AlarmRecord rec =
+    storage::AlarmRow rec =
         record("unauthorised_movement", storage::AlarmTransition::kRaised, now, movement_.first);
     rec.detail = format("wheel %.1f km/h, motor %.0f rpm while locked",
                         speed_ ? speed_->value : 0.0, rpm_ ? rpm_->value : 0.0);
@@ -208,7 +208,7 @@ void AlarmTracker::on_lock_status(std::size_t index, int state, Micros now) {
       "lock" + std::to_string(index + 1) + " (" + config_.lock_kinds[index] + ")";
   if (l.forced.active && state == kLocked) {
     l.forced.active = false;
-    storage::AlarmRecord rec =
+    storage::AlarmRow rec =
         record("lock_forced", storage::AlarmTransition::kCleared, now, l.forced.first);
     rec.lock_node = static_cast<int>(motinova::lock_node(static_cast<int>(index)));
     rec.detail = lock_name + " locked again";
@@ -221,7 +221,7 @@ void AlarmTracker::on_lock_status(std::size_t index, int state, Micros now) {
   if (!was_closed || !opening || l.forced.active || now <= l.commanded_until) return;
   l.forced = Episode{true, now};
   ++raised_total_;
-  storage::AlarmRecord rec = record("lock_forced", storage::AlarmTransition::kRaised, now, now);
+  storage::AlarmRow rec = record("lock_forced", storage::AlarmTransition::kRaised, now, now);
   rec.lock_node = static_cast<int>(motinova::lock_node(static_cast<int>(index)));
   rec.detail = lock_name + " opened without a command";
   emit(std::move(rec));
@@ -237,7 +237,7 @@ void AlarmTracker::on_lock_faults(std::size_t index, uint32_t bits, Micros now) 
   } else {
     l.tamper.active = false;
   }
-  storage::AlarmRecord rec = record("lock_tamper", t, now, l.tamper.first);
+  storage::AlarmRow rec = record("lock_tamper", t, now, l.tamper.first);
   rec.lock_node = static_cast<int>(motinova::lock_node(static_cast<int>(index)));
   rec.lock_fault_bits = bits;
   rec.detail = "lock" + std::to_string(index + 1) + " (" + config_.lock_kinds[index] + ") ";
@@ -261,7 +261,7 @@ void AlarmTracker::on_soc(double soc, Micros now) {
         const bool emitted = low_emitted_[i];
         low_emitted_[i] = false;
         if (emitted) {
-          storage::AlarmRecord rec =
+          storage::AlarmRow rec =
               record("low_battery", storage::AlarmTransition::kCleared, now, now);
           rec.threshold_pct = th[i];
           rec.detail = format("SOC %.0f %% back above %.0f %%", soc, th[i]);
@@ -276,7 +276,7 @@ void AlarmTracker::on_soc(double soc, Micros now) {
   if (!lowest) return;
   low_emitted_[*lowest] = true;
   ++raised_total_;
-  storage::AlarmRecord rec = record("low_battery", storage::AlarmTransition::kRaised, now, now);
+  storage::AlarmRow rec = record("low_battery", storage::AlarmTransition::kRaised, now, now);
   rec.threshold_pct = th[*lowest];
   rec.detail = format("SOC %.0f %% at or below %.0f %%", soc, th[*lowest]);
   emit(std::move(rec));
@@ -332,7 +332,7 @@ void AlarmTracker::raise_swap(Micros now) {
   const PendingSwap p = std::move(*pending_swap_);
   pending_swap_.reset();
   ++raised_total_;
-  storage::AlarmRecord rec =
+  storage::AlarmRow rec =
       record("battery_swapped", storage::AlarmTransition::kRaised, now, p.at);
   rec.old_bms_serial = p.old_serial;
   rec.new_bms_serial = p.new_serial;
@@ -346,7 +346,7 @@ void AlarmTracker::tick(Micros now) {
   if (movement_.active && now - last_evidence_ >= config_.movement_clear) {
     movement_.active = false;
     evidence_since_.reset();
-    storage::AlarmRecord rec =
+    storage::AlarmRow rec =
         record("unauthorised_movement", storage::AlarmTransition::kCleared, now, movement_.first);
     // Evidence stops either because the bike stood still or because it was unlocked (riding on
     // is then authorised): the detail says which, so a cleared alarm at speed is not a riddle.
@@ -360,7 +360,7 @@ void AlarmTracker::tick(Micros now) {
       now - *bms_heard_ >= config_.battery_silent) {
     removed_ = Episode{true, *bms_heard_};
     ++raised_total_;
-    storage::AlarmRecord rec =
+    storage::AlarmRow rec =
         record("battery_removed", storage::AlarmTransition::kRaised, now, removed_.first);
     rec.detail = format("BMS silent for %.1f s while parked",
                         static_cast<double>((now - *bms_heard_).count()) / 1e6);
@@ -368,9 +368,9 @@ void AlarmTracker::tick(Micros now) {
   }
 }
 
-storage::AlarmRecord AlarmTracker::record(std::string_view kind, storage::AlarmTransition t,
+storage::AlarmRow AlarmTracker::record(std::string_view kind, storage::AlarmTransition t,
                                           Micros now, Micros first) const {
-  storage::AlarmRecord rec;
+  storage::AlarmRow rec;
   rec.ts_us = now.count();
   rec.first_evidence_us = first.count();
   rec.kind = std::string(kind);
@@ -384,7 +384,7 @@ storage::AlarmRecord AlarmTracker::record(std::string_view kind, storage::AlarmT
   return rec;
 }
 
-void AlarmTracker::emit(storage::AlarmRecord rec) {
+void AlarmTracker::emit(storage::AlarmRow rec) {
   AlarmExtras extras;
   if (rec.lock_node) {
     const int index = motinova::lock_index(static_cast<motinova::Node>(*rec.lock_node));

@@ -92,9 +92,9 @@ class AlarmTracker {
   void on_battery_lock(int state);
   void raise_swap(Micros now);
   void remember_serial(std::string serial);
-  storage::AlarmRecord record(std::string_view kind, storage::AlarmTransition t, Micros now,
+  storage::AlarmRow record(std::string_view kind, storage::AlarmTransition t, Micros now,
                               Micros first) const;
-  void emit(storage::AlarmRecord rec);
+  void emit(storage::AlarmRow rec);
 
   AlarmConfig config_;
   DomainSink& sink_;

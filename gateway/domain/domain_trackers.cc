@@ -29,7 +29,7 @@ DomainTrackers::DomainTrackers(DomainConfig config, DomainSink& sink)
       locks_(config_.locks, sink),
       alarms_(alarm_config(config_), sink) {}
 
-void DomainTrackers::restore(std::span<const storage::Ride> open_rides, Micros now) {
+void DomainTrackers::restore(std::span<const storage::RideRow> open_rides, Micros now) {
   rides_.restore(open_rides, now);
   telemetry_.set_riding(fast_telemetry(), now);
 }

@@ -36,7 +36,7 @@ class DomainTrackers {
   // Throws std::invalid_argument (DomainConfig::validate) for a nonsensical config.
   DomainTrackers(DomainConfig config, DomainSink& sink);
 
-  void restore(std::span<const storage::Ride> open_rides, Micros now);
+  void restore(std::span<const storage::RideRow> open_rides, Micros now);
   // The last BMS serial a previous run stored (meta AlarmTracker::kBmsSerialMetaKey), so a
   // battery swapped while the gateway was off is still reported. Before the first message.
   void restore_bms_serial(std::string serial) { alarms_.restore_bms_serial(std::move(serial)); }

@@ -92,7 +92,7 @@ void FaultTracker::emit(const Key& key, const Episode& e, storage::FaultEventKin
   const std::optional<motinova::FaultDef> found =
       motinova::describe_fault(e.source, mask, config_.fault_names);
   const motinova::FaultDef* def = found ? &*found : nullptr;
-  storage::FaultEvent ev;
+  storage::FaultEventRow ev;
   ev.node = key.first;
   ev.bit = key.second;
   ev.code = def ? def->code : -1;

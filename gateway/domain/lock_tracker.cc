@@ -63,7 +63,7 @@ void LockTracker::on_message(const motinova::DecodedMessage& msg, Micros now) {
   if (!before || *before == next) return;
 
   if (l.cause && now > l.cause->until) l.cause.reset();
-  storage::LockEvent ev;
+  storage::LockEventRow ev;
   ev.ts_us = now.count();
   ev.lock_node = static_cast<int>(src);
   ev.kind = config_.lock_kinds[index].empty() ? std::string(motinova::node_name(src))

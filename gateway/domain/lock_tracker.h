@@ -38,7 +38,7 @@ class LockTracker {
   // The current GNSS fix (nullopt: unknown); lock events carry the latest one given.
   void set_position(const std::optional<gnss::Position>& position) { position_ = position; }
 
-  using Observer = std::function<void(const storage::LockEvent& event, int new_raw)>;
+  using Observer = std::function<void(const storage::LockEventRow& event, int new_raw)>;
   void set_observer(Observer observer) { observer_ = std::move(observer); }
 
   // Announces why the next state changes of `lock` (a lock node; kBroadcast = every lock) happen.

@@ -88,7 +88,7 @@ void PackTracker::tick(Micros now) {
 
 void PackTracker::snapshot(Micros now) {
   PackReading r;
-  storage::PackSnapshot& s = r.snapshot;
+  storage::PackSnapshotRow& s = r.snapshot;
   s.ts_us = now.count();
   s.voltage_v = fresh(voltage_, now, config_.stale);
   s.current_a = fresh(current_, now, config_.stale);

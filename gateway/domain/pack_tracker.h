@@ -1,4 +1,4 @@
-// PackTracker: battery-pack snapshots (storage::PackSnapshot + fleetgw.v1.PackStatistics).
+// PackTracker: battery-pack snapshots (storage::PackSnapshotRow + fleetgw.v1.PackStatistics).
 //
 // Contract:
 //  * Clock-free: on_message(msg, now) (bms_status, bms_cells, bms_temps, pack_stats, BMS model

@@ -72,7 +72,7 @@ int lock_state_number(int raw) {
   return static_cast<int>(lock_state_of(raw));
 }
 
-storage::Bytes ride_payload(const storage::Ride& r, const RideExtras& extras) {
+storage::Bytes ride_payload(const storage::RideRow& r, const RideExtras& extras) {
   v1::RideRecord m;
   m.set_ride_id(r.ride_id);
   m.set_started_at_us(r.start_us);
@@ -122,7 +122,7 @@ storage::Bytes ride_payload(const storage::Ride& r, const RideExtras& extras) {
   return bytes_of(m);
 }
 
-storage::Bytes fault_payload(const storage::FaultEvent& e, std::string_view node_name) {
+storage::Bytes fault_payload(const storage::FaultEventRow& e, std::string_view node_name) {
   v1::FaultEvent m;
   m.set_node(std::string(node_name));
   m.set_bit(u32(e.bit));
@@ -147,7 +147,7 @@ storage::Bytes fault_payload(const storage::FaultEvent& e, std::string_view node
 }
 
 storage::Bytes pack_payload(const PackReading& p) {
-  const storage::PackSnapshot& s = p.snapshot;
+  const storage::PackSnapshotRow& s = p.snapshot;
   v1::PackStatistics m;
   m.set_pack_serial(p.serial);
   m.set_measured_at_us(s.ts_us);
@@ -173,8 +173,8 @@ storage::Bytes pack_payload(const PackReading& p) {
   return bytes_of(m);
 }
 
-storage::TelemetrySample TelemetryReading::record() const {
-  storage::TelemetrySample s;
+storage::TelemetryRow TelemetryReading::record() const {
+  storage::TelemetryRow s;
   s.ts_us = ts_us;
   s.speed_kmh = speed_kmh;
   s.assist_level = assist;
@@ -214,7 +214,7 @@ storage::Bytes telemetry_payload(const TelemetryReading& r) {
   return bytes_of(m);
 }
 
-storage::Bytes lock_payload(const storage::LockEvent& e, int old_raw, int new_raw,
+storage::Bytes lock_payload(const storage::LockEventRow& e, int old_raw, int new_raw,
                             const std::optional<gnss::Position>& where) {
   v1::LockEvent m;
   m.set_lock_kind(e.kind);

@@ -30,13 +30,13 @@ struct RideExtras {
   std::map<std::string, unsigned> assist_raw;  // assist name -> raw bus value, when known
   const RideTrack* track = nullptr;            // positions of the ride, when any
 };
-storage::Bytes ride_payload(const storage::Ride& ride, const RideExtras& extras);
+storage::Bytes ride_payload(const storage::RideRow& ride, const RideExtras& extras);
 
 // `node_name`: motinova::node_name() of the reporter ("mc", "bms", "lock3"...).
-storage::Bytes fault_payload(const storage::FaultEvent& event, std::string_view node_name);
+storage::Bytes fault_payload(const storage::FaultEventRow& event, std::string_view node_name);
 
 struct PackReading {
-  storage::PackSnapshot snapshot;
+  storage::PackSnapshotRow snapshot;
   std::optional<double> remaining_mah;
   std::optional<double> full_mah;
   std::vector<int> cells_mv;  // populated cells, BMS order
@@ -55,13 +55,13 @@ struct TelemetryReading {
   std::optional<int> battery_lock_state;
   std::optional<gnss::Position> position;  // current fix at sampling time; nullopt = unknown
 
-  storage::TelemetrySample record() const;
+  storage::TelemetryRow record() const;
 };
 storage::Bytes telemetry_payload(const TelemetryReading& reading);
 
 // `old_raw`/`new_raw`: lock-state codes (U19) behind the event's state names.
 // `where`: the current fix when the lock changed state (nullopt: position unknown).
-storage::Bytes lock_payload(const storage::LockEvent& event, int old_raw, int new_raw,
+storage::Bytes lock_payload(const storage::LockEventRow& event, int old_raw, int new_raw,
                             const std::optional<gnss::Position>& where = std::nullopt);
 
 }  // namespace fleetgw::domain

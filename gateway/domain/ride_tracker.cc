@@ -39,7 +39,7 @@ bool on_earth(const std::optional<double>& lat, const std::optional<double>& lon
 // The track a previous run checkpointed in the ride row, so a ride resumed (or closed) after a
 // restart keeps where it went before it. The row comes from a file that may be damaged or
 // edited: columns that do not form a track are dropped (said in the log), never trusted.
-void resume_track(storage::Ride& rec, RideTrack& track) {
+void resume_track(storage::RideRow& rec, RideTrack& track) {
   if (!rec.start_lat_deg && !rec.start_lon_deg && !rec.track) return;  // no fix before
   std::string problem;
   storage::ParsedTrack parsed;
@@ -83,12 +83,12 @@ void resume_track(storage::Ride& rec, RideTrack& track) {
 RideTracker::RideTracker(RideConfig config, DomainSink& sink)
     : config_(std::move(config)), sink_(sink) {}
 
-void RideTracker::restore(std::span<const storage::Ride> open_rides, Micros now) {
+void RideTracker::restore(std::span<const storage::RideRow> open_rides, Micros now) {
   if (open_) throw std::logic_error("RideTracker::restore: a ride is already open");
   if (open_rides.empty()) return;
   const auto newest = std::max_element(
       open_rides.begin(), open_rides.end(),
-      [](const storage::Ride& a, const storage::Ride& b) { return a.start_us < b.start_us; });
+      [](const storage::RideRow& a, const storage::RideRow& b) { return a.start_us < b.start_us; });
   for (auto it = open_rides.begin(); it != open_rides.end(); ++it) {
     if (it == newest) continue;
     // An older open ride means a ride was never closed: close it where it was last seen.
@@ -385,8 +385,8 @@ std::optional<double> RideTracker::odometer() const {
   return std::nullopt;
 }
 
-storage::Ride RideTracker::snapshot(const Open& o, Micros until) const {
-  storage::Ride rec = o.rec;
+storage::RideRow RideTracker::snapshot(const Open& o, Micros until) const {
+  storage::RideRow rec = o.rec;
   rec.duration_s = seconds(until - Micros(rec.start_us));
   rec.end_odo_km = odometer() ? odometer() : rec.end_odo_km;
   std::optional<double> counted;
@@ -411,8 +411,8 @@ storage::Ride RideTracker::snapshot(const Open& o, Micros until) const {
   return rec;
 }
 
-void RideTracker::emit(const storage::Ride& rec, const Open& o, bool with_payload) {
-  storage::Pending<storage::Ride> p{rec, std::nullopt};
+void RideTracker::emit(const storage::RideRow& rec, const Open& o, bool with_payload) {
+  storage::PendingRow<storage::RideRow> p{rec, std::nullopt};
   if (with_payload) {
     p.uplink = ride_payload(rec, RideExtras{o.partial_reason, assist_raw_, &o.track});
   }
@@ -421,7 +421,7 @@ void RideTracker::emit(const storage::Ride& rec, const Open& o, bool with_payloa
 
 void RideTracker::checkpoint(Micros now) {
   attribute(*open_, now);
-  storage::Ride rec = snapshot(*open_, now);
+  storage::RideRow rec = snapshot(*open_, now);
   rec.soc_end_pct = whole_percent(soc(now));
   emit(rec, *open_, false);
   next_checkpoint_ = now + config_.checkpoint_interval;
@@ -433,7 +433,7 @@ void RideTracker::close(Micros end, bool at_stop) {
     attribute(o, end);
     o.latest_soc = soc(end);
   }
-  storage::Ride rec = snapshot(o, end);
+  storage::RideRow rec = snapshot(o, end);
   rec.state = storage::RideState::kClosed;
   rec.end_us = end.count();
   rec.soc_end_pct = whole_percent(o.latest_soc);
@@ -474,11 +474,11 @@ void RideTracker::tick(Micros now) {
   if (now >= next_checkpoint_) checkpoint(now);
 }
 
-std::optional<storage::Ride> RideTracker::current(Micros now) const {
+std::optional<storage::RideRow> RideTracker::current(Micros now) const {
   if (!open_) return std::nullopt;
   Open o = *open_;
   attribute(o, now);
-  storage::Ride rec = snapshot(o, now);
+  storage::RideRow rec = snapshot(o, now);
   rec.soc_end_pct = whole_percent(soc(now));
   return rec;
 }

@@ -54,7 +54,7 @@ class RideTracker {
 
   // Resumes the newest open ride of a previous run; older ones (there should be none) are
   // closed as partial at their last checkpoint.
-  void restore(std::span<const storage::Ride> open_rides, Micros now);
+  void restore(std::span<const storage::RideRow> open_rides, Micros now);
 
   void on_message(const motinova::DecodedMessage& msg, Micros now);
   void tick(Micros now);
@@ -67,7 +67,7 @@ class RideTracker {
 
   bool riding() const { return open_.has_value(); }
   // The open ride as it would be checkpointed now (nullopt when parked).
-  std::optional<storage::Ride> current(Micros now) const;
+  std::optional<storage::RideRow> current(Micros now) const;
   uint64_t rides_closed() const { return rides_closed_; }
 
  private:
@@ -80,7 +80,7 @@ class RideTracker {
   // Everything accumulated over one ride; a value copy is kept at each stop so a ride ended by
   // the stationary timeout ends at the stop, not 10 minutes later.
   struct Open {
-    storage::Ride rec;
+    storage::RideRow rec;
     std::string partial_reason;
     Micros attributed_until{0};     // assist/moving time booked up to here
     double base_distance_km = 0;    // restored from a checkpoint
@@ -104,8 +104,8 @@ class RideTracker {
   void check_counter_start(Micros now);
   std::optional<double> soc(Micros now) const;
   std::optional<double> odometer() const;
-  storage::Ride snapshot(const Open& o, Micros until) const;
-  void emit(const storage::Ride& rec, const Open& o, bool with_payload);
+  storage::RideRow snapshot(const Open& o, Micros until) const;
+  void emit(const storage::RideRow& rec, const Open& o, bool with_payload);
 
   RideConfig config_;
   DomainSink& sink_;

@@ -24,8 +24,8 @@ namespace fleetgw::runtime {
 
 namespace {
 
-storage::ZoneEventRecord zone_record(const geofence::ZoneEvent& e) {
-  storage::ZoneEventRecord r;
+storage::ZoneEventRow zone_record(const geofence::ZoneEvent& e) {
+  storage::ZoneEventRow r;
   r.ts_us = e.at.count();
   r.zone_id = e.zone_id;
   r.zone_name = e.zone_name;
@@ -96,7 +96,7 @@ void Pipeline::update_area_alarm(Micros wall, const std::optional<gnss::Position
   const bool outside = zones_->demands(wall).outside_operating_area;
   if (outside == outside_operating_area_) return;
   outside_operating_area_ = outside;
-  storage::AlarmRecord rec;
+  storage::AlarmRow rec;
   rec.kind = "outside_operating_area";
   rec.transition = outside ? storage::AlarmTransition::kRaised : storage::AlarmTransition::kCleared;
   rec.ts_us = wall.count();
@@ -167,7 +167,7 @@ void Pipeline::start_zones(const config::Config& config) {
                        verdict.event ? verdict.event->zone_id : std::string("?"));
   });
   // A lock made on the bike is only noted here (the recorder is mid-message); settle() judges.
-  recorder_->trackers().set_lock_observer([this](const storage::LockEvent& ev, int new_raw) {
+  recorder_->trackers().set_lock_observer([this](const storage::LockEventRow& ev, int new_raw) {
     if (!bike_locks_.on_lock_event(ev.kind, new_raw, ev.cause)) return;
     BikeLock lock{.wall = system_now(), .fix = std::nullopt};
     if (gnss_) lock.fix = gnss_->state().current(gnss_->wall_now());

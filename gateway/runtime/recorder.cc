@@ -52,11 +52,11 @@ bool has_non_telemetry(const storage::Batch& b) {
 }
 
 template <typename T>
-std::size_t footprint(const storage::Pending<T>& p) {
+std::size_t footprint(const storage::PendingRow<T>& p) {
   return sizeof(p) + (p.uplink ? p.uplink->capacity() : 0);
 }
 // A ride carries its track text (schema v6): tens of kB for a long ride.
-std::size_t footprint(const storage::Pending<storage::Ride>& p) {
+std::size_t footprint(const storage::PendingRow<storage::RideRow>& p) {
   return sizeof(p) + (p.uplink ? p.uplink->capacity() : 0) +
          (p.record.track ? p.record.track->capacity() : 0);
 }
@@ -72,7 +72,7 @@ std::size_t footprint(const storage::Batch& b) {
   for (const auto& x : b.alarms) n += footprint(x) + x.record.detail.capacity();
   for (const auto& x : b.zone_events) n += footprint(x) + x.record.zone_name.capacity();
   for (const auto& x : b.command_results) n += footprint(x);
-  n += b.commands.size() * sizeof(storage::CommandJournalEntry);
+  n += b.commands.size() * sizeof(storage::CommandJournalRow);
   for (const auto& m : b.messages) n += sizeof(m) + m.payload.capacity();
   n += b.meta.size() * 64;
   return n;
@@ -200,12 +200,12 @@ void Recorder::queue_message(storage::UplinkMessage message) {
   note_pending();
 }
 
-void Recorder::record_alarm(storage::AlarmRecord record, storage::Bytes payload) {
+void Recorder::record_alarm(storage::AlarmRow record, storage::Bytes payload) {
   sink_.batch().alarms.push_back({std::move(record), std::move(payload)});
   note_pending();
 }
 
-void Recorder::record_zone_event(storage::ZoneEventRecord record, storage::Bytes payload) {
+void Recorder::record_zone_event(storage::ZoneEventRow record, storage::Bytes payload) {
   sink_.batch().zone_events.push_back({std::move(record), std::move(payload)});
   note_pending();
 }

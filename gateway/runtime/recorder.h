@@ -80,9 +80,9 @@ class Recorder final : public MessageListener {
   void queue_message(storage::UplinkMessage message);
   // Queues a geofence event: a zone_events row and its fleetgw.v1.ZoneEvent payload (outbox
   // kind "zone"); urgent like every non-telemetry record.
-  void record_zone_event(storage::ZoneEventRecord record, storage::Bytes payload);
+  void record_zone_event(storage::ZoneEventRow record, storage::Bytes payload);
   // Queues an alarm raised or cleared outside the trackers (the geofence's operating area).
-  void record_alarm(storage::AlarmRecord record, storage::Bytes payload);
+  void record_alarm(storage::AlarmRow record, storage::Bytes payload);
   // Called after every successful write (the uplink polls then: new records to send).
   void set_after_flush(std::function<void()> hook) { after_flush_ = std::move(hook); }
   // A caller that schedules flush() itself (the Pipeline: urgent() -> flush after the frames

@@ -17,7 +17,7 @@ nlohmann::json or_null(const std::optional<T>& v) {
 // What the bike is doing: the latest decoded values (null until heard; the speed limit in force
 // once the MC's settings were read, by a speed-limit command or a zone) and the open ride, its
 // distance as `fleetgw db rides` reports it (odometer when known, else integrated speed).
-nlohmann::json vehicle_json(const LiveState& live, const std::optional<storage::Ride>& ride,
+nlohmann::json vehicle_json(const LiveState& live, const std::optional<storage::RideRow>& ride,
                             std::optional<bool> parked) {
   nlohmann::json v = {{"speed_kmh", or_null(live.speed_kmh)},
                       {"soc_pct", or_null(live.soc_pct)},

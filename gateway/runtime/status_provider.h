@@ -62,7 +62,7 @@ struct StatusInputs {
   Micros wall_now{0};
   // The ride in progress as the ride tracker would checkpoint it now (RideTracker::current);
   // nullopt when parked or unknown. Shown in the "vehicle" section.
-  std::optional<storage::Ride> open_ride = std::nullopt;
+  std::optional<storage::RideRow> open_ride = std::nullopt;
   // Parked mode (Pipeline::parked()): "mode" in the "vehicle" section is "parked" or "riding",
   // null before the first evaluation.
   std::optional<bool> parked = std::nullopt;

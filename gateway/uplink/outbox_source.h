@@ -46,7 +46,7 @@ inline constexpr const char* kZone = "zone";                 // payload: fleetgw
 inline constexpr const char* kCampaign = "campaign";  // payload: fleetgw.v1.CampaignSamples
 }  // namespace kind
 
-// One stored record as the uplink sees it (storage::OutboxEntry is the store's row type).
+// One stored record as the uplink sees it (storage::OutboxRow is the store's row type).
 struct OutgoingRecord {
   std::uint64_t seq = 0;        // outbox sequence number (unique, increasing)
   int priority = 0;             // lower leaves first

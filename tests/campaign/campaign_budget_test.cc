@@ -34,8 +34,8 @@ storage::Bytes budget_record(const std::string& id, std::int64_t index, std::siz
   return storage::Bytes(out.begin(), out.end());
 }
 
-storage::FaultEvent budget_fault(std::int64_t t, int code) {
-  storage::FaultEvent f;
+storage::FaultEventRow budget_fault(std::int64_t t, int code) {
+  storage::FaultEventRow f;
   f.node = 1;
   f.bit = code % 32;
   f.code = code;
@@ -46,8 +46,8 @@ storage::FaultEvent budget_fault(std::int64_t t, int code) {
   return f;
 }
 
-storage::AlarmRecord budget_alarm(std::int64_t t) {
-  storage::AlarmRecord a;
+storage::AlarmRow budget_alarm(std::int64_t t) {
+  storage::AlarmRow a;
   a.ts_us = a.first_evidence_us = t;
   a.kind = "tamper";
   return a;

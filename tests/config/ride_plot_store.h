@@ -40,9 +40,9 @@ inline const std::vector<storage::TrackPoint> kLatestTrack = {
 inline constexpr double kLatestGnssM = 6693;
 inline const std::string kHostileRideId = "<script>alert(\"x\")</script> & 'q' \x1b[2J\nnext\xff";
 
-inline storage::Ride plotted_ride(const std::string& id, std::int64_t start_us, int seconds,
+inline storage::RideRow plotted_ride(const std::string& id, std::int64_t start_us, int seconds,
                                   double km) {
-  storage::Ride r;
+  storage::RideRow r;
   r.ride_id = id;
   r.state = storage::RideState::kClosed;
   r.start_us = start_us;
@@ -60,8 +60,8 @@ inline storage::Ride plotted_ride(const std::string& id, std::int64_t start_us, 
   return r;
 }
 
-inline storage::TelemetrySample plotted_sample(std::int64_t start_us, int t) {
-  storage::TelemetrySample s;
+inline storage::TelemetryRow plotted_sample(std::int64_t start_us, int t) {
+  storage::TelemetryRow s;
   s.ts_us = start_us + t * kSec;
   s.speed_kmh = 18 + 7 * std::sin(t / 60.0);
   s.voltage_v = 48 - t / 600.0;
@@ -71,8 +71,8 @@ inline storage::TelemetrySample plotted_sample(std::int64_t start_us, int t) {
   return s;
 }
 
-inline storage::TelemetrySample outside_sample(std::int64_t ts_us) {
-  storage::TelemetrySample s;
+inline storage::TelemetryRow outside_sample(std::int64_t ts_us) {
+  storage::TelemetryRow s;
   s.ts_us = ts_us;
   s.speed_kmh = 999;
   s.assist_level = 4;
@@ -88,7 +88,7 @@ inline void write_ride_store(const std::filesystem::path& path) {
   b.now_us = kLatestStartUs;
   b.rides.push_back(
       {plotted_ride("ride-normal", kNormalStartUs, kNormalSeconds, 3.0), std::nullopt});
-  storage::Ride latest = plotted_ride(kHostileRideId, kLatestStartUs, kLatestSeconds, 8.1);
+  storage::RideRow latest = plotted_ride(kHostileRideId, kLatestStartUs, kLatestSeconds, 8.1);
   latest.start_lat_deg = kLatestTrack.front().lat_deg;
   latest.start_lon_deg = kLatestTrack.front().lon_deg;
   latest.end_lat_deg = kLatestTrack.back().lat_deg;

@@ -13,9 +13,9 @@
 
 namespace fleetgw::testing {
 
-inline storage::Ride closed_ride(const std::string& id, std::int64_t start_us, double km) {
+inline storage::RideRow closed_ride(const std::string& id, std::int64_t start_us, double km) {
   constexpr std::int64_t kMinuteUs = 60'000'000;
-  storage::Ride r;
+  storage::RideRow r;
   r.ride_id = id;
   r.state = storage::RideState::kClosed;
   r.start_us = start_us;

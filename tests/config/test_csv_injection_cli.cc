@@ -98,7 +98,7 @@ void make_store(const fs::path& path) {
   storage::Store store(o);
   storage::Batch b;
   b.now_us = kT0;
-  storage::AlarmRecord swap;
+  storage::AlarmRow swap;
   swap.ts_us = kT0 + 10 * kSec;
   swap.first_evidence_us = kT0 + 10 * kSec;
   swap.kind = "battery_swapped";
@@ -106,7 +106,7 @@ void make_store(const fs::path& path) {
   swap.new_bms_serial = kNewSerial;
   swap.detail = kDetail;
   b.alarms.push_back({swap, std::nullopt});
-  storage::LockEvent lock;
+  storage::LockEventRow lock;
   lock.ts_us = kT0 + 20 * kSec;
   lock.lock_node = 7;
   lock.kind = kLockKind;
@@ -114,7 +114,7 @@ void make_store(const fs::path& path) {
   lock.new_state = "unlocked";
   lock.cause = "manual";
   b.locks.push_back({lock, std::nullopt});
-  storage::FaultEvent f;
+  storage::FaultEventRow f;
   f.node = 2;  // bms
   f.bit = 1;
   f.code = 7;
@@ -124,7 +124,7 @@ void make_store(const fs::path& path) {
   f.first_seen_us = kT0 + 30 * kSec;
   f.last_seen_us = kT0 + 30 * kSec;
   b.faults.push_back({f, std::nullopt});
-  storage::ZoneEventRecord z;
+  storage::ZoneEventRow z;
   z.ts_us = kT0 + 40 * kSec;
   z.zone_id = "z1";
   z.zone_name = kZoneName;
@@ -133,7 +133,7 @@ void make_store(const fs::path& path) {
   z.lat_deg = -33.8688;  // southern hemisphere: a negative number, not a formula
   z.lon_deg = 151.2093;
   b.zone_events.push_back({z, std::nullopt});
-  storage::TelemetrySample t;
+  storage::TelemetryRow t;
   t.ts_us = kT0 + 50 * kSec;
   t.current_a = -3.5;  // regenerating: a negative number
   t.speed_kmh = 12.0;

@@ -25,7 +25,7 @@ const std::string kHostileName = "evil\nfault\x1b[2J";
 const std::string kHostileReason = "lock_failed: \"jammed\", said\r\nline two";
 const std::string kHostileDetail = "detail\twith\nnewline";
 
-storage::Ride ride(const std::string& id, std::int64_t start, double km) {
+storage::RideRow ride(const std::string& id, std::int64_t start, double km) {
   return closed_ride(id, start, km);
 }
 
@@ -41,7 +41,7 @@ void make_store(const fs::path& path) {
   b.rides.push_back({ride("ride-0900", kT0 - 3600 * kSec, 5.25), std::nullopt});
   b.rides.push_back({ride("ride-1000", kT0, 8.1), std::nullopt});
   b.rides.push_back({ride("ride-1100", kT0 + 3600 * kSec, 3.0), std::nullopt});
-  storage::FaultEvent f;
+  storage::FaultEventRow f;
   f.node = 1;  // mc
   f.bit = 3;
   f.code = 21;
@@ -63,7 +63,7 @@ void make_store(const fs::path& path) {
        std::nullopt});
   b.command_results.push_back(
       {{0, "cmd-old", kT0 - 7200 * kSec, "succeeded", "", "unlocked", 412}, std::nullopt});
-  storage::AlarmRecord a;
+  storage::AlarmRow a;
   a.ts_us = kT0 + 200 * kSec;
   a.first_evidence_us = kT0 + 198 * kSec;
   a.kind = "unauthorised_movement";

@@ -30,7 +30,7 @@ void make_store(const fs::path& path) {
     storage::Store store(storage::StoreOptions{.path = path.string()});
     storage::Batch b;
     b.now_us = kT0;
-    storage::Ride tracked = closed_ride("ride-tracked", kT0, 1.2);
+    storage::RideRow tracked = closed_ride("ride-tracked", kT0, 1.2);
     tracked.start_lat_deg = 52.52;
     tracked.start_lon_deg = 13.405;
     tracked.end_lat_deg = 52.5209;
@@ -40,13 +40,13 @@ void make_store(const fs::path& path) {
         std::vector<storage::TrackPoint>{{52.52, 13.405}, {52.5209, 13.405}, {52.5209, 13.4071}});
     b.rides.push_back({tracked, std::nullopt});
     b.rides.push_back({closed_ride("ride-nofix", kT0 + 3600 * kSec, 3.0), std::nullopt});
-    storage::Ride still = closed_ride("ride-still", kT0 + 7200 * kSec, 0.1);
+    storage::RideRow still = closed_ride("ride-still", kT0 + 7200 * kSec, 0.1);
     still.start_lat_deg = still.end_lat_deg = -33.8688197;
     still.start_lon_deg = still.end_lon_deg = 151.2092955;
     still.gnss_distance_m = 0;
     still.track = storage::track_text(std::vector<storage::TrackPoint>{{-33.8688197, 151.2092955}});
     b.rides.push_back({still, std::nullopt});
-    storage::Ride open = closed_ride("ride-open", kT0 + 9000 * kSec, 0.4);
+    storage::RideRow open = closed_ride("ride-open", kT0 + 9000 * kSec, 0.4);
     open.state = storage::RideState::kOpen;
     open.end_us.reset();
     open.start_lat_deg = 48.1;

@@ -21,13 +21,13 @@ constexpr std::int64_t kT0 = 1732701600LL * kSec;  // 2024-11-27T10:00:00Z
 const std::string kHostileReason = "evil\nreason\x1b[2J: \"quoted\", detail\r\nline two";
 const std::string kHostileName = "name,with \"quotes\"\nand\x1b[31m";
 
-storage::Ride summary_ride(const std::string& id, std::int64_t start, double km) {
-  storage::Ride r = closed_ride(id, start, km);
+storage::RideRow summary_ride(const std::string& id, std::int64_t start, double km) {
+  storage::RideRow r = closed_ride(id, start, km);
   r.distance_integrated_km = km + 0.5;  // not used: the ride has odometer readings
   return r;
 }
 
-storage::CommandResult result(const std::string& id, std::int64_t at, const std::string& result,
+storage::CommandResultRow result(const std::string& id, std::int64_t at, const std::string& result,
                               const std::string& reason) {
   return {0, id, at, result, reason, "unlocked", 40};
 }
@@ -44,13 +44,13 @@ void make_store(const fs::path& path) {
   b.now_us = kT0;
   b.rides.push_back({summary_ride("ride-0900", kT0 - 3600 * kSec, 8.1), std::nullopt});
   b.rides.push_back({summary_ride("ride-1000", kT0, 3.0), std::nullopt});
-  storage::Ride open;
+  storage::RideRow open;
   open.ride_id = "ride-1100";
   open.start_us = kT0 + 3600 * kSec;
   open.duration_s = 600;
   open.distance_integrated_km = 1.2;
   b.rides.push_back({open, std::nullopt});
-  storage::FaultEvent f;
+  storage::FaultEventRow f;
   f.node = 1;
   f.bit = 4;
   f.code = 14;
@@ -78,7 +78,7 @@ void make_store(const fs::path& path) {
   b.command_results.push_back(
       {result("c-5", kT0 + 50 * kSec, "failed", kHostileReason), std::nullopt});
   b.commands.push_back({"c-6", kT0 + 70 * kSec, "executing", kT0 + 130 * kSec, {}});
-  storage::AlarmRecord a;
+  storage::AlarmRow a;
   a.ts_us = kT0 + 200 * kSec;
   a.first_evidence_us = kT0 + 198 * kSec;
   a.kind = "unauthorised_movement";

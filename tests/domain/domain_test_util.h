@@ -39,12 +39,12 @@ using fleetgw::testing::TempDir;
 
 // Everything the trackers produced, in order (also when it went to a Store).
 struct Collected {
-  std::vector<storage::Pending<storage::Ride>> rides;
-  std::vector<storage::Pending<storage::FaultEvent>> faults;
-  std::vector<storage::Pending<storage::PackSnapshot>> packs;
-  std::vector<storage::Pending<storage::TelemetrySample>> telemetry;
-  std::vector<storage::Pending<storage::LockEvent>> locks;
-  std::vector<storage::Pending<storage::AlarmRecord>> alarms;
+  std::vector<storage::PendingRow<storage::RideRow>> rides;
+  std::vector<storage::PendingRow<storage::FaultEventRow>> faults;
+  std::vector<storage::PendingRow<storage::PackSnapshotRow>> packs;
+  std::vector<storage::PendingRow<storage::TelemetryRow>> telemetry;
+  std::vector<storage::PendingRow<storage::LockEventRow>> locks;
+  std::vector<storage::PendingRow<storage::AlarmRow>> alarms;
 
   void add(const storage::Batch& b) {
     rides.insert(rides.end(), b.rides.begin(), b.rides.end());
@@ -55,8 +55,8 @@ struct Collected {
     alarms.insert(alarms.end(), b.alarms.begin(), b.alarms.end());
   }
   // Closed rides (the records sent with an uplink payload).
-  std::vector<storage::Ride> closed_rides() const {
-    std::vector<storage::Ride> out;
+  std::vector<storage::RideRow> closed_rides() const {
+    std::vector<storage::RideRow> out;
     for (const auto& p : rides) {
       if (p.record.state == storage::RideState::kClosed) out.push_back(p.record);
     }
@@ -71,7 +71,7 @@ class Gateway final : public motinova::FrameSink {
       : sink_(), trackers_(std::move(config), sink_) {
     if (db) {
       store_.emplace(storage::StoreOptions{.path = db->string()});
-      const std::vector<storage::Ride> open = store_->open_rides();
+      const std::vector<storage::RideRow> open = store_->open_rides();
       trackers_.restore(open, now);
     }
   }

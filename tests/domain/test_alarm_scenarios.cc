@@ -16,8 +16,8 @@ namespace {
 
 using storage::AlarmTransition;
 
-std::vector<storage::AlarmRecord> raised(const Collected& out, const std::string& kind) {
-  std::vector<storage::AlarmRecord> r;
+std::vector<storage::AlarmRow> raised(const Collected& out, const std::string& kind) {
+  std::vector<storage::AlarmRow> r;
   for (const auto& a : out.alarms) {
     if (a.record.kind == kind && a.record.transition == AlarmTransition::kRaised) {
       r.push_back(a.record);
@@ -31,7 +31,7 @@ TEST(AlarmScenarios, TheftRaisesOneMovementAlarmAndRecordsTelemetryAtTheRidingRa
   h.run_until_offset(140);
   const auto movement = raised(h.out, "unauthorised_movement");
   ASSERT_EQ(movement.size(), 1u);
-  const storage::AlarmRecord& a = movement[0];
+  const storage::AlarmRow& a = movement[0];
   // The wheel starts turning at 20 s; debounced for 2 s of evidence.
   EXPECT_GE(a.first_evidence_us, h.at(20).count());
   EXPECT_LE(a.first_evidence_us, h.at(23).count());

@@ -43,7 +43,7 @@ class Alarms : public ::testing::Test {
  protected:
   DomainSink sink;
   DomainTrackers trackers{DomainConfig{}, sink};
-  std::vector<storage::Pending<storage::AlarmRecord>> alarms;
+  std::vector<storage::PendingRow<storage::AlarmRow>> alarms;
 
   void feed_at(const motinova::AppFrame& f, double s) {
     feed(trackers, f, at(s));
@@ -59,14 +59,14 @@ class Alarms : public ::testing::Test {
     for (auto& a : sink.batch().alarms) alarms.push_back(a);
     sink.batch().clear();
   }
-  std::vector<storage::AlarmRecord> of_kind(const std::string& kind) const {
-    std::vector<storage::AlarmRecord> out;
+  std::vector<storage::AlarmRow> of_kind(const std::string& kind) const {
+    std::vector<storage::AlarmRow> out;
     for (const auto& a : alarms) {
       if (a.record.kind == kind) out.push_back(a.record);
     }
     return out;
   }
-  static v1::Alarm decoded(const storage::Pending<storage::AlarmRecord>& p) {
+  static v1::Alarm decoded(const storage::PendingRow<storage::AlarmRow>& p) {
     v1::Alarm a;
     EXPECT_TRUE(p.uplink && a.ParseFromArray(p.uplink->data(), static_cast<int>(p.uplink->size())));
     return a;
@@ -86,7 +86,7 @@ TEST_F(Alarms, RidingALockedBikeRaisesExactlyOneAlarmPerEpisodeAndClears) {
   feed_at(lock2(2), 0);
   for (double s = 1.0; s <= 20; s += 0.1) feed_at(mc(14.5, 210), s);
   ASSERT_EQ(alarms.size(), 1u) << "one alarm for the whole episode, not one per sample";
-  const storage::AlarmRecord& raised = alarms[0].record;
+  const storage::AlarmRow& raised = alarms[0].record;
   EXPECT_EQ(raised.kind, "unauthorised_movement");
   EXPECT_EQ(raised.transition, AlarmTransition::kRaised);
   EXPECT_EQ(raised.first_evidence_us, at(1.0).count());

@@ -12,8 +12,8 @@ namespace {
 
 using storage::FaultEventKind;
 
-std::vector<storage::FaultEvent> events_of(const Collected& c, int node, std::string_view name) {
-  std::vector<storage::FaultEvent> out;
+std::vector<storage::FaultEventRow> events_of(const Collected& c, int node, std::string_view name) {
+  std::vector<storage::FaultEventRow> out;
   for (const auto& p : c.faults) {
     if (p.record.node == node && p.record.name == name) out.push_back(p.record);
   }
@@ -49,7 +49,7 @@ TEST(Faults, FaultScenarioGivesRaiseClearPairsWithCatalogueNames) {
   EXPECT_EQ(alarm[0].severity, "warning");
 
   // Lock 4 (node 0xA) under-voltage for a minute.
-  std::vector<storage::FaultEvent> lock4;
+  std::vector<storage::FaultEventRow> lock4;
   for (const auto& p : h.out.faults) {
     if (p.record.node == 0xA) lock4.push_back(p.record);
   }
@@ -102,8 +102,8 @@ class FaultUnits : public ::testing::Test {
   DomainTrackers t{DomainConfig{}, sink};
   Micros t0 = secs(1'700'000'000);
   Micros at(double s) const { return t0 + secs(s); }
-  std::vector<storage::FaultEvent> events() {
-    std::vector<storage::FaultEvent> out;
+  std::vector<storage::FaultEventRow> events() {
+    std::vector<storage::FaultEventRow> out;
     for (const auto& p : sink.batch().faults) out.push_back(p.record);
     return out;
   }

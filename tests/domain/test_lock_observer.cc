@@ -22,7 +22,7 @@ motinova::AppFrame observed_lock_write(motinova::Node lock, bool lock_it) {
 TEST(Locks, TheObserverSeesEveryEventWithItsStateCodeAndCause) {
   Harness h(bundled("ride"));
   std::vector<std::pair<std::string, int>> seen;
-  h.gateway()->trackers().set_lock_observer([&](const storage::LockEvent& e, int new_raw) {
+  h.gateway()->trackers().set_lock_observer([&](const storage::LockEventRow& e, int new_raw) {
     seen.emplace_back(e.kind + " " + e.new_state + " " + e.cause, new_raw);
   });
   h.run_until_offset(5);

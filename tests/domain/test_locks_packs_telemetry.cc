@@ -40,7 +40,7 @@ TEST(Locks, EveryStateChangeWithIntermediateStatesAndCauses) {
   h.send(lock_command(motinova::Node::kLock4, true));
   h.run_until_offset(60);
 
-  std::vector<storage::LockEvent> ev;
+  std::vector<storage::LockEventRow> ev;
   for (const auto& p : h.out.locks) ev.push_back(p.record);
   ASSERT_EQ(ev.size(), 8u);
   const std::vector<std::array<std::string, 4>> want = {

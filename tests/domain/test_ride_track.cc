@@ -61,9 +61,9 @@ TEST(RideTrack, RideRecordCarriesATrackWhoseLengthAgreesWithTheOdometer) {
   }
   h.send_keyword(0x760, 0x11);  // the rental ends: one-touch LOCK
   h.run_until_offset(1760);
-  const std::vector<storage::Ride> closed = h.out.closed_rides();  // a copy: keep it alive
+  const std::vector<storage::RideRow> closed = h.out.closed_rides();  // a copy: keep it alive
   ASSERT_EQ(closed.size(), 1u);
-  const storage::Ride& r = closed.front();
+  const storage::RideRow& r = closed.front();
   const double odo_m = h.truth_at(Micros(*r.end_us)).odo_m - h.truth_at(Micros(r.start_us)).odo_m;
 
   v1::RideRecord m;

@@ -42,7 +42,7 @@ void ride_with_fixes(Harness& h, int from_s, int to_s, double odo0,
   }
 }
 
-std::vector<storage::TrackPoint> track_of(const storage::Ride& r) {
+std::vector<storage::TrackPoint> track_of(const storage::RideRow& r) {
   EXPECT_TRUE(r.track.has_value()) << r.ride_id;
   if (!r.track) return {};
   const auto parsed = storage::parse_track_text(*r.track);

@@ -12,14 +12,14 @@
 namespace fleetgw::domain::testing {
 namespace {
 
-double assist_sum(const storage::Ride& r) {
+double assist_sum(const storage::RideRow& r) {
   double s = 0;
   for (const auto& [name, t] : r.assist_time_s) s += t;
   return s;
 }
 
 // The checks every finished ride of the "ride" scenario must pass, against the bike's truth.
-void expect_consistent(const Harness& h, const storage::Ride& r) {
+void expect_consistent(const Harness& h, const storage::RideRow& r) {
   const Micros start(r.start_us);
   const Micros end(*r.end_us);
   const Truth t0 = h.truth_at(start);
@@ -58,7 +58,7 @@ TEST(Rides, RideScenarioEndedByVehicleLockIsOneConsistentRide) {
 
   const auto closed = h.out.closed_rides();
   ASSERT_EQ(closed.size(), 1u);
-  const storage::Ride& r = closed.front();
+  const storage::RideRow& r = closed.front();
   EXPECT_FALSE(r.partial);
   EXPECT_NEAR(*r.end_us, h.at(1750).count(), 50'000) << "ends at the LOCK";
   EXPECT_LT(r.start_us, h.at(10).count()) << "starts when the bike leaves the rack";
@@ -107,7 +107,7 @@ TEST(Rides, StandingStillEndsTheRideWhereItStopped) {
   h.run_until_offset(1900);
   const auto closed = h.out.closed_rides();
   ASSERT_EQ(closed.size(), 1u) << "the traffic lights (45 s, 60 s) do not end the ride";
-  const storage::Ride& r = closed.front();
+  const storage::RideRow& r = closed.front();
   // The profile ends at 1685 s (plus ~1 s braking); the ride ends there, not 120 s later.
   EXPECT_NEAR(static_cast<double>(*r.end_us - h.at(0).count()) / 1e6, 1686, 1.5);
   expect_consistent(h, r);

@@ -44,7 +44,7 @@ static_assert(sizeof(Report) < PIPE_BUF, "pipe writes below PIPE_BUF are atomic"
       if (batch % 5 == 0) b.faults.push_back({fault_at(b.now_us, round), Bytes(20, 1)});
       if (batch % 7 == 0) b.packs.push_back({pack_at(b.now_us), Bytes(60, 2)});
       // The ride in progress is checkpointed every batch: distance = batch index.
-      Ride ride = ride_named(ride_id, round, false);
+      RideRow ride = ride_named(ride_id, round, false);
       ride.distance_km = static_cast<double>(batch);
       b.rides.push_back({ride, std::nullopt});
       WriteResult r = store.write(b);

@@ -22,16 +22,16 @@ std::vector<nlohmann::json> export_rows(Store& store, std::string_view table,
   return rows;
 }
 
-AlarmRecord alarm_at(std::int64_t t, std::string kind) {
-  AlarmRecord a;
+AlarmRow alarm_at(std::int64_t t, std::string kind) {
+  AlarmRow a;
   a.ts_us = t;
   a.first_evidence_us = t;
   a.kind = std::move(kind);
   return a;
 }
 
-ZoneEventRecord zone_event_at(std::int64_t t, std::string transition) {
-  ZoneEventRecord z;
+ZoneEventRow zone_event_at(std::int64_t t, std::string transition) {
+  ZoneEventRow z;
   z.ts_us = t;
   z.zone_id = "old-town";
   z.zone_name = "Old town";
@@ -54,7 +54,7 @@ void fill(Store& store) {
     b.packs.push_back({pack_at(t), payload_of("pack")});
     b.locks.push_back({lock_at(t), payload_of("lock")});
     b.command_results.push_back({command_result("c" + std::to_string(t), t), Bytes{0xde, 0xad}});
-    AlarmRecord alarm = alarm_at(t, "unauthorised_movement");
+    AlarmRow alarm = alarm_at(t, "unauthorised_movement");
     alarm.first_evidence_us = t - 500;
     alarm.lock_node = 8;
     alarm.speed_kmh = 12.5;

@@ -14,7 +14,7 @@ namespace {
 
 using namespace testing;
 
-std::vector<std::uint64_t> seqs_of(const std::vector<OutboxEntry>& entries) {
+std::vector<std::uint64_t> seqs_of(const std::vector<OutboxRow>& entries) {
   std::vector<std::uint64_t> out;
   for (const auto& e : entries) out.push_back(e.seq);
   return out;
@@ -227,7 +227,7 @@ TEST(Store, OpenRideSurvivesRestartAndIsUpdatedInPlace) {
   {
     Store store(StoreOptions{.path = path});
     Batch b;
-    Ride r = ride_named("ride-1", 100, false);
+    RideRow r = ride_named("ride-1", 100, false);
     r.distance_km = 1.0;
     b.rides.push_back({r, std::nullopt});  // checkpoint only: no uplink yet
     auto res = store.write(b);
@@ -240,7 +240,7 @@ TEST(Store, OpenRideSurvivesRestartAndIsUpdatedInPlace) {
   EXPECT_DOUBLE_EQ(open[0].distance_km, 1.0);
   EXPECT_EQ(open[0].assist_time_s, (std::map<std::string, double>{{"eco", 200}, {"tour", 340}}));
 
-  Ride closed = ride_named("ride-1", 100, true);
+  RideRow closed = ride_named("ride-1", 100, true);
   closed.distance_km = 2.75;
   Batch b;
   b.rides.push_back({closed, payload_of("ride-final")});

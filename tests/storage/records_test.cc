@@ -35,7 +35,7 @@ TEST(Records, PriorityOrderMatchesIssue) {
 }
 
 TEST(Records, EvictionReportJson) {
-  EvictionReport r;
+  EvictionPass r;
   r.at_us = 5;
   r.budget_bytes = 100;
   r.bytes_before = 120;

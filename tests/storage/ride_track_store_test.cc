@@ -15,8 +15,8 @@ namespace {
 
 using testing::TempDir;
 
-Ride ride_with_track(const std::string& id) {
-  Ride r = testing::ride_named(id, 1'000'000, true);
+RideRow ride_with_track(const std::string& id) {
+  RideRow r = testing::ride_named(id, 1'000'000, true);
   r.start_lat_deg = 52.52;
   r.start_lon_deg = 13.405;
   r.end_lat_deg = 52.5209;
@@ -53,20 +53,20 @@ TEST(RideTrackStore, V5RidesMigrateInPlaceWithNullPositions) {
 TEST(RideTrackStore, PositionsRoundTripAndAnUpsertReplacesThem) {
   TempDir dir;
   Store store(StoreOptions{.path = dir.file("s.db")});
-  Ride open = testing::ride_named("r1", 1'000'000, false);
+  RideRow open = testing::ride_named("r1", 1'000'000, false);
   Batch b;
   b.now_us = 2'000'000;
   b.rides.push_back({open, std::nullopt});
   ASSERT_FALSE(store.write(b).error);
   EXPECT_FALSE(store.ride("r1")->track) << "no fix yet: NULL";
 
-  Ride closed = ride_with_track("r1");
+  RideRow closed = ride_with_track("r1");
   b.rides.clear();
   b.rides.push_back({closed, std::nullopt});
   ASSERT_FALSE(store.write(b).error);
   const auto back = store.ride("r1");
   ASSERT_TRUE(back.has_value());
-  Ride expected = closed;
+  RideRow expected = closed;
   expected.id = back->id;
   EXPECT_EQ(*back, expected);
   EXPECT_EQ(*back->track, "[[13.405,52.52],[13.405,52.5209],[13.4071,52.5209]]");
@@ -75,14 +75,14 @@ TEST(RideTrackStore, PositionsRoundTripAndAnUpsertReplacesThem) {
 TEST(RideTrackStore, BadPositionsAreRefusedNamingTheField) {
   TempDir dir;
   Store store(StoreOptions{.path = dir.file("s.db")});
-  auto refused = [&](const Ride& r) {
+  auto refused = [&](const RideRow& r) {
     Batch b;
     b.now_us = 2'000'000;
     b.rides.push_back({r, std::nullopt});
     const auto w = store.write(b);
     return w.error ? w.error->message : std::string();
   };
-  Ride r = ride_with_track("r2");
+  RideRow r = ride_with_track("r2");
   r.end_lon_deg.reset();
   EXPECT_NE(
       refused(r).find("Batch.rides[0].end_lat_deg: latitude and longitude must come together"),

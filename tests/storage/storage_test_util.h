@@ -39,8 +39,8 @@ inline Bytes payload_of(const std::string& text) {
   return Bytes(text.begin(), text.end());
 }
 
-inline TelemetrySample telemetry_at(std::int64_t ts_us) {
-  TelemetrySample t;
+inline TelemetryRow telemetry_at(std::int64_t ts_us) {
+  TelemetryRow t;
   t.ts_us = ts_us;
   t.speed_kmh = 21.5;
   t.assist_level = 3;
@@ -55,8 +55,8 @@ inline TelemetrySample telemetry_at(std::int64_t ts_us) {
   return t;
 }
 
-inline FaultEvent fault_at(std::int64_t ts_us, int code) {
-  FaultEvent f;
+inline FaultEventRow fault_at(std::int64_t ts_us, int code) {
+  FaultEventRow f;
   f.node = 1;
   f.bit = code % 32;
   f.code = code;
@@ -69,8 +69,8 @@ inline FaultEvent fault_at(std::int64_t ts_us, int code) {
   return f;
 }
 
-inline Ride ride_named(const std::string& id, std::int64_t start_us, bool closed) {
-  Ride r;
+inline RideRow ride_named(const std::string& id, std::int64_t start_us, bool closed) {
+  RideRow r;
   r.ride_id = id;
   r.start_us = start_us;
   r.state = closed ? RideState::kClosed : RideState::kOpen;
@@ -92,8 +92,8 @@ inline Ride ride_named(const std::string& id, std::int64_t start_us, bool closed
   return r;
 }
 
-inline PackSnapshot pack_at(std::int64_t ts_us) {
-  PackSnapshot p;
+inline PackSnapshotRow pack_at(std::int64_t ts_us) {
+  PackSnapshotRow p;
   p.ts_us = ts_us;
   p.voltage_v = 40.8;
   p.current_a = -1.2;
@@ -110,12 +110,12 @@ inline PackSnapshot pack_at(std::int64_t ts_us) {
   return p;
 }
 
-inline LockEvent lock_at(std::int64_t ts_us) {
-  return LockEvent{0, ts_us, 7, "wheel", "unlocked", "locked", "command:c-1"};
+inline LockEventRow lock_at(std::int64_t ts_us) {
+  return LockEventRow{0, ts_us, 7, "wheel", "unlocked", "locked", "command:c-1"};
 }
 
-inline CommandResult command_result(const std::string& id, std::int64_t ts_us) {
-  return CommandResult{0, id, ts_us, "ok", "", "locked", 850};
+inline CommandResultRow command_result(const std::string& id, std::int64_t ts_us) {
+  return CommandResultRow{0, id, ts_us, "ok", "", "locked", 850};
 }
 
 }  // namespace fleetgw::storage::testing
