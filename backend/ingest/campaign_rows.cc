@@ -23,7 +23,7 @@ std::optional<Reject> campaign_rows(const v1::Envelope& e, Decoded& d) {
   }
   RowSet& rows =
       rows::new_rows(d, kCampaignSamplesTable, static_cast<std::size_t>(c.samples_size()));
-  rows::RowBuilder b(rows.values);
+  rows::RowBuilder b(rows);
   for (int i = 0; i < c.samples_size(); ++i) {
     const v1::CampaignSample& s = c.samples(i);
     if (static_cast<int>(s.signal()) >= c.signals_size()) {

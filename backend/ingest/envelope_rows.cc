@@ -10,6 +10,7 @@
 #include <array>
 
 #include "backend/ingest/campaign_rows.h"
+#include "backend/ingest/copy_text.h"
 #include "backend/ingest/record_rows.h"
 #include "backend/ingest/safe_text.h"
 #include "fleetgw/v1/command.pb.h"
@@ -36,17 +37,17 @@ std::variant<Decoded, Reject> command_message(std::string_view vehicle, std::str
   Decoded d;
   d.vehicle_id = std::string(vehicle);
   RowSet& rows = new_rows(d, kCommands);
-  RowBuilder b(rows.values);
+  RowBuilder b(rows);
   b.text("command_id", cmd.command_id());
   b.text("vehicle_id", cmd.vehicle_id());
   b.text("key_id", signed_cmd.key_id());
   b.i64(cmd.issued_at_us());
   b.i64(cmd.expires_at_us());
-  std::string action = enum_name(&v1::CommandAction_Name<v1::CommandAction>, cmd.action());
   if (cmd.mc_action_case() != v1::Command::MC_ACTION_NOT_SET) {
-    action = fmt::format("mc:{}", static_cast<int>(cmd.mc_action_case()));
+    b.raw(fmt::format("mc:{}", static_cast<int>(cmd.mc_action_case())));
+  } else {
+    b.name(&v1::CommandAction_Name<v1::CommandAction>, cmd.action());
   }
-  b.raw(action);
   b.text("lock_kind", cmd.whole_vehicle() ? std::string_view("vehicle") : cmd.lock_kind());
   if (b.error) return *b.error;
   return d;
@@ -89,8 +90,15 @@ std::string_view leaf_of(v1::Envelope::BodyCase body) {
 
 }  // namespace
 
-std::size_t RowSet::rows() const {
-  return table == nullptr ? 0 : values.size() / static_cast<std::size_t>(table->column_count);
+std::vector<PgParam> RowSet::values() const {
+  std::vector<PgParam> out;
+  std::vector<std::string_view> fields;
+  std::string_view rest = copy;
+  while (!rest.empty()) {
+    split_row(next_row(rest), fields);
+    for (const std::string_view f : fields) out.push_back(copy_value(f));
+  }
+  return out;
 }
 
 std::vector<SequenceRange> to_ranges(std::vector<std::uint64_t> seqs) {
@@ -209,7 +217,7 @@ std::variant<Decoded, Reject> decode_message(std::string_view topic_prefix, std:
       return Reject{"no_body", "unexpected body"};
   }
   RowSet& rows = new_rows(d, *spec);
-  RowBuilder b(rows.values);
+  RowBuilder b(rows);
   switch (body) {
     case v1::Envelope::kRide:
       ride_rows(e, d, b);

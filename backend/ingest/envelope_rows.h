@@ -50,11 +50,16 @@ struct TableSpec {
   bool committed_at = true;
 };
 
-// Rows for one table, row-major: values.size() == rows * table->column_count.
+// Rows for one table, built straight into COPY's text format (copy_text.h) as the message is
+// decoded: what the batch's COPY sends as it is, without committed_at_us (added per batch).
+// No string per value (issue 25: a heap string per value was the worker's largest cost).
 struct RowSet {
   const TableSpec* table = nullptr;
-  std::vector<PgParam> values;
-  std::size_t rows() const;
+  std::string copy;  // `row_count` rows, each ended by a newline
+  std::size_t row_count = 0;
+  std::size_t rows() const { return row_count; }
+  // Every value, row-major (rows() * table->column_count), parsed back from `copy` (tests).
+  std::vector<PgParam> values() const;
 };
 
 struct SequenceRange {

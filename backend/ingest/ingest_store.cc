@@ -6,10 +6,12 @@
 
 #include <algorithm>
 #include <array>
+#include <charconv>
 #include <map>
 #include <utility>
 
 #include "backend/ingest/campaign_rows.h"
+#include "backend/ingest/copy_text.h"
 #include "backend/ingest/migrations.h"
 #include "backend/ingest/record_rows.h"
 #include "backend/ingest/safe_text.h"
@@ -23,45 +25,6 @@ constexpr std::array<const TableSpec*, 15> kTables = {
     &rows::kLocks,  &rows::kResults,       &rows::kCommands,      &rows::kInfo,
     &rows::kAlarms, &rows::kEvictions,     &rows::kZones,         &rows::kStatus,
     &rows::kState,  &rows::kStatusHistory, &kCampaignSamplesTable};
-
-// One element of a text[] literal: NULL, or double-quoted with `"` and `\` escaped (every other
-// byte, newline included, kept as it is).
-void append_element(std::string& out, const PgParam& v) {
-  if (out.size() > 1) out += ',';
-  if (!v) {
-    out += "NULL";
-    return;
-  }
-  out += '"';
-  // Runs without a quote or backslash appended whole (a byte at a time was a visible share of
-  // the worker's profile).
-  const std::string_view s = *v;
-  std::size_t run = 0;
-  for (std::size_t i = 0; i < s.size(); ++i) {
-    if (s[i] != '"' && s[i] != '\\') continue;
-    out.append(s.data() + run, i - run);
-    out += '\\';
-    run = i;
-  }
-  out.append(s.data() + run, s.size() - run);
-  out += '"';
-}
-
-// One value in COPY's text format: a backslash, tab, newline or carriage return escaped. One
-// pass over the bytes (find_first_of with a set searched the set per byte: a visible share of
-// the worker's profile, issue 25); runs without a special byte are appended whole.
-void append_copy_text(std::string& out, std::string_view v) {
-  std::size_t run = 0;
-  for (std::size_t i = 0; i < v.size(); ++i) {
-    const char c = v[i];
-    if (c != '\\' && c != '\t' && c != '\n' && c != '\r') continue;
-    out.append(v.data() + run, i - run);
-    out += '\\';
-    out += c == '\t' ? 't' : c == '\n' ? 'n' : c == '\r' ? 'r' : '\\';
-    run = i + 1;
-  }
-  out.append(v.data() + run, v.size() - run);
-}
 
 // A text[] literal of `items` (quoted and escaped as PostgreSQL's array input expects).
 std::string text_array(const std::vector<std::string>& items) {
@@ -77,9 +40,19 @@ std::string text_array(const std::vector<std::string>& items) {
   return out + "}";
 }
 
-// Column 1 of a vehicle_state row (updated_at_us) as a number.
-std::int64_t updated_at(std::span<const PgParam> row) {
-  return row[1] ? std::stoll(*row[1]) : 0;
+// Column 1 of a vehicle_state row (updated_at_us; never escaped: a number) as a number.
+std::int64_t updated_at(std::string_view row) {
+  const std::size_t from = row.find('\t') + 1;
+  const std::string_view v = row.substr(from, row.find('\t', from) - from);
+  std::int64_t n = 0;
+  std::from_chars(v.data(), v.data() + v.size(), n);
+  return n;
+}
+
+// Column 0 of a row (vehicle_id of status and state), still escaped: equal exactly when the
+// values are (copy_text.h).
+std::string_view first_value(std::string_view row) {
+  return row.substr(0, row.find('\t'));
 }
 
 // Ranges of the batch merged per (vehicle, store). Views into the batch's messages (which
@@ -246,14 +219,14 @@ WriteStats IngestStore::write_all(std::span<const Decoded* const> messages,
         sets_of[static_cast<std::size_t>(at - kTables.begin())].push_back(&set);
     }
   }
+  std::vector<std::string_view> fields;
   for (std::size_t table = 0; table < kTables.size(); ++table) {
     const TableSpec* t = kTables[table];
     const std::size_t cols = static_cast<std::size_t>(t->column_count);
-    std::vector<std::span<const PgParam>> staged_rows;
+    std::vector<std::string_view> staged_rows;
     for (const RowSet* set : sets_of[table]) {
-      for (std::size_t i = 0; i < set->rows(); ++i) {
-        staged_rows.emplace_back(set->values.data() + i * cols, cols);
-      }
+      std::string_view rest = set->copy;
+      while (!rest.empty()) staged_rows.push_back(next_row(rest));
     }
     if (staged_rows.empty()) continue;
     std::int64_t superseded = 0;
@@ -262,7 +235,7 @@ WriteStats IngestStore::write_all(std::span<const Decoded* const> messages,
       // and its newest state (the others are older than it: out of order).
       std::map<std::string_view, std::size_t> newest;
       for (std::size_t i = 0; i < staged_rows.size(); ++i) {
-        auto [it, fresh] = newest.try_emplace(*staged_rows[i][0], i);
+        auto [it, fresh] = newest.try_emplace(first_value(staged_rows[i]), i);
         if (fresh) continue;
         if (t != &rows::kState ||
             updated_at(staged_rows[i]) >= updated_at(staged_rows[it->second])) {
@@ -271,7 +244,8 @@ WriteStats IngestStore::write_all(std::span<const Decoded* const> messages,
           ++superseded;  // a state older than one the batch already has: out of order
         }
       }
-      std::vector<std::span<const PgParam>> kept;
+      std::vector<std::string_view> kept;
+      kept.reserve(newest.size());
       for (const auto& [vehicle, i] : newest) kept.push_back(staged_rows[i]);
       staged_rows = std::move(kept);
     }
@@ -279,14 +253,18 @@ WriteStats IngestStore::write_all(std::span<const Decoded* const> messages,
       if (t->committed_at && stamp.empty()) {
         stamp = std::string(c.exec("SELECT fleet_now_us()", "commit stamp").text(0, 0));
       }
-      if (copy_rows(c, *t, staged_rows, t->committed_at ? stamp : std::string_view(), stats)) {
+      if (copy_rows(c, *t, sets_of[table], t->committed_at ? stamp : std::string_view(), stats)) {
         continue;
       }
     }
     const std::string& statement = insert_sql(c, *t);
+    // Each column a text[] literal, made from the rows' COPY text without a string per value.
     std::vector<PgParam> columns(cols, std::string("{"));
-    for (const auto& row : staged_rows) {
-      for (std::size_t i = 0; i < cols; ++i) append_element(*columns[i], row[i]);
+    for (const std::string_view row : staged_rows) {
+      split_row(row, fields);
+      for (std::size_t i = 0; i < cols && i < fields.size(); ++i) {
+        append_array_element(*columns[i], fields[i]);
+      }
     }
     for (PgParam& column : columns) *column += '}';
     const PgResult r = c.exec_prepared(statement, columns, t->table);
@@ -300,11 +278,18 @@ WriteStats IngestStore::write_all(std::span<const Decoded* const> messages,
   }
   if (!ranges.empty()) {
     std::vector<PgParam> columns(4, std::string("{"));
+    std::string scratch;
     for (const auto& [key, v] : ranges) {
       for (const SequenceRange& r : v) {
-        const PgParam row[] = {std::string(key.first), std::string(key.second),
-                               std::to_string(r.first), std::to_string(r.last)};
-        for (std::size_t i = 0; i < 4; ++i) append_element(*columns[i], row[i]);
+        // The ids as COPY text (the element writer's input), the numbers as they are.
+        scratch.clear();
+        append_copy_text(scratch, key.first);
+        append_array_element(*columns[0], scratch);
+        scratch.clear();
+        append_copy_text(scratch, key.second);
+        append_array_element(*columns[1], scratch);
+        *columns[2] += fmt::format("{}{}", columns[2]->size() > 1 ? "," : "", r.first);
+        *columns[3] += fmt::format("{}{}", columns[3]->size() > 1 ? "," : "", r.last);
       }
     }
     for (PgParam& column : columns) *column += '}';
@@ -322,31 +307,27 @@ WriteStats IngestStore::write_all(std::span<const Decoded* const> messages,
 }
 
 bool IngestStore::copy_rows(PgConnection& c, const TableSpec& t,
-                            std::span<const std::span<const PgParam>> rows, std::string_view stamp,
+                            std::span<const RowSet* const> sets, std::string_view stamp,
                             WriteStats& stats) {
-  // COPY's text format: a tab between columns, a newline after each row, \N for NULL, and a
-  // backslash, tab, newline or carriage return inside a value escaped.
+  // The messages' COPY text as it is, each row with the batch's stamp appended: one buffer,
+  // kept for the next table and batch (its capacity stays).
+  std::string& data = copy_buffer_;
+  data.clear();
   std::size_t size = 0;
-  for (const auto& row : rows) {
-    for (const PgParam& v : row) size += (v ? v->size() : 2) + 1;
-    size += stamp.empty() ? 0 : stamp.size() + 1;
-  }
-  std::string data;
-  data.reserve(size + size / 16);
-  for (const auto& row : rows) {
-    for (std::size_t i = 0; i < row.size(); ++i) {
-      if (i > 0) data += '\t';
-      if (!row[i]) {
-        data += "\\N";
-        continue;
-      }
-      append_copy_text(data, *row[i]);
+  for (const RowSet* set : sets) size += set->copy.size() + set->rows() * (stamp.size() + 1);
+  data.reserve(size);
+  for (const RowSet* set : sets) {
+    if (stamp.empty()) {
+      data += set->copy;
+      continue;
     }
-    if (!stamp.empty()) {
+    std::string_view rest = set->copy;
+    while (!rest.empty()) {
+      data += next_row(rest);
       data += '\t';
-      data.append(stamp);
+      data += stamp;
+      data += '\n';
     }
-    data += '\n';
   }
   c.exec("SAVEPOINT ingest_copy", "savepoint");
   try {

@@ -104,13 +104,12 @@ class IngestStore {
   WriteStats write_all(std::span<const Decoded* const> messages,
                        std::span<const RejectRow> rejects);
   void insert_reject(PgConnection& c, const RejectRow& r);
-  // The fast path of a record table: the batch's rows by one COPY (no array parameters, no
-  // casts from text[]), under a savepoint, with committed_at_us = `stamp` when not empty (a
-  // volatile column default would make the server insert row by row). False (rolled back) when
-  // a row is already there.
-  bool copy_rows(PgConnection& c, const TableSpec& t,
-                 std::span<const std::span<const PgParam>> rows, std::string_view stamp,
-                 WriteStats& stats);
+  // The fast path of a record table: the batch's rows (the messages' COPY text as it is) by
+  // one COPY, under a savepoint, with committed_at_us = `stamp` when not empty (a volatile
+  // column default would make the server insert row by row). False (rolled back) when a row is
+  // already there.
+  bool copy_rows(PgConnection& c, const TableSpec& t, std::span<const RowSet* const> sets,
+                 std::string_view stamp, WriteStats& stats);
   // The name of t's prepared INSERT on connection c (prepared at its first use).
   const std::string& insert_sql(PgConnection& c, const TableSpec& t);
 
@@ -119,6 +118,7 @@ class IngestStore {
   // Prepared statements of this connection: per table, and the range merge.
   std::map<const TableSpec*, std::string> insert_sql_;
   bool merge_prepared_ = false;
+  std::string copy_buffer_;  // a table's COPY data, reused
   std::function<void(BatchPoint)> hook_;
 };
 

@@ -5,9 +5,9 @@
 #include <mqtt_protocol.h>
 #include <poll.h>
 #include <spdlog/spdlog.h>
-#include <sys/ioctl.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <charconv>
 #include <cstring>
 #include <stdexcept>
@@ -293,11 +293,14 @@ unsigned MqttSessions::poll(std::chrono::milliseconds timeout, std::span<const i
         mosquitto_socket(m) >= 0) {
       // One packet per call (the library reads a packet's header and body separately), while
       // the socket has bytes and the batch wants more; bounded so no session starves others.
+      // The library's own read that found the socket empty says so in errno (EAGAIN, with
+      // success): one failed read per turn instead of a FIONREAD per message (issue 25: a
+      // system call per message less). Anything else leaving EAGAIN in errno only ends this
+      // turn early: the socket stays readable for the next poll.
       for (int k = 0; k < 4096 && want_more(); ++k) {
+        errno = 0;
         if (mosquitto_loop_read(m, 1) != MOSQ_ERR_SUCCESS) break;
-        const int sock = mosquitto_socket(m);
-        int pending = 0;
-        if (sock < 0 || ::ioctl(sock, FIONREAD, &pending) != 0 || pending <= 0) break;
+        if (errno == EAGAIN || errno == EWOULDBLOCK || mosquitto_socket(m) < 0) break;
       }
     }
     if (s.held == 0) write_queue(s);  // e.g. the SUBSCRIBE after a CONNACK

@@ -122,9 +122,10 @@ const TableSpec kStatusHistory{
     true};
 
 RowSet& new_rows(Decoded& d, const TableSpec& t, std::size_t rows) {
-  d.rows.push_back(RowSet{&t, {}});
-  // Sized once: growing it would move every value built so far, again and again.
-  d.rows.back().values.reserve(rows * static_cast<std::size_t>(t.column_count));
+  d.rows.push_back(RowSet{&t, {}, 0});
+  // Sized once for the usual row (a few bytes per value and the two ids): growing it copies
+  // everything built so far.
+  d.rows.back().copy.reserve(rows * (static_cast<std::size_t>(t.column_count) * 6 + 64));
   return d.rows.back();
 }
 
@@ -162,8 +163,8 @@ void fault_rows(const v1::Envelope& e, Decoded& d, RowBuilder& b) {
   b.u32("bit", f.bit());
   b.opt_u32("code", f.has_code(), f.code());
   b.text("name", f.name());
-  b.raw(enum_name(&v1::FaultSeverity_Name<v1::FaultSeverity>, f.severity()));
-  b.raw(enum_name(&v1::FaultEventKind_Name<v1::FaultEventKind>, f.kind()));
+  b.name(&v1::FaultSeverity_Name<v1::FaultSeverity>, f.severity());
+  b.name(&v1::FaultEventKind_Name<v1::FaultEventKind>, f.kind());
   b.i64(f.first_seen_us());
   b.i64(f.last_seen_us());
   b.u32("occurrences", f.occurrences());
@@ -212,11 +213,11 @@ void lock_rows(const v1::Envelope& e, Decoded& d, RowBuilder& b) {
   Header{e}.add(b);
   b.text("node", l.node());
   b.text("lock_kind", l.lock_kind());
-  b.raw(enum_name(&v1::LockState_Name<v1::LockState>, l.previous_state()));
-  b.raw(enum_name(&v1::LockState_Name<v1::LockState>, l.state()));
+  b.name(&v1::LockState_Name<v1::LockState>, l.previous_state());
+  b.name(&v1::LockState_Name<v1::LockState>, l.state());
   b.text("previous_state_name", l.previous_state_name());
   b.text("state_name", l.state_name());
-  b.raw(enum_name(&v1::LockEventSource_Name<v1::LockEventSource>, l.source()));
+  b.name(&v1::LockEventSource_Name<v1::LockEventSource>, l.source());
   b.i64(l.at_us());
   b.text("command_id", l.command_id());
   b.position(l.has_position(), l.position());
@@ -237,7 +238,7 @@ void result_rows(const v1::Envelope& e, Decoded& d, RowBuilder& b) {
   const v1::CommandResult& r = e.command_result();
   Header{e}.add(b);
   b.text("command_id", r.command_id());
-  b.raw(enum_name(&v1::CommandResultCode_Name<v1::CommandResultCode>, r.result()));
+  b.name(&v1::CommandResultCode_Name<v1::CommandResultCode>, r.result());
   b.text("reason", r.reason());
   b.text("final_lock_state_name", r.final_lock_state_name());
   b.u64("duration_ms", r.duration_ms());
@@ -273,8 +274,8 @@ void info_rows(const v1::Envelope& e, Decoded& d, RowBuilder& b) {
 void alarm_rows(const v1::Envelope& e, Decoded& d, RowBuilder& b) {
   const v1::Alarm& a = e.alarm();
   Header{e}.add(b);
-  b.raw(enum_name(&v1::AlarmKind_Name<v1::AlarmKind>, a.kind()));
-  b.raw(enum_name(&v1::AlarmTransition_Name<v1::AlarmTransition>, a.transition()));
+  b.name(&v1::AlarmKind_Name<v1::AlarmKind>, a.kind());
+  b.name(&v1::AlarmTransition_Name<v1::AlarmTransition>, a.transition());
   b.i64(a.at_us());
   b.i64(a.first_evidence_us());
   b.opt_u32("speed_dkmh", a.has_speed_dkmh(), a.speed_dkmh());
@@ -314,10 +315,10 @@ void status_rows(const v1::Envelope& e, RowBuilder& b) {
   const v1::Status& s = e.status();
   b.text("vehicle_id", e.vehicle_id());
   b.i64(e.created_at_us());
-  b.raw(enum_name(&v1::OnlineState_Name<v1::OnlineState>, s.state()));
-  b.raw(enum_name(&v1::ConnectionState_Name<v1::ConnectionState>, s.connection()));
+  b.name(&v1::OnlineState_Name<v1::OnlineState>, s.state());
+  b.name(&v1::ConnectionState_Name<v1::ConnectionState>, s.connection());
   b.u64("outbox_depth", s.outbox_depth());
-  b.raw(enum_name(&v1::BusState_Name<v1::BusState>, s.bus_state()));
+  b.name(&v1::BusState_Name<v1::BusState>, s.bus_state());
   b.text("firmware_version", s.firmware_version());
   b.boolean(s.last_will());
   // A PostgreSQL array literal: each element double-quoted, `"` and `\` backslash-escaped and
@@ -355,8 +356,8 @@ void zone_rows(const v1::Envelope& e, Decoded& d, RowBuilder& b) {
   }
   b.text("zone.zone_id", z.zone_id());
   b.text("zone.zone_name", z.zone_name());
-  b.raw(enum_name(&v1::ZoneKind_Name<v1::ZoneKind>, z.kind()));
-  b.raw(enum_name(&v1::ZoneTransition_Name<v1::ZoneTransition>, z.transition()));
+  b.name(&v1::ZoneKind_Name<v1::ZoneKind>, z.kind());
+  b.name(&v1::ZoneTransition_Name<v1::ZoneTransition>, z.transition());
   b.i64(z.at_us());
   b.position(z.has_position(), z.position());
   b.u64("zone.bundle_version", z.bundle_version());
@@ -385,7 +386,7 @@ void state_rows(const v1::Envelope& e, RowBuilder& b) {
   b.text("vehicle_id", e.vehicle_id());
   b.i64(s.updated_at_us());
   b.boolean(s.online());
-  b.raw(enum_name(&v1::VehicleMode_Name<v1::VehicleMode>, s.mode()));
+  b.name(&v1::VehicleMode_Name<v1::VehicleMode>, s.mode());
   b.opt_u32("soc_pct", s.has_soc_pct(), s.soc_pct());
   b.opt_u32("range_m", s.has_range_m(), s.range_m());
   b.opt_u64("odo_m", s.has_odo_m(), s.odo_m());
@@ -427,7 +428,7 @@ void state_rows(const v1::Envelope& e, RowBuilder& b) {
   b.opt_u32("state.speed_limit_dkmh", s.has_speed_limit_dkmh(), s.speed_limit_dkmh());
   b.opt_u32("state.assist", s.has_assist(), s.assist());
   b.text("state.assist_name", s.assist_name());
-  b.raw(enum_name(&v1::BusState_Name<v1::BusState>, s.bus_state()));
+  b.name(&v1::BusState_Name<v1::BusState>, s.bus_state());
   const v1::Position& p = s.position();
   b.opt_i64(s.has_position() && p.fixed_at_us() != 0, p.fixed_at_us());
   b.opt_u32("state.position.horizontal_error_dm", s.has_position() && p.has_horizontal_error_dm(),
@@ -439,12 +440,12 @@ void state_rows(const v1::Envelope& e, RowBuilder& b) {
 void status_history_rows(const v1::Envelope& e, Decoded& d) {
   const v1::Status& s = e.status();
   RowSet& rows = new_rows(d, kStatusHistory);
-  RowBuilder b(rows.values);
+  RowBuilder b(rows);
   b.text("vehicle_id", e.vehicle_id());
   b.i64(e.created_at_us());
-  b.raw(enum_name(&v1::OnlineState_Name<v1::OnlineState>, s.state()));
+  b.name(&v1::OnlineState_Name<v1::OnlineState>, s.state());
   b.boolean(s.last_will());
-  b.raw(enum_name(&v1::ConnectionState_Name<v1::ConnectionState>, s.connection()));
+  b.name(&v1::ConnectionState_Name<v1::ConnectionState>, s.connection());
   b.opt_i64(s.connected_at_us() != 0, s.connected_at_us());
 }
 
@@ -455,7 +456,7 @@ std::optional<Reject> telemetry_rows(const v1::Envelope& e, Decoded& d) {
                                                   e.telemetry().samples_size(), kMaxSamples)};
   }
   RowSet& rows = new_rows(d, kTelemetry, static_cast<std::size_t>(e.telemetry().samples_size()));
-  RowBuilder b(rows.values);
+  RowBuilder b(rows);
   std::vector<std::uint64_t> seqs;
   seqs.reserve(e.telemetry().samples_size());
   for (const v1::TelemetrySample& s : e.telemetry().samples()) {

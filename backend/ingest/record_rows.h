@@ -2,7 +2,7 @@
 // row builder and one function per Envelope body kind that appends that body's row.
 //
 // Contract:
-//  * RowBuilder appends one value per call in the table's column order; a value PostgreSQL
+//  * RowBuilder appends one value per call in the table's column order (COPY text, copy_text.h); a value PostgreSQL
 //    could not store as sent (uint32 > 2^31-1, uint64 > 2^63-1, text with NUL or over kMaxText)
 //    is recorded as the builder's first `error` (a Reject naming the field), never thrown.
 //  * <kind>_rows(e, d, b) appends the row of e's body through `b` (whose values belong to a
@@ -13,6 +13,7 @@
 
 #include <fmt/format.h>
 
+#include <charconv>
 #include <cstdint>
 #include <limits>
 #include <optional>
@@ -20,6 +21,7 @@
 #include <string_view>
 #include <vector>
 
+#include "backend/ingest/copy_text.h"
 #include "backend/ingest/envelope_rows.h"
 #include "backend/ingest/safe_text.h"
 #include "fleetgw/v1/envelope.pb.h"
@@ -34,10 +36,13 @@ extern const TableSpec kRides, kFaults, kTelemetry, kPacks, kLocks, kResults, kC
 // Locks, faults or active alarms a VehicleState may name (a bike has a handful of each).
 constexpr int kMaxStateEntries = 256;
 
-// Appends one row's values with the checks of the contract; the first failure is kept.
+// Appends one row's values with the checks of the contract, in COPY's text format straight
+// into the RowSet's buffer (no string per value); the first failure is kept. A row is complete
+// after table->column_count values.
 class RowBuilder {
  public:
-  explicit RowBuilder(std::vector<PgParam>& out) : out_(out) {}
+  explicit RowBuilder(RowSet& set)
+      : set_(set), out_(set.copy), cols_(static_cast<std::size_t>(set.table->column_count)) {}
 
   void text(std::string_view field, std::string_view s) {
     if (s.size() > kMaxText) {
@@ -45,24 +50,43 @@ class RowBuilder {
     } else if (s.find('\0') != std::string_view::npos) {
       fail("nul_in_text", fmt::format("{}: NUL byte in \"{}\"", field, untrusted_excerpt(s)));
     }
-    out_.emplace_back(std::string(s));
+    raw(s);
   }
   void u32(std::string_view field, std::uint32_t v) {
     if (v > static_cast<std::uint32_t>(std::numeric_limits<std::int32_t>::max())) {
       fail("value_out_of_range", fmt::format("{}: {} above 2^31-1", field, v));
     }
-    out_.emplace_back(std::to_string(v));
+    number(v);
   }
   void u64(std::string_view field, std::uint64_t v) {
     if (v > static_cast<std::uint64_t>(std::numeric_limits<std::int64_t>::max())) {
       fail("value_out_of_range", fmt::format("{}: {} above 2^63-1", field, v));
     }
-    out_.emplace_back(std::to_string(v));
+    number(v);
   }
-  void i64(std::int64_t v) { out_.emplace_back(std::to_string(v)); }
-  void boolean(bool v) { out_.emplace_back(v ? "true" : "false"); }
-  void null() { out_.emplace_back(std::nullopt); }
-  void raw(std::string v) { out_.emplace_back(std::move(v)); }
+  void i64(std::int64_t v) { number(v); }
+  void boolean(bool v) {
+    begin();
+    out_ += v ? 't' : 'f';
+    end();
+  }
+  void null() {
+    begin();
+    out_ += "\\N";
+    end();
+  }
+  // A value as it is (escaped for COPY): enum names, JSON, array literals, bytea hex.
+  void raw(std::string_view v) {
+    begin();
+    append_copy_text(out_, v);
+    end();
+  }
+  // An enum's proto name (its number when it has none: a value newer than this ingest).
+  template <class Enum>
+  void name(const std::string& (*name_of)(Enum), int value) {
+    const std::string& n = name_of(static_cast<Enum>(value));
+    n.empty() ? number(value) : raw(n);
+  }
   template <class T>
   void opt_u32(std::string_view field, bool has, T v) {
     has ? u32(field, v) : null();
@@ -88,7 +112,28 @@ class RowBuilder {
   std::optional<Reject> error;
 
  private:
-  std::vector<PgParam>& out_;
+  void begin() {
+    if (col_ > 0) out_ += '\t';
+  }
+  void end() {
+    if (++col_ < cols_) return;
+    out_ += '\n';
+    col_ = 0;
+    ++set_.row_count;
+  }
+  template <class T>
+  void number(T v) {
+    begin();
+    char digits[24];
+    const auto r = std::to_chars(digits, digits + sizeof digits, v);
+    out_.append(digits, r.ptr);
+    end();
+  }
+
+  RowSet& set_;
+  std::string& out_;
+  std::size_t cols_;
+  std::size_t col_ = 0;
 };
 
 template <class Enum>

@@ -44,7 +44,7 @@ TEST(CampaignRows, OneRowPerSampleKeyedByTheRecord) {
   EXPECT_EQ(d.rows[0].table->table, "campaign_samples");
   ASSERT_EQ(d.rows[0].rows(), 2u);
   EXPECT_EQ(d.ranges, (std::vector<SequenceRange>{{41, 41}}));
-  const auto& v = d.rows[0].values;
+  const auto& v = d.rows[0].values();
   const auto cols = static_cast<std::size_t>(d.rows[0].table->column_count);
   // vehicle, store, sequence, sample_index, ..., signal, sampled_at_us, value_e6, text.
   EXPECT_EQ(*v[0], "bike-3");

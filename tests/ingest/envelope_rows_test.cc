@@ -64,7 +64,7 @@ std::string value(const Decoded& d, std::string_view column, std::size_t row = 0
     pos = end + 2;
     ++index;
   }
-  const auto& v = set.values.at(row * set.table->column_count + index);
+  const auto v = set.values().at(row * set.table->column_count + index);
   return v ? *v : "";
 }
 
@@ -234,8 +234,8 @@ TEST(IngestRows, ZoneEventBecomesOneRowAndAccountsForItsSequence) {
   v1::Envelope no_fix = zone_event(78);
   no_fix.mutable_zone()->clear_position();
   const Decoded n = decoded("fleet/v1/bike-1/zone", no_fix);
-  EXPECT_EQ(n.rows.at(0).values.at(10), std::nullopt);
-  EXPECT_EQ(n.rows.at(0).values.at(11), std::nullopt);
+  EXPECT_EQ(n.rows.at(0).values().at(10), std::nullopt);
+  EXPECT_EQ(n.rows.at(0).values().at(11), std::nullopt);
 }
 
 TEST(IngestRows, MalformedZoneEventIsRejectedWithTheReason) {

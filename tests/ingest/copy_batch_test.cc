@@ -1,0 +1,144 @@
+// The batch write built from COPY text (issue 25) against a real PostgreSQL: the paths a
+// redelivery and the latest-value tables take (text[] arrays made from the COPY text) keep every
+// byte and NULL, text the server refuses (invalid UTF-8 from a non-proto3 sender) is refused
+// for its message alone, and the worst shape of a batch's ranges (one vehicle, thousands of
+// one-record ranges, then the records between them) merges exactly.
+#include <gtest/gtest.h>
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "backend/ingest/ingest_store.h"
+#include "fleetgw/v1/envelope.pb.h"
+#include "tests/ingest/pg_fixture.h"
+
+namespace {
+
+using fleetgw::PgConnection;
+using fleetgw::ingest::Decoded;
+using fleetgw::ingest::IngestStore;
+using fleetgw::testing::PostgresCluster;
+namespace v1 = fleetgw::v1;
+
+const std::string kHostileText = "tab\there \"quoted\" back\\slash \\N new\nline\r {a,b}";
+
+class CopyBatchTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    if (fleetgw::testing::postgres_bin_dir().empty()) return;
+    cluster_ = std::make_unique<PostgresCluster>();
+  }
+  static void TearDownTestSuite() { cluster_.reset(); }
+  void SetUp() override {
+    if (!cluster_) GTEST_SKIP() << "PostgreSQL server binaries not installed";
+    PgConnection c(cluster_->conninfo());
+    c.exec("DROP SCHEMA public CASCADE; CREATE SCHEMA public", "reset");
+  }
+
+  static Decoded decode(const v1::Envelope& e, const std::string& leaf) {
+    auto r = fleetgw::ingest::decode_message(
+        "fleet/v1", "fleet/v1/" + e.vehicle_id() + "/" + leaf, e.SerializeAsString());
+    return std::get<Decoded>(r);
+  }
+  static Decoded fault(std::uint64_t seq, const std::string& name, bool with_code) {
+    v1::Envelope e;
+    e.set_vehicle_id("b1");
+    e.set_store_id("s1");
+    e.set_sequence(seq);
+    e.mutable_fault()->set_node("mc");
+    e.mutable_fault()->set_name(name);
+    if (with_code) e.mutable_fault()->set_code(7);
+    return decode(e, "fault");
+  }
+  static std::string text(const std::string& sql) {
+    PgConnection c(cluster_->conninfo());
+    const auto r = c.exec(sql, "query");
+    return r.is_null(0, 0) ? "<null>" : std::string(r.text(0, 0));
+  }
+  static std::vector<const Decoded*> pointers(const std::vector<Decoded>& v) {
+    std::vector<const Decoded*> out;
+    for (const Decoded& d : v) out.push_back(&d);
+    return out;
+  }
+
+  static std::unique_ptr<PostgresCluster> cluster_;
+};
+std::unique_ptr<PostgresCluster> CopyBatchTest::cluster_;
+
+// A batch holding a redelivered record makes its table's COPY fail on the key; the whole table
+// then goes through the text[] statement built from the COPY text: the new record's text and
+// NULL arrive exactly as with the COPY.
+TEST_F(CopyBatchTest, RedeliveryPathKeepsEveryByteAndNull) {
+  IngestStore s(cluster_->conninfo());
+  s.write(fault(1, "plain", true));
+  const std::vector<Decoded> batch = {fault(1, "plain", true), fault(2, kHostileText, false)};
+  const auto r = s.write_batch(pointers(batch));
+  EXPECT_EQ(r.stats.duplicates, 1);
+  EXPECT_EQ(r.stats.inserted, 1);
+  EXPECT_EQ(text("SELECT name FROM fault_events WHERE sequence = 2"), kHostileText);
+  EXPECT_EQ(text("SELECT code FROM fault_events WHERE sequence = 2"), "<null>");
+  EXPECT_EQ(text("SELECT code FROM fault_events WHERE sequence = 1"), "7");
+  EXPECT_TRUE(s.gaps().empty());
+}
+
+// The latest-value upsert (one per vehicle and batch) from COPY text: separators, quotes and
+// backslashes in a state's text, NULL for what it does not carry.
+TEST_F(CopyBatchTest, StateUpsertFromCopyTextKeepsTextAndNull) {
+  IngestStore s(cluster_->conninfo());
+  const auto state = [](std::int64_t at, const std::string& assist_name) {
+    v1::Envelope e;
+    e.set_vehicle_id("b\t2");
+    e.mutable_state()->set_updated_at_us(at);
+    e.mutable_state()->set_assist_name(assist_name);
+    return decode(e, "state");
+  };
+  const std::vector<Decoded> batch = {state(1'000, "old"), state(3'000, kHostileText),
+                                      state(2'000, "out of order")};
+  const auto r = s.write_batch(pointers(batch));
+  EXPECT_EQ(r.stats.stale_states, 1);  // 2,000 after 3,000 in the same batch
+  EXPECT_EQ(text("SELECT assist_name FROM vehicle_state WHERE vehicle_id = E'b\\t2'"),
+            kHostileText);
+  EXPECT_EQ(text("SELECT updated_at_us FROM vehicle_state"), "3000");
+  EXPECT_EQ(text("SELECT soc_pct FROM vehicle_state"), "<null>");
+}
+
+// Text that is not UTF-8 (a sender that is not proto3's: protobuf itself refuses it in a
+// string field) is refused by the server: that message alone is rejected with the server's
+// reason, the rest of its batch commits.
+TEST_F(CopyBatchTest, InvalidUtf8IsRefusedForItsMessageAlone) {
+  IngestStore s(cluster_->conninfo());
+  std::vector<Decoded> batch = {fault(1, "ok", true), fault(2, "XXXX", true), fault(3, "ok", true)};
+  std::string& copy = batch[1].rows.at(0).copy;
+  copy.replace(copy.find("XXXX"), 4, std::string("\xff\xfe\0z", 4));
+  const auto r = s.write_batch(pointers(batch));
+  ASSERT_EQ(r.refused.size(), 3u);
+  EXPECT_FALSE(r.refused[0].has_value());
+  ASSERT_TRUE(r.refused[1].has_value());
+  EXPECT_EQ(r.refused[1]->code, "database_refused");
+  EXPECT_FALSE(r.refused[2].has_value());
+  EXPECT_EQ(text("SELECT string_agg(sequence::text, ',' ORDER BY sequence) FROM fault_events"),
+            "1,3");
+}
+
+// The worst shape of a batch for the range bookkeeping: one vehicle, 3,000 one-record ranges
+// (every other sequence), then a batch of the 3,000 between them: one range, no gap.
+TEST_F(CopyBatchTest, OneVehicleWithThousandsOfTinyRangesMergesExactly) {
+  IngestStore s(cluster_->conninfo());
+  std::vector<Decoded> odd, even;
+  for (std::uint64_t q = 1; q <= 6'000; ++q) (q % 2 == 1 ? odd : even).push_back(fault(q, "f", true));
+  s.write_batch(pointers(odd));
+  EXPECT_EQ(text("SELECT count(*) FROM sequence_ranges"), "3000");
+  EXPECT_EQ(s.gaps().size(), 2'999u);
+  // Half of them again (a redelivery) with the rest: still exact.
+  std::vector<Decoded> rest = std::move(even);
+  for (std::uint64_t q = 1; q <= 3'000; q += 2) rest.push_back(fault(q, "f", true));
+  const auto r = s.write_batch(pointers(rest));
+  EXPECT_EQ(r.stats.duplicates, 1'500);
+  EXPECT_EQ(text("SELECT first_seq || '-' || last_seq FROM sequence_ranges"), "1-6000");
+  EXPECT_TRUE(s.gaps().empty());
+  EXPECT_EQ(text("SELECT count(*) FROM fault_events"), "6000");
+}
+
+}  // namespace
