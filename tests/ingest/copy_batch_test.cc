@@ -141,4 +141,33 @@ TEST_F(CopyBatchTest, OneVehicleWithThousandsOfTinyRangesMergesExactly) {
   EXPECT_EQ(text("SELECT count(*) FROM fault_events"), "6000");
 }
 
+// A vehicle's one range per batch grows its stored range in place (the common case), a
+// redelivered range inside a stored one changes nothing, and a range reaching the next stored
+// one joins both (the general merge): the accounted ranges stay exact on every path.
+TEST_F(CopyBatchTest, SingleRangesGrowInPlaceWithoutSwallowingTheNext) {
+  IngestStore s(cluster_->conninfo());
+  const auto write = [&](std::uint64_t first, std::uint64_t last) {
+    std::vector<Decoded> v;
+    for (std::uint64_t q = first; q <= last; ++q) v.push_back(fault(q, "f", true));
+    return s.write_batch(pointers(v)).stats;
+  };
+  const auto ranges = [&] {
+    return text(
+        "SELECT string_agg(first_seq || '-' || last_seq, ' ' ORDER BY first_seq) FROM "
+        "sequence_ranges");
+  };
+  write(1, 10);
+  write(20, 30);
+  ASSERT_EQ(ranges(), "1-10 20-30");
+  write(11, 15);  // grows 1-10 in place
+  EXPECT_EQ(ranges(), "1-15 20-30");
+  EXPECT_EQ(write(5, 7).duplicates, 3);  // covered: nothing changes
+  EXPECT_EQ(ranges(), "1-15 20-30");
+  write(16, 19);  // reaches 20-30: one range
+  EXPECT_EQ(ranges(), "1-30");
+  write(31, 31);
+  EXPECT_EQ(ranges(), "1-31");
+  EXPECT_TRUE(s.gaps().empty());
+}
+
 }  // namespace
