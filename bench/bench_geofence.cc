@@ -65,7 +65,7 @@ void BM_EngineStep(benchmark::State& state) {
   // A random walk at riding speed, 1 fix per second of virtual time.
   std::mt19937 rng(2);
   std::normal_distribution<double> step(0, 5);
-  std::vector<fleetgw::gnss::Position> track;
+  std::vector<fleetgw::gnss::Fix> track;
   double x = 0, y = 0;
   for (int i = 0; i < 100'000; ++i) {
     x = std::clamp(x + step(rng), -6500.0, 6500.0);

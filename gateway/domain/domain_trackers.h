@@ -44,7 +44,7 @@ class DomainTrackers {
   void tick(Micros now);
   // The current GNSS fix, or nullopt when the position is unknown (the owner calls this on
   // every change: telemetry samples and lock events carry the latest one).
-  void on_position(const std::optional<gnss::Position>& position) {
+  void on_position(const std::optional<gnss::Fix>& position) {
     telemetry_.set_position(position);
     locks_.set_position(position);
     if (position) rides_.on_position(*position);

@@ -36,7 +36,7 @@ class LockTracker {
   void on_message(const motinova::DecodedMessage& msg, Micros now);
   void tick(Micros now);
   // The current GNSS fix (nullopt: unknown); lock events carry the latest one given.
-  void set_position(const std::optional<gnss::Position>& position) { position_ = position; }
+  void set_position(const std::optional<gnss::Fix>& position) { position_ = position; }
 
   using Observer = std::function<void(const storage::LockEventRow& event, int new_raw)>;
   void set_observer(Observer observer) { observer_ = std::move(observer); }
@@ -65,7 +65,7 @@ class LockTracker {
   LockConfig config_;
   DomainSink& sink_;
   std::array<Lock, 5> locks_{};
-  std::optional<gnss::Position> position_;
+  std::optional<gnss::Fix> position_;
   Observer observer_;
 };
 

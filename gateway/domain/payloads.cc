@@ -21,7 +21,7 @@ using wire::s32;
 using wire::u32;
 using wire::u64;
 
-void set_position(v1::Position& out, const gnss::Position& p) {
+void set_position(v1::Position& out, const gnss::Fix& p) {
   out.set_lat_e7(s32(p.lat_deg * 1e7));
   out.set_lon_e7(s32(p.lon_deg * 1e7));
   if (p.alt_m) out.set_alt_dm(s32(*p.alt_m * 10.0));
@@ -110,7 +110,7 @@ storage::Bytes ride_payload(const storage::RideRow& r, const RideExtras& extras)
     track.set_tolerance_m(u32(t.tolerance_m()));
     int32_t lat = 0;
     int32_t lon = 0;
-    for (const gnss::Position& p : t.simplified()) {
+    for (const gnss::Fix& p : t.simplified()) {
       const int32_t la = s32(p.lat_deg * 1e7);
       const int32_t lo = s32(p.lon_deg * 1e7);
       track.add_lat_e7_delta(la - lat);
@@ -215,7 +215,7 @@ storage::Bytes telemetry_payload(const TelemetryReading& r) {
 }
 
 storage::Bytes lock_payload(const storage::LockEventRow& e, int old_raw, int new_raw,
-                            const std::optional<gnss::Position>& where) {
+                            const std::optional<gnss::Fix>& where) {
   v1::LockEvent m;
   m.set_lock_kind(e.kind);
   m.set_previous_state(lock_state_of(old_raw));

@@ -53,7 +53,7 @@ struct TelemetryReading {
   std::optional<bool> charging;
   std::optional<int> wheel_lock_state;
   std::optional<int> battery_lock_state;
-  std::optional<gnss::Position> position;  // current fix at sampling time; nullopt = unknown
+  std::optional<gnss::Fix> position;  // current fix at sampling time; nullopt = unknown
 
   storage::TelemetryRow record() const;
 };
@@ -62,6 +62,6 @@ storage::Bytes telemetry_payload(const TelemetryReading& reading);
 // `old_raw`/`new_raw`: lock-state codes (U19) behind the event's state names.
 // `where`: the current fix when the lock changed state (nullopt: position unknown).
 storage::Bytes lock_payload(const storage::LockEventRow& event, int old_raw, int new_raw,
-                            const std::optional<gnss::Position>& where = std::nullopt);
+                            const std::optional<gnss::Fix>& where = std::nullopt);
 
 }  // namespace fleetgw::domain

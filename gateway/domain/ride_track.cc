@@ -14,7 +14,7 @@ struct Xy {
 };
 
 // Metres east/north of `origin` (equirectangular: fine over a few tens of km).
-Xy project(const gnss::Position& p, const gnss::Position& origin) {
+Xy project(const gnss::Fix& p, const gnss::Fix& origin) {
   return {(p.lon_deg - origin.lon_deg) * kRad * kEarthRadiusM * std::cos(origin.lat_deg * kRad),
           (p.lat_deg - origin.lat_deg) * kRad * kEarthRadiusM};
 }
@@ -31,7 +31,7 @@ double segment_distance(Xy p, Xy a, Xy b) {
 
 }  // namespace
 
-std::vector<gnss::Position> simplify_track(const std::vector<gnss::Position>& points,
+std::vector<gnss::Fix> simplify_track(const std::vector<gnss::Fix>& points,
                                            double tolerance_m) {
   if (points.size() <= 2) return points;
   std::vector<Xy> xy;
@@ -59,14 +59,14 @@ std::vector<gnss::Position> simplify_track(const std::vector<gnss::Position>& po
       stack.emplace_back(at, last);
     }
   }
-  std::vector<gnss::Position> out;
+  std::vector<gnss::Fix> out;
   for (std::size_t i = 0; i < points.size(); ++i) {
     if (keep[i]) out.push_back(points[i]);
   }
   return out;
 }
 
-void RideTrack::add(const gnss::Position& p) {
+void RideTrack::add(const gnss::Fix& p) {
   if (!start_) {
     start_ = p;
     end_ = p;
@@ -90,8 +90,8 @@ void RideTrack::add(const gnss::Position& p) {
   }
 }
 
-void RideTrack::resume(const gnss::Position& start, const gnss::Position& end, double distance_m,
-                       std::vector<gnss::Position> vertices) {
+void RideTrack::resume(const gnss::Fix& start, const gnss::Fix& end, double distance_m,
+                       std::vector<gnss::Fix> vertices) {
   start_ = start;
   end_ = end;
   distance_m_ = distance_m;
@@ -99,8 +99,8 @@ void RideTrack::resume(const gnss::Position& start, const gnss::Position& end, d
   if (vertices_.empty()) vertices_.push_back(start);
 }
 
-std::vector<gnss::Position> RideTrack::simplified() const {
-  std::vector<gnss::Position> points = vertices_;
+std::vector<gnss::Fix> RideTrack::simplified() const {
+  std::vector<gnss::Fix> points = vertices_;
   // The end is the latest fix even when it was too close to the last vertex to be one.
   if (end_ && !points.empty() && !(points.back() == *end_)) points.push_back(*end_);
   return simplify_track(points, options_.tolerance_m);

@@ -35,31 +35,31 @@ class RideTrack {
  public:
   explicit RideTrack(RideTrackOptions options = {}) : options_(options) {}
 
-  void add(const gnss::Position& p);
+  void add(const gnss::Fix& p);
   // Continues a track checkpointed by a previous run (the ride row after a restart): its start,
   // its latest fix, its GNSS distance and its simplified vertices (at least the start). The
   // next fix's step is measured from the last vertex, so the distance goes on where it stopped.
-  void resume(const gnss::Position& start, const gnss::Position& end, double distance_m,
-              std::vector<gnss::Position> vertices);
+  void resume(const gnss::Fix& start, const gnss::Fix& end, double distance_m,
+              std::vector<gnss::Fix> vertices);
   bool empty() const { return !start_.has_value(); }
-  const std::optional<gnss::Position>& start() const { return start_; }
-  const std::optional<gnss::Position>& end() const { return end_; }
+  const std::optional<gnss::Fix>& start() const { return start_; }
+  const std::optional<gnss::Fix>& end() const { return end_; }
   double distance_m() const { return distance_m_; }
   std::size_t vertices() const { return vertices_.size(); }
-  std::vector<gnss::Position> simplified() const;
+  std::vector<gnss::Fix> simplified() const;
   double tolerance_m() const { return options_.tolerance_m; }
 
  private:
   RideTrackOptions options_;
-  std::optional<gnss::Position> start_;
-  std::optional<gnss::Position> end_;
-  std::vector<gnss::Position> vertices_;
+  std::optional<gnss::Fix> start_;
+  std::optional<gnss::Fix> end_;
+  std::vector<gnss::Fix> vertices_;
   double distance_m_ = 0;
 };
 
 // Douglas-Peucker: the subset of `points` (first and last always kept) such that every dropped
 // point lies within `tolerance_m` of the kept polyline.
-std::vector<gnss::Position> simplify_track(const std::vector<gnss::Position>& points,
+std::vector<gnss::Fix> simplify_track(const std::vector<gnss::Fix>& points,
                                            double tolerance_m);
 
 }  // namespace fleetgw::domain

@@ -66,12 +66,12 @@ void resume_track(storage::RideRow& rec, RideTrack& track) {
     return;
   }
   auto at = [](double lat, double lon) {
-    gnss::Position p;
+    gnss::Fix p;
     p.lat_deg = lat;
     p.lon_deg = lon;
     return p;
   };
-  std::vector<gnss::Position> vertices;
+  std::vector<gnss::Fix> vertices;
   vertices.reserve(parsed.points.size());
   for (const auto& p : parsed.points) vertices.push_back(at(p.lat_deg, p.lon_deg));
   track.resume(at(*rec.start_lat_deg, *rec.start_lon_deg), at(*rec.end_lat_deg, *rec.end_lon_deg),
@@ -405,7 +405,7 @@ storage::RideRow RideTracker::snapshot(const Open& o, Micros until) const {
     rec.end_lon_deg = o.track.end()->lon_deg;
     rec.gnss_distance_m = o.track.distance_m();
     std::vector<storage::TrackPoint> points;
-    for (const gnss::Position& p : o.track.simplified()) points.push_back({p.lat_deg, p.lon_deg});
+    for (const gnss::Fix& p : o.track.simplified()) points.push_back({p.lat_deg, p.lon_deg});
     rec.track = storage::track_text(points);
   }
   return rec;

@@ -61,7 +61,7 @@ class RideTracker {
   // A fault was raised (fed by the fault tracker through the facade).
   void on_fault_raised(Micros now);
   // A current GNSS fix (the facade passes every one): the open ride's track (RideTrack).
-  void on_position(const gnss::Position& position) {
+  void on_position(const gnss::Fix& position) {
     if (open_) open_->track.add(position);
   }
 

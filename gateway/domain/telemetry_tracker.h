@@ -33,7 +33,7 @@ class TelemetryTracker {
   void tick(Micros now);
   void set_riding(bool riding, Micros now);
   // The current GNSS fix (nullopt: unknown); samples carry the latest one given.
-  void set_position(const std::optional<gnss::Position>& position) { position_ = position; }
+  void set_position(const std::optional<gnss::Fix>& position) { position_ = position; }
 
   uint64_t samples() const { return samples_; }
   Micros next_due() const { return next_due_.value_or(Micros::max()); }
@@ -65,7 +65,7 @@ class TelemetryTracker {
   std::optional<Reading> bms_v_, bms_i_, bms_soc_, remaining_, full_, pack_t_;
   std::array<std::optional<Reading>, 5> lock_state_{};
   uint64_t samples_ = 0;
-  std::optional<gnss::Position> position_;
+  std::optional<gnss::Fix> position_;
 };
 
 }  // namespace fleetgw::domain

@@ -190,7 +190,7 @@ std::variant<ZoneRuleSpec, std::string> rule_spec_of(const v1::ZoneRule& r) {
 }
 
 // The issue-27 fields of zone `z` (rules, window, polygons, names) into `zone`, or why not.
-std::optional<std::string> gbfs_fields_of(const v1::Zone& z, Zone& zone,
+std::optional<std::string> gbfs_fields_of(const v1::Zone& z, EnforcedZone& zone,
                                           const BundleLimits& limits) {
   if (z.kind() != v1::ZONE_KIND_RULES && z.rules_size() > 0) {
     return std::string("rules are only for zones of kind rules");
@@ -319,7 +319,7 @@ std::variant<ZoneSet, std::string> compile_zones(const v1::ZoneBundle& bundle,
       }
       rings.push_back(std::move(std::get<Ring>(ring)));
     }
-    Zone zone{z.id(),
+    EnforcedZone zone{z.id(),
               z.name(),
               *kind,
               static_cast<int>(z.speed_limit_kmh()),

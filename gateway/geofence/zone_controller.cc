@@ -23,7 +23,7 @@ std::optional<BundleVerdict> ZoneController::restore(Micros now, std::string& er
 
 BundleVerdict ZoneController::on_bundle(std::span<const std::uint8_t> payload, Micros now,
                                         std::vector<ZoneEvent>& events, std::string& persist_error,
-                                        const gnss::Position* fix, BundleTopic topic) {
+                                        const gnss::Fix* fix, BundleTopic topic) {
   persist_error.clear();
   BundleVerdict verdict = authority_.offer(payload, topic);
   count(verdict, now);
@@ -57,7 +57,7 @@ void ZoneController::count(const BundleVerdict& verdict, Micros now) {
   counters_.last_refusal_at = now;
 }
 
-void ZoneController::on_position(Micros now, const gnss::Position* fix,
+void ZoneController::on_position(Micros now, const gnss::Fix* fix,
                                  std::vector<ZoneEvent>& events) {
   engine_.step(now, fix, events);
 }

@@ -72,11 +72,11 @@ class ZoneController {
                                        std::vector<ZoneEvent>& events);
   BundleVerdict on_bundle(std::span<const std::uint8_t> payload, Micros now,
                           std::vector<ZoneEvent>& events, std::string& persist_error,
-                          const gnss::Position* fix = nullptr,
+                          const gnss::Fix* fix = nullptr,
                           BundleTopic topic = BundleTopic::kFleet);
   BundleVerdict on_oversized(std::size_t bytes, std::size_t limit, Micros now);
   const BundleCounters& counters() const { return counters_; }
-  void on_position(Micros now, const gnss::Position* fix, std::vector<ZoneEvent>& events);
+  void on_position(Micros now, const gnss::Fix* fix, std::vector<ZoneEvent>& events);
   std::optional<McWrite> tick(Micros now, const McView& mc, std::vector<ZoneEvent>& events);
   std::optional<McWrite> tick(Micros now, const McView& mc) {
     std::vector<ZoneEvent> dropped;
@@ -86,10 +86,10 @@ class ZoneController {
   std::optional<Micros> next_deadline(Micros now) const { return engine_.next_change(now); }
 
   Demands demands(Micros now) const { return engine_.demands(now); }
-  ParkingVerdict parking(const gnss::Position* fix, bool ride_ending, Micros now) const {
+  ParkingVerdict parking(const gnss::Fix* fix, bool ride_ending, Micros now) const {
     return engine_.parking(fix, ride_ending, now);
   }
-  ParkingVerdict starting(const gnss::Position* fix, bool ride_starting, Micros now) const {
+  ParkingVerdict starting(const gnss::Fix* fix, bool ride_starting, Micros now) const {
     return engine_.starting(fix, ride_starting, now);
   }
   const ZoneAuthority& authority() const { return authority_; }

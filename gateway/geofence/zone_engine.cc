@@ -46,7 +46,7 @@ bool ZoneRuleSpec::applies_to(std::string_view vehicle_type_id) const {
                                                vehicle_type_id) != vehicle_type_ids.end();
 }
 
-std::optional<Effects> Zone::effects_for(std::string_view vehicle_type_id) const {
+std::optional<Effects> EnforcedZone::effects_for(std::string_view vehicle_type_id) const {
   Effects e;
   switch (kind) {
     case ZoneKind::kOperatingArea:
@@ -118,8 +118,8 @@ std::optional<bool> ZoneEngine::inside(std::size_t index) const {
   return states_[index].confirmed == Side::kInside;
 }
 
-ZoneEvent ZoneEngine::event_for(const Zone& zone, Transition t, Micros now,
-                                const std::optional<gnss::Position>& where) const {
+ZoneEvent ZoneEngine::event_for(const EnforcedZone& zone, Transition t, Micros now,
+                                const std::optional<gnss::Fix>& where) const {
   ZoneEvent e;
   e.zone_id = zone.id;
   e.zone_name = zone.name;
@@ -199,7 +199,7 @@ void ZoneEngine::advance(Micros now, std::vector<ZoneEvent>& events) {
   if (changed) update_targets(now);
 }
 
-Demands ZoneEngine::step(Micros now, const gnss::Position* fix, std::vector<ZoneEvent>& events) {
+Demands ZoneEngine::step(Micros now, const gnss::Fix* fix, std::vector<ZoneEvent>& events) {
   if (fix == nullptr) {
     for (auto& s : states_) s.pending = Side::kUnknown;
     advance(now, events);
@@ -210,7 +210,7 @@ Demands ZoneEngine::step(Micros now, const gnss::Position* fix, std::vector<Zone
   if (zones_) {
     for (std::size_t i = 0; i < zones_->zones.size(); ++i) {
       if (!effects_[i]) continue;  // not for this bike's type
-      const Zone& zone = zones_->zones[i];
+      const EnforcedZone& zone = zones_->zones[i];
       const bool exists = existed_[i];
       State& s = states_[i];
       const Where w = zone.shape.locate(fix->lat_deg, fix->lon_deg, config_.margin_m);
@@ -241,13 +241,13 @@ Demands ZoneEngine::step(Micros now, const gnss::Position* fix, std::vector<Zone
   return demands(now);
 }
 
-void ZoneEngine::relocate(Micros now, const gnss::Position& fix, std::vector<ZoneEvent>& events) {
+void ZoneEngine::relocate(Micros now, const gnss::Fix& fix, std::vector<ZoneEvent>& events) {
   if (!zones_) return;
   last_fix_ = fix;
   advance(now, events);
   for (std::size_t i = 0; i < zones_->zones.size(); ++i) {
     if (!effects_[i]) continue;  // not for this bike's type
-    const Zone& zone = zones_->zones[i];
+    const EnforcedZone& zone = zones_->zones[i];
     State& s = states_[i];
     const Where w = zone.shape.locate(fix.lat_deg, fix.lon_deg, config_.margin_m);
     if (w == Where::kNearBoundary) continue;
@@ -285,7 +285,7 @@ Effects ZoneEngine::effective(Micros now) const {
   const bool first_match = zones_->precedence == Precedence::kFirstMatch;
   bool all_outside = true;
   for (std::size_t i = 0; i < zones_->zones.size(); ++i) {
-    const Zone& zone = zones_->zones[i];
+    const EnforcedZone& zone = zones_->zones[i];
     if (zone.kind == ZoneKind::kOperatingArea || !live(i, now)) continue;
     const Side side = states_[i].confirmed;
     if (side != Side::kInside) {
@@ -317,7 +317,7 @@ Demands ZoneEngine::demands(Micros now) const {
   if (zones_) {
     bool any_area = false, inside_area = false, every_area_known = true;
     for (std::size_t i = 0; i < zones_->zones.size(); ++i) {
-      const Zone& zone = zones_->zones[i];
+      const EnforcedZone& zone = zones_->zones[i];
       const Side side = states_[i].confirmed;
       if (zone.kind == ZoneKind::kOperatingArea && live(i, now)) {
         any_area = true;
@@ -349,13 +349,13 @@ std::optional<Micros> ZoneEngine::next_change(Micros now) const {
   return a;
 }
 
-ZoneEngine::Judged ZoneEngine::judge(const gnss::Position& fix, Micros now,
+ZoneEngine::Judged ZoneEngine::judge(const gnss::Fix& fix, Micros now,
                                      bool Effects::*effect) const {
   Judged j;
   const bool first_match = zones_->precedence == Precedence::kFirstMatch;
   bool all_outside = true;
   for (std::size_t i = 0; i < zones_->zones.size(); ++i) {
-    const Zone& zone = zones_->zones[i];
+    const EnforcedZone& zone = zones_->zones[i];
     if (zone.kind == ZoneKind::kOperatingArea || !live(i, now)) continue;
     const Where w = zone.shape.locate(fix.lat_deg, fix.lon_deg, config_.margin_m);
     if (w == Where::kOutside) continue;
@@ -378,7 +378,7 @@ ZoneEngine::Judged ZoneEngine::judge(const gnss::Position& fix, Micros now,
   return j;
 }
 
-ParkingVerdict ZoneEngine::verdict_of(const Judged& j, const gnss::Position& fix, Micros now,
+ParkingVerdict ZoneEngine::verdict_of(const Judged& j, const gnss::Fix& fix, Micros now,
                                       Transition reported, Transition refused, bool refuse) const {
   ParkingVerdict v;
   if (!j.near) return v;
@@ -402,14 +402,14 @@ ParkingVerdict ZoneEngine::verdict_of(const Judged& j, const gnss::Position& fix
   return v;
 }
 
-ParkingVerdict ZoneEngine::parking(const gnss::Position* fix, bool ride_ending, Micros now) const {
+ParkingVerdict ZoneEngine::parking(const gnss::Fix* fix, bool ride_ending, Micros now) const {
   if (fix == nullptr || !zones_) return {};
   return verdict_of(judge(*fix, now, &Effects::no_parking), *fix, now,
                     Transition::kLockedInNoParking, Transition::kLockRefused,
                     ride_ending && config_.refuse_ride_ending_locks);
 }
 
-ParkingVerdict ZoneEngine::starting(const gnss::Position* fix, bool ride_starting,
+ParkingVerdict ZoneEngine::starting(const gnss::Fix* fix, bool ride_starting,
                                     Micros now) const {
   if (fix == nullptr || !zones_ || !ride_starting) return {};
   auto v = verdict_of(judge(*fix, now, &Effects::no_start), *fix, now, Transition::kUnlockRefused,

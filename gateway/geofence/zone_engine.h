@@ -103,7 +103,7 @@ struct ZoneRuleSpec {
   bool applies_to(std::string_view vehicle_type_id) const;
 };
 
-struct Zone {
+struct EnforcedZone {
   std::string id;
   std::string name;
   ZoneKind kind = ZoneKind::kSlow;
@@ -124,7 +124,7 @@ enum class Precedence : std::uint8_t { kUnion = 0, kFirstMatch = 1 };
 struct ZoneSet {
   std::uint64_t version = 0;
   Micros issued_at{0};
-  std::vector<Zone> zones;
+  std::vector<EnforcedZone> zones;
   std::size_t vertices = 0;
   Precedence precedence = Precedence::kUnion;
   std::vector<ZoneRuleSpec> default_rules;  // kFirstMatch: outside every zone
@@ -158,7 +158,7 @@ struct ZoneEvent {
   ZoneKind kind = ZoneKind::kSlow;
   Transition transition = Transition::kEnter;
   Micros at{0};
-  std::optional<gnss::Position> position;  // absent only for a zone removed with no fix known
+  std::optional<gnss::Fix> position;  // absent only for a zone removed with no fix known
   std::uint64_t bundle_version = 0;
   int speed_limit_kmh = 0;
 };
@@ -204,15 +204,15 @@ class ZoneEngine {
   explicit ZoneEngine(EngineConfig config = {});
 
   void set_zones(std::shared_ptr<const ZoneSet> zones, Micros now, std::vector<ZoneEvent>& events);
-  Demands step(Micros now, const gnss::Position* fix, std::vector<ZoneEvent>& events);
-  void relocate(Micros now, const gnss::Position& fix, std::vector<ZoneEvent>& events);
+  Demands step(Micros now, const gnss::Fix* fix, std::vector<ZoneEvent>& events);
+  void relocate(Micros now, const gnss::Fix& fix, std::vector<ZoneEvent>& events);
   // Window edges up to `now`: ENTER/EXIT of a zone the bike is inside, new targets.
   void advance(Micros now, std::vector<ZoneEvent>& events);
   Demands demands(Micros now) const;
   std::optional<Micros> next_change(Micros now) const;
-  ParkingVerdict parking(const gnss::Position* fix, bool ride_ending, Micros now) const;
+  ParkingVerdict parking(const gnss::Fix* fix, bool ride_ending, Micros now) const;
   // An unlock at `fix`: `refuse` when it starts a ride clearly inside a no-start zone.
-  ParkingVerdict starting(const gnss::Position* fix, bool ride_starting, Micros now) const;
+  ParkingVerdict starting(const gnss::Fix* fix, bool ride_starting, Micros now) const;
 
   const std::shared_ptr<const ZoneSet>& zones() const { return zones_; }
   const EngineConfig& config() const { return config_; }
@@ -226,8 +226,8 @@ class ZoneEngine {
     Side pending = Side::kUnknown;
     Micros pending_since{0};
   };
-  ZoneEvent event_for(const Zone& zone, Transition t, Micros now,
-                      const std::optional<gnss::Position>& where) const;
+  ZoneEvent event_for(const EnforcedZone& zone, Transition t, Micros now,
+                      const std::optional<gnss::Fix>& where) const;
   void update_targets(Micros now);
   // Does zone i take part at `now` (for this bike's type, within its window)?
   bool live(std::size_t i, Micros now) const;
@@ -237,11 +237,11 @@ class ZoneEngine {
   struct Judged {
     bool near = false;    // inside or within the margin of a zone with the effect
     bool inside = false;  // clearly inside it (past the margin)
-    const Zone* zone = nullptr;
+    const EnforcedZone* zone = nullptr;
     bool by_default = false;  // the default rules outside every zone
   };
-  Judged judge(const gnss::Position& fix, Micros now, bool Effects::*effect) const;
-  ParkingVerdict verdict_of(const Judged& j, const gnss::Position& fix, Micros now,
+  Judged judge(const gnss::Fix& fix, Micros now, bool Effects::*effect) const;
+  ParkingVerdict verdict_of(const Judged& j, const gnss::Fix& fix, Micros now,
                             Transition reported, Transition refused, bool refuse) const;
 
   EngineConfig config_;
@@ -250,7 +250,7 @@ class ZoneEngine {
   std::vector<std::optional<Effects>> effects_;  // per zone, for this bike's type
   std::optional<Effects> default_effects_;
   std::vector<bool> existed_;  // per zone: within its window at the last advance()
-  std::optional<gnss::Position> last_fix_;
+  std::optional<gnss::Fix> last_fix_;
   Ramp speed_;
   Ramp assist_;
 };

@@ -4,7 +4,7 @@
 
 namespace fleetgw::gnss {
 
-void GnssState::on_fix(const Position& fix) {
+void GnssState::on_fix(const Fix& fix) {
   source_ = Source::kConnected;
   fix_valid_ = true;
   last_ = fix;
@@ -27,7 +27,7 @@ void GnssState::on_source_connected(Micros) {
   fix_valid_ = false;
 }
 
-std::optional<Position> GnssState::current(Micros now) const {
+std::optional<Fix> GnssState::current(Micros now) const {
   if (!fix_valid_ || !last_ || source_ != Source::kConnected) return std::nullopt;
   if (now - last_->received_at > options_.max_age) return std::nullopt;
   return last_;

@@ -30,19 +30,19 @@ class GnssState {
  public:
   explicit GnssState(GnssOptions options = {}) : options_(options) {}
 
-  void on_fix(const Position& fix);  // uses fix.received_at as "now"
+  void on_fix(const Fix& fix);  // uses fix.received_at as "now"
   void on_no_fix(Micros now);
   void on_source_lost(Micros now);
   void on_source_connected(Micros now);
 
-  std::optional<Position> current(Micros now) const;
+  std::optional<Fix> current(Micros now) const;
   bool fault(Micros now) const { return !current(now).has_value(); }
   std::string_view reason(Micros now) const;
   // When the current fix goes stale; nullopt when there is no current fix.
   std::optional<Micros> next_change(Micros now) const;
 
   // The last fix ever received (even a stale one), e.g. "last seen at" for status.
-  const std::optional<Position>& last_fix() const { return last_; }
+  const std::optional<Fix>& last_fix() const { return last_; }
   uint64_t fixes() const { return fixes_; }
 
  private:
@@ -50,7 +50,7 @@ class GnssState {
   GnssOptions options_;
   Source source_ = Source::kNeverConnected;
   bool fix_valid_ = false;  // the receiver's latest report was a fix
-  std::optional<Position> last_;
+  std::optional<Fix> last_;
   uint64_t fixes_ = 0;
 };
 

@@ -164,7 +164,7 @@ GpsdClient::ReadStatus GpsdClient::read_available(Micros now, std::vector<GnssRe
     GnssReport report;
     if (g.fix.mode >= MODE_2D && (g.set & LATLON_SET) &&
         plausible(g.fix.latitude, g.fix.longitude)) {
-      Position p;
+      Fix p;
       p.lat_deg = g.fix.latitude;
       p.lon_deg = g.fix.longitude;
       p.three_d = g.fix.mode >= MODE_3D;

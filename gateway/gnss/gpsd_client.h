@@ -32,7 +32,7 @@
 namespace fleetgw::gnss {
 
 struct GnssReport {
-  std::optional<Position> fix;  // nullopt: the receiver reports no fix
+  std::optional<Fix> fix;  // nullopt: the receiver reports no fix
 };
 
 class GpsdClient {

@@ -22,7 +22,7 @@ namespace fleetgw::gnss {
 
 using Micros = std::chrono::microseconds;
 
-struct Position {
+struct Fix {
   double lat_deg = 0;
   double lon_deg = 0;
   std::optional<double> alt_m;
@@ -38,13 +38,13 @@ struct Position {
   Micros fixed_at{0};
   Micros received_at{0};
 
-  friend bool operator==(const Position&, const Position&) = default;
+  friend bool operator==(const Fix&, const Fix&) = default;
 };
 
 // Great-circle distance in metres (haversine on a sphere of the WGS-84 mean radius: within
 // 0.5 % of the ellipsoidal distance, far below GNSS noise for a ride).
 double distance_m(double lat1_deg, double lon1_deg, double lat2_deg, double lon2_deg);
-inline double distance_m(const Position& a, const Position& b) {
+inline double distance_m(const Fix& a, const Fix& b) {
   return distance_m(a.lat_deg, a.lon_deg, b.lat_deg, b.lon_deg);
 }
 

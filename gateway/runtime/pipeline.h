@@ -168,7 +168,7 @@ class Pipeline {
   // Geofences (issue 14; pipeline_zones.cc): built from [geofence], fed by apply_gnss(), their
   // MC writes started at each settle through the command service.
   void start_zones(const config::Config& config);
-  void apply_zones(Micros wall, const std::optional<gnss::Position>& position);
+  void apply_zones(Micros wall, const std::optional<gnss::Fix>& position);
   void tick_zones();
   void record_zone_event(const geofence::ZoneEvent& e);  // log, store, queue for the uplink
   // A message of a zone-bundle topic (Uplink::take_zone_bundles), judged, stored, enforced at
@@ -178,7 +178,7 @@ class Pipeline {
   // they happened in a no-parking zone.
   void judge_bike_locks();
   // Raises / clears the outside_operating_area alarm when the engine's demand changes.
-  void update_area_alarm(Micros wall, const std::optional<gnss::Position>& position);
+  void update_area_alarm(Micros wall, const std::optional<gnss::Fix>& position);
   std::optional<std::chrono::steady_clock::time_point> zones_deadline() const;
   void update_vehicle_state();
   void attach_parked_feed();
@@ -217,7 +217,7 @@ class Pipeline {
   geofence::BikeLockWatch bike_locks_;
   struct BikeLock {
     Micros wall{0};
-    std::optional<gnss::Position> fix;  // current when the lock was heard
+    std::optional<gnss::Fix> fix;  // current when the lock was heard
   };
   std::vector<BikeLock> pending_bike_locks_;  // noted in the recorder's turn, judged in settle()
   StateThrottle state_throttle_;  // when the retained vehicle state is rebuilt (pipeline_state.cc)

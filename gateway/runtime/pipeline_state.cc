@@ -41,13 +41,13 @@ void Pipeline::update_vehicle_state() {
   const domain::DomainTrackers& trackers = recorder_->trackers();
   in.active_alarms = trackers.alarms().active_kinds();
   in.outside_operating_area = outside_operating_area_;
-  std::optional<gnss::Position> position;
+  std::optional<gnss::Fix> position;
   if (gnss_) position = gnss_->state().current(gnss_->wall_now());
   in.parked = parked();
   in.bus_state = bus_state();
   in.now = bus_now();
   in.position = state_position_.comparable(position);
-  const std::optional<gnss::Position> compared = in.position;
+  const std::optional<gnss::Fix> compared = in.position;
   if (!state_throttle_.offer(build_vehicle_state(in, false), std::chrono::steady_clock::now())) {
     return;
   }

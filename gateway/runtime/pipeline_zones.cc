@@ -92,7 +92,7 @@ void Pipeline::record_zone_event(const geofence::ZoneEvent& e) {
   recorder_->record_zone_event(zone_record(e), storage::Bytes(payload.begin(), payload.end()));
 }
 
-void Pipeline::update_area_alarm(Micros wall, const std::optional<gnss::Position>& position) {
+void Pipeline::update_area_alarm(Micros wall, const std::optional<gnss::Fix>& position) {
   const bool outside = zones_->demands(wall).outside_operating_area;
   if (outside == outside_operating_area_) return;
   outside_operating_area_ = outside;
@@ -147,7 +147,7 @@ void Pipeline::start_zones(const config::Config& config) {
   // No-parking zones judge lock commands at the fix current NOW (a stale or unknown position
   // never refuses a lock: a rider must always be able to end a ride).
   commands_->set_lock_guard([this](bool ride_ending, Micros) -> std::optional<std::string> {
-    std::optional<gnss::Position> fix;
+    std::optional<gnss::Fix> fix;
     if (gnss_) fix = gnss_->state().current(gnss_->wall_now());
     const auto verdict = zones_->parking(fix ? &*fix : nullptr, ride_ending, system_now());
     if (verdict.event) record_zone_event(*verdict.event);
@@ -158,7 +158,7 @@ void Pipeline::start_zones(const config::Config& config) {
   // No-start zones (issue 27) judge unlock commands the same way: a ride is not started
   // clearly inside one; an unknown position never refuses.
   commands_->set_unlock_guard([this](bool ride_starting, Micros) -> std::optional<std::string> {
-    std::optional<gnss::Position> fix;
+    std::optional<gnss::Fix> fix;
     if (gnss_) fix = gnss_->state().current(gnss_->wall_now());
     const auto verdict = zones_->starting(fix ? &*fix : nullptr, ride_starting, system_now());
     if (verdict.event) record_zone_event(*verdict.event);
@@ -190,7 +190,7 @@ void Pipeline::start_zones(const config::Config& config) {
   }
 }
 
-void Pipeline::apply_zones(Micros wall, const std::optional<gnss::Position>& position) {
+void Pipeline::apply_zones(Micros wall, const std::optional<gnss::Fix>& position) {
   std::vector<geofence::ZoneEvent> events;
   zones_->on_position(wall, position ? &*position : nullptr, events);
   for (const auto& e : events) record_zone_event(e);
@@ -200,7 +200,7 @@ void Pipeline::apply_zones(Micros wall, const std::optional<gnss::Position>& pos
 
 void Pipeline::on_zone_bundle(const uplink::ZoneBundleMessage& m) {
   const Micros wall = system_now();
-  std::optional<gnss::Position> fix;
+  std::optional<gnss::Fix> fix;
   if (gnss_) fix = gnss_->state().current(gnss_->wall_now());
   std::vector<geofence::ZoneEvent> events;
   std::string persist_error;
@@ -280,7 +280,7 @@ void Pipeline::tick_zones() {
   const auto write = zones_->tick(wall, mc, events);
   for (const auto& e : events) record_zone_event(e);
   if (!events.empty()) {
-    std::optional<gnss::Position> fix;
+    std::optional<gnss::Fix> fix;
     if (gnss_) fix = gnss_->state().current(gnss_->wall_now());
     update_area_alarm(wall, fix);
   }

@@ -22,7 +22,7 @@ int32_t state_s32(double v) {
   return v >= 2147483647.0 ? INT32_MAX : static_cast<int32_t>(std::llround(v));
 }
 
-void set_state_position(v1::Position& out, const gnss::Position& p) {
+void set_state_position(v1::Position& out, const gnss::Fix& p) {
   out.set_lat_e7(state_s32(p.lat_deg * 1e7));
   out.set_lon_e7(state_s32(p.lon_deg * 1e7));
   if (p.alt_m) out.set_alt_dm(state_s32(*p.alt_m * 10.0));
@@ -74,8 +74,8 @@ std::string build_vehicle_state(const VehicleStateInputs& in, bool with_time) {
   return s.SerializeAsString();
 }
 
-std::optional<gnss::Position> StatePositionFilter::comparable(
-    const std::optional<gnss::Position>& current) const {
+std::optional<gnss::Fix> StatePositionFilter::comparable(
+    const std::optional<gnss::Fix>& current) const {
   if (current && anchor_ && gnss::distance_m(*current, *anchor_) < min_move_m_) return anchor_;
   return current;
 }

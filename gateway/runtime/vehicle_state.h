@@ -31,7 +31,7 @@ struct VehicleStateInputs {
   std::vector<std::string_view> active_alarms;  // AlarmTracker::active_kinds()
   // The geofence's outside_operating_area alarm (not an AlarmTracker alarm), listed after them.
   bool outside_operating_area = false;
-  std::optional<gnss::Position> position;  // the current fix; nullopt = unknown
+  std::optional<gnss::Fix> position;  // the current fix; nullopt = unknown
   std::optional<bool> parked;              // nullopt = not known yet
   fleetgw::v1::BusState bus_state = fleetgw::v1::BUS_STATE_UNSPECIFIED;
   motinova::Micros now{0};  // bus time: updated_at_us
@@ -49,13 +49,13 @@ std::string build_vehicle_state(const VehicleStateInputs& in, bool with_time = t
 class StatePositionFilter {
  public:
   explicit StatePositionFilter(double min_move_m) : min_move_m_(min_move_m) {}
-  std::optional<gnss::Position> comparable(const std::optional<gnss::Position>& current) const;
+  std::optional<gnss::Fix> comparable(const std::optional<gnss::Fix>& current) const;
   // After a hand-over: the position that was compared (comparable()'s result) is the new anchor.
-  void handed_over(const std::optional<gnss::Position>& compared) { anchor_ = compared; }
+  void handed_over(const std::optional<gnss::Fix>& compared) { anchor_ = compared; }
 
  private:
   double min_move_m_;
-  std::optional<gnss::Position> anchor_;
+  std::optional<gnss::Fix> anchor_;
 };
 
 class StateThrottle {

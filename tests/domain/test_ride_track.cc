@@ -19,7 +19,7 @@ constexpr double kLon0 = 13.405;
 constexpr double kMetrePerDegLat = 111'195.0;
 
 // A staircase of 500 m legs, north then east, at distance `d` metres along it.
-gnss::Position staircase(double d, int i) {
+gnss::Fix staircase(double d, int i) {
   const int leg = static_cast<int>(d / 500.0);
   const double rest = d - leg * 500.0;
   const double north = (leg + 1) / 2 * 500.0 + (leg % 2 == 0 ? rest : 0.0);
@@ -27,13 +27,13 @@ gnss::Position staircase(double d, int i) {
   // Deterministic jitter of up to 1.5 m, as a receiver wobbles.
   const double jn = 1.5 * std::sin(i * 1.7);
   const double je = 1.5 * std::cos(i * 2.3);
-  gnss::Position p;
+  gnss::Fix p;
   p.lat_deg = kLat0 + (north + jn) / kMetrePerDegLat;
   p.lon_deg = kLon0 + (east + je) / (kMetrePerDegLat * std::cos(kLat0 * M_PI / 180));
   return p;
 }
 
-double distance_to_polyline(const gnss::Position& p, const std::vector<gnss::Position>& line) {
+double distance_to_polyline(const gnss::Fix& p, const std::vector<gnss::Fix>& line) {
   double best = 1e18;
   const double k = kMetrePerDegLat * std::cos(kLat0 * M_PI / 180);
   for (std::size_t i = 0; i + 1 < line.size(); ++i) {
@@ -49,13 +49,13 @@ double distance_to_polyline(const gnss::Position& p, const std::vector<gnss::Pos
 
 TEST(RideTrack, RideRecordCarriesATrackWhoseLengthAgreesWithTheOdometer) {
   Harness h(bundled("ride"));
-  std::vector<gnss::Position> fed;
+  std::vector<gnss::Fix> fed;
   double odo0 = -1;
   for (int t = 1; t <= 1750; ++t) {
     h.run_until_offset(t);
     const Truth truth = h.truth_at(h.at(t));
     if (odo0 < 0) odo0 = truth.odo_m;
-    gnss::Position p = staircase(truth.odo_m - odo0, t);
+    gnss::Fix p = staircase(truth.odo_m - odo0, t);
     h.gateway()->trackers().on_position(p);
     if (h.gateway()->trackers().rides().riding()) fed.push_back(p);
   }
@@ -81,12 +81,12 @@ TEST(RideTrack, RideRecordCarriesATrackWhoseLengthAgreesWithTheOdometer) {
 
   // Decode the delta-coded polyline; every fix of the ride lies near it, and it is compact.
   ASSERT_EQ(m.track().lat_e7_delta_size(), m.track().lon_e7_delta_size());
-  std::vector<gnss::Position> line;
+  std::vector<gnss::Fix> line;
   int64_t lat = 0, lon = 0;
   for (int i = 0; i < m.track().lat_e7_delta_size(); ++i) {
     lat += m.track().lat_e7_delta(i);
     lon += m.track().lon_e7_delta(i);
-    gnss::Position p;
+    gnss::Fix p;
     p.lat_deg = lat / 1e7;
     p.lon_deg = lon / 1e7;
     line.push_back(p);
@@ -126,9 +126,9 @@ TEST(RideTrack, MemoryStaysBoundedOnAnEndlessWindingRide) {
 }
 
 TEST(RideTrack, DouglasPeuckerKeepsCornersAndDropsStraightRuns) {
-  std::vector<gnss::Position> pts;
+  std::vector<gnss::Fix> pts;
   for (int i = 0; i <= 100; ++i) {
-    gnss::Position p;
+    gnss::Fix p;
     p.lat_deg = kLat0 + (i <= 50 ? i : 50) * 10.0 / kMetrePerDegLat;
     p.lon_deg =
         kLon0 + (i <= 50 ? 0 : i - 50) * 10.0 / (kMetrePerDegLat * std::cos(kLat0 * M_PI / 180));

@@ -20,12 +20,12 @@ constexpr double kLon0 = 13.405;
 constexpr double kMetrePerDegLat = 111'195.0;
 
 // 1 km legs, north then east, `d` metres along (the bike's own odometer drives it).
-gnss::Position route_at(double d) {
+gnss::Fix route_at(double d) {
   const int leg = static_cast<int>(d / 1000.0);
   const double rest = d - leg * 1000.0;
   const double north = (leg + 1) / 2 * 1000.0 + (leg % 2 == 0 ? rest : 0.0);
   const double east = leg / 2 * 1000.0 + (leg % 2 == 1 ? rest : 0.0);
-  gnss::Position p;
+  gnss::Fix p;
   p.lat_deg = kLat0 + north / kMetrePerDegLat;
   p.lon_deg = kLon0 + east / (kMetrePerDegLat * std::cos(kLat0 * M_PI / 180));
   return p;
@@ -33,10 +33,10 @@ gnss::Position route_at(double d) {
 
 // Runs the bundled ride with a fix every second from `from_s` to `to_s` (while riding).
 void ride_with_fixes(Harness& h, int from_s, int to_s, double odo0,
-                     std::vector<gnss::Position>& fed) {
+                     std::vector<gnss::Fix>& fed) {
   for (int t = from_s; t <= to_s; ++t) {
     h.run_until_offset(t);
-    const gnss::Position p = route_at(h.truth_at(h.at(t)).odo_m - odo0);
+    const gnss::Fix p = route_at(h.truth_at(h.at(t)).odo_m - odo0);
     h.gateway()->trackers().on_position(p);
     if (h.gateway()->trackers().rides().riding()) fed.push_back(p);
   }
@@ -66,7 +66,7 @@ TEST(RideTrackRow, ResumedAfterARestartTheRowKeepsTheWholeTrackAsThePayloadDoes)
   Harness h(bundled("ride"), DomainConfig{}, db);
   h.run_until_offset(0.5);  // the first truth sample: the route starts at this odometer
   const double odo0 = h.truth_at(h.at(0.5)).odo_m;
-  std::vector<gnss::Position> fed;
+  std::vector<gnss::Fix> fed;
   ride_with_fixes(h, 1, 700, odo0, fed);
   ASSERT_TRUE(h.gateway()->trackers().rides().riding());
   ASSERT_FALSE(fed.empty());
@@ -127,7 +127,7 @@ TEST(RideTrackRow, ADamagedStoredTrackIsDroppedAndTheRideStillCloses) {
   Harness h(bundled("ride"), DomainConfig{}, db);
   h.run_until_offset(0.5);  // the first truth sample: the route starts at this odometer
   const double odo0 = h.truth_at(h.at(0.5)).odo_m;
-  std::vector<gnss::Position> fed;
+  std::vector<gnss::Fix> fed;
   ride_with_fixes(h, 1, 400, odo0, fed);
   const std::string id = h.gateway()->trackers().rides().current(h.bus().now())->ride_id;
   h.stop_gateway();
@@ -136,7 +136,7 @@ TEST(RideTrackRow, ADamagedStoredTrackIsDroppedAndTheRideStillCloses) {
     raw.exec("UPDATE rides SET track = '[[13.4,52.5],[13.4]]' WHERE state = 'open'");
   }
   h.start_gateway();
-  std::vector<gnss::Position> after;
+  std::vector<gnss::Fix> after;
   ride_with_fixes(h, 401, 1750, odo0, after);
   h.send_keyword(0x760, 0x11);
   h.run_until_offset(1760);

@@ -149,7 +149,7 @@ TEST(ZonePayload, AnEventCarriesEverythingAndNoPositionWhenUnknown) {
   ev.at = kT;
   ev.bundle_version = 9;
   ev.speed_limit_kmh = 15;
-  gnss::Position p;
+  gnss::Fix p;
   p.lat_deg = 52.52;
   p.lon_deg = 13.405;
   p.hdop = 0.9;

@@ -17,11 +17,11 @@ using std::chrono::seconds;
 
 const Micros t0 = seconds(1'790'000'000);
 
-Zone make_zone(std::string id, ZoneKind kind, std::vector<Ring> rings, int limit = 0) {
-  return Zone{id, "zone " + id, kind, limit, ZonePolygon::build(rings), {}, Micros(0), Micros(0)};
+EnforcedZone make_zone(std::string id, ZoneKind kind, std::vector<Ring> rings, int limit = 0) {
+  return EnforcedZone{id, "zone " + id, kind, limit, ZonePolygon::build(rings), {}, Micros(0), Micros(0)};
 }
 
-std::shared_ptr<const ZoneSet> set_of(std::vector<Zone> zones, std::uint64_t version = 1) {
+std::shared_ptr<const ZoneSet> set_of(std::vector<EnforcedZone> zones, std::uint64_t version = 1) {
   auto s = std::make_shared<ZoneSet>();
   s->version = version;
   s->issued_at = t0;
@@ -31,7 +31,7 @@ std::shared_ptr<const ZoneSet> set_of(std::vector<Zone> zones, std::uint64_t ver
 
 // A square slow zone of 15 km/h, 400 m wide, centred on the origin.
 std::shared_ptr<const ZoneSet> slow_square(int limit = 15) {
-  std::vector<Zone> zones;
+  std::vector<EnforcedZone> zones;
   zones.push_back(make_zone("slow", ZoneKind::kSlow, {rect(-200, -200, 200, 200)}, limit));
   return set_of(std::move(zones));
 }
@@ -163,7 +163,7 @@ TEST(ZoneEngine, AnUnknownPositionChangesNothingAndInterruptsTheDwell) {
 }
 
 TEST(ZoneEngine, TheLowestLimitOfOverlappingSlowZonesWins) {
-  std::vector<Zone> zones;
+  std::vector<EnforcedZone> zones;
   zones.push_back(make_zone("wide", ZoneKind::kSlow, {rect(-500, -500, 500, 500)}, 20));
   zones.push_back(make_zone("core", ZoneKind::kSlow, {rect(-100, -100, 100, 100)}, 12));
   Driver d(
@@ -177,7 +177,7 @@ TEST(ZoneEngine, TheLowestLimitOfOverlappingSlowZonesWins) {
 }
 
 TEST(ZoneEngine, ANoRideZoneFadesTheAssistanceNeverAtOnce) {
-  std::vector<Zone> zones;
+  std::vector<EnforcedZone> zones;
   zones.push_back(make_zone("park", ZoneKind::kNoRide, {rect(-200, -200, 200, 200)}));
   Driver d(
       EngineConfig{.min_dwell = seconds(2), .assist_fade = seconds(8), .restore_ramp = seconds(4)});
@@ -201,7 +201,7 @@ TEST(ZoneEngine, ANoRideZoneFadesTheAssistanceNeverAtOnce) {
 }
 
 TEST(ZoneEngine, LeavingTheOperatingAreaRaisesTheAlarmLevelAndAnExitEvent) {
-  std::vector<Zone> zones;
+  std::vector<EnforcedZone> zones;
   zones.push_back(make_zone("city", ZoneKind::kOperatingArea, {rect(-1000, -1000, 1000, 1000)}));
   zones.push_back(make_zone("airport", ZoneKind::kOperatingArea, {rect(3000, 0, 3500, 500)}));
   Driver d(EngineConfig{.min_dwell = seconds(1)});
@@ -220,7 +220,7 @@ TEST(ZoneEngine, LeavingTheOperatingAreaRaisesTheAlarmLevelAndAnExitEvent) {
 }
 
 TEST(ZoneEngine, ABikeSwitchedOnOutsideEveryOperatingAreaIsInAlarmWithoutAnEvent) {
-  std::vector<Zone> zones;
+  std::vector<EnforcedZone> zones;
   zones.push_back(make_zone("city", ZoneKind::kOperatingArea, {rect(-1000, -1000, 1000, 1000)}));
   Driver d(EngineConfig{.min_dwell = seconds(1)});
   d.engine.set_zones(set_of(std::move(zones)), t0, d.events);
@@ -230,7 +230,7 @@ TEST(ZoneEngine, ABikeSwitchedOnOutsideEveryOperatingAreaIsInAlarmWithoutAnEvent
 }
 
 TEST(ZoneEngine, ALockInANoParkingZoneIsReportedAndRefusedOnlyWhenConfigured) {
-  std::vector<Zone> zones;
+  std::vector<EnforcedZone> zones;
   zones.push_back(make_zone("station", ZoneKind::kNoParking, {rect(-100, -100, 100, 100)}));
   auto set = set_of(std::move(zones));
   const auto inside = fix_at(0, 0, t0);
@@ -262,7 +262,7 @@ TEST(ZoneEngine, ALockInANoParkingZoneIsReportedAndRefusedOnlyWhenConfigured) {
 TEST(ZoneEngine, ANewBundleKeepsTheStateOfKeptZonesAndEndsRemovedOnes) {
   Driver d(
       EngineConfig{.min_dwell = Micros(0), .speed_ramp = Micros(0), .restore_ramp = seconds(5)});
-  std::vector<Zone> zones;
+  std::vector<EnforcedZone> zones;
   zones.push_back(make_zone("slow", ZoneKind::kSlow, {rect(-200, -200, 200, 200)}, 15));
   zones.push_back(make_zone("park", ZoneKind::kNoRide, {rect(-300, -300, 300, 300)}));
   d.engine.set_zones(set_of(std::move(zones), 1), t0, d.events);
@@ -270,7 +270,7 @@ TEST(ZoneEngine, ANewBundleKeepsTheStateOfKeptZonesAndEndsRemovedOnes) {
   ASSERT_EQ(d.events.size(), 2u);
   d.events.clear();
   // Version 2 keeps "park" and drops "slow": one exit, the limit ramps back up.
-  std::vector<Zone> next;
+  std::vector<EnforcedZone> next;
   next.push_back(make_zone("park", ZoneKind::kNoRide, {rect(-300, -300, 300, 300)}));
   d.engine.set_zones(set_of(std::move(next), 2), t0 + seconds(10), d.events);
   ASSERT_EQ(d.events.size(), 1u);

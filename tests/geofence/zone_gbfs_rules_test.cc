@@ -45,8 +45,8 @@ std::shared_ptr<const ZoneSet> gbfs_compiled(
   return std::make_shared<const ZoneSet>(std::move(std::get<ZoneSet>(set)));
 }
 
-gnss::Position gbfs_at(double north_deg, double east_deg = 0, Micros when = kGbfsNow) {
-  gnss::Position p;
+gnss::Fix gbfs_at(double north_deg, double east_deg = 0, Micros when = kGbfsNow) {
+  gnss::Fix p;
   p.lat_deg = kGbfsLat0 + north_deg;
   p.lon_deg = kGbfsLon + east_deg;
   p.fixed_at = p.received_at = when;
@@ -66,7 +66,7 @@ EngineConfig gbfs_engine_config(std::string type) {
 }
 
 // What the bike is held to at `where`, once the ramps have settled.
-Demands gbfs_settled_at(const std::shared_ptr<const ZoneSet>& zones, const gnss::Position& where,
+Demands gbfs_settled_at(const std::shared_ptr<const ZoneSet>& zones, const gnss::Fix& where,
                         const std::string& type = "city-ebike") {
   ZoneEngine engine(gbfs_engine_config(type));
   std::vector<ZoneEvent> events;
@@ -129,7 +129,7 @@ std::string gbfs_two_overlapping(int first_kmh, int second_kmh) {
 }
 
 TEST(ZoneGbfsRules, OverlappingZonesResolveByGbfsOrderNotByTheLowestLimit) {
-  gnss::Position overlap, first_only, second_only;
+  gnss::Fix overlap, first_only, second_only;
   overlap.lat_deg = first_only.lat_deg = second_only.lat_deg = 46.005;
   overlap.lon_deg = 14.5075;
   first_only.lon_deg = 14.502;
@@ -182,7 +182,7 @@ TEST(ZoneGbfsRules, AWindowOpensAndClosesAroundAParkedBikeOnTheEnginesClock) {
   ZoneEngine engine(gbfs_engine_config(""));
   std::vector<ZoneEvent> events;
   engine.set_zones(zones, kGbfsNow, events);
-  gnss::Position inside;
+  gnss::Fix inside;
   inside.lat_deg = 46.005;
   inside.lon_deg = 14.505;
   engine.relocate(kGbfsNow, inside, events);
@@ -209,7 +209,7 @@ TEST(ZoneGbfsRules, AWindowOpensAndClosesAroundAParkedBikeOnTheEnginesClock) {
 TEST(ZoneGbfsRules, ALimitOfZeroFadesTheAssistanceAndNeverWritesZero) {
   const auto zones =
       gbfs_compiled(gbfs_windowed(kGbfsNow - seconds(10), kGbfsNow + seconds(3600), 0));
-  gnss::Position inside;
+  gnss::Fix inside;
   inside.lat_deg = 46.005;
   inside.lon_deg = 14.505;
   const auto d = gbfs_settled_at(zones, inside);

@@ -31,8 +31,8 @@ inline Vertex vertex_at(double east_m, double north_m) {
   return {static_cast<std::int32_t>(std::lround(lat_at(north_m) * 1e7)),
           static_cast<std::int32_t>(std::lround(lon_at(east_m) * 1e7))};
 }
-inline gnss::Position fix_at(double east_m, double north_m, std::chrono::microseconds at) {
-  gnss::Position p;
+inline gnss::Fix fix_at(double east_m, double north_m, std::chrono::microseconds at) {
+  gnss::Fix p;
   p.lat_deg = lat_at(north_m);
   p.lon_deg = lon_at(east_m);
   p.fixed_at = at;

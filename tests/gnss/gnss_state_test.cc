@@ -9,8 +9,8 @@ namespace {
 using std::chrono::milliseconds;
 using std::chrono::seconds;
 
-Position fix_at(Micros received, double lat = 52.52, double lon = 13.405) {
-  Position p;
+Fix fix_at(Micros received, double lat = 52.52, double lon = 13.405) {
+  Fix p;
   p.lat_deg = lat;
   p.lon_deg = lon;
   p.received_at = received;

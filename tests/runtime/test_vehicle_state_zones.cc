@@ -30,8 +30,8 @@ TEST(VehicleStateZones, TheOperatingAreaAlarmIsListedWhileRaised) {
   EXPECT_NE(build_vehicle_state(in, false), build_vehicle_state(cleared, false));
 }
 
-gnss::Position fix_at(double lat, double lon, std::int64_t fixed_at_us) {
-  gnss::Position p;
+gnss::Fix fix_at(double lat, double lon, std::int64_t fixed_at_us) {
+  gnss::Fix p;
   p.lat_deg = lat;
   p.lon_deg = lon;
   p.satellites = 7;
@@ -44,7 +44,7 @@ gnss::Position fix_at(double lat, double lon, std::int64_t fixed_at_us) {
 TEST(VehicleStatePosition, JitterOfAParkedBikeIsNoChangeButMovingOrLosingTheFixIs) {
   StatePositionFilter filter(20);
   VehicleStateInputs in;
-  auto comparable = [&](const std::optional<gnss::Position>& p) {
+  auto comparable = [&](const std::optional<gnss::Fix>& p) {
     in.position = filter.comparable(p);
     return build_vehicle_state(in, false);
   };
