@@ -16,7 +16,8 @@
 # RIDING_SHARE (0.3), WORKERS (2), INGEST_ARGS (extra worker options, e.g. "--sessions 32"),
 # PERF=1 (a system-wide `perf record` of the drain and of the loader: the top functions of the
 # worker and of PostgreSQL in each, written to the work directory and summarised; and
-# pg_stat_statements: the server's time per statement of the drain), KEEP=1.
+# pg_stat_statements: the server's time per statement of the drain; PERF_FREQ, 499, its sampling
+# rate per CPU), KEEP=1.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 FLEETGW=$(realpath -m "${FLEETGW:-build/gateway/app/fleetgw}")
@@ -42,7 +43,7 @@ MESSAGES=$(/usr/bin/python3 -c 'import json,sys; print(json.load(open(sys.argv[1
 # perf_start NAME / perf_stop: a system-wide profile of a window (PERF=1).
 perf_start() {
   [[ ${PERF:-0} == 1 ]] || return 0
-  perf record -a -F 499 -o "$WORK/perf-$1.data" >"$WORK/perf-$1.log" 2>&1 &
+  perf record -a -F "${PERF_FREQ:-499}" -o "$WORK/perf-$1.data" >"$WORK/perf-$1.log" 2>&1 &
   PERF_PID=$!
   sleep 1
 }

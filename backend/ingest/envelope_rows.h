@@ -44,10 +44,6 @@ struct TableSpec {
   // A change log (status_history): a row the statement skips is an unchanged state, not a
   // duplicate record.
   bool history = false;
-  // Has committed_at_us (every record table; not commands): the batch's COPY writes it with one
-  // value per batch instead of the column's volatile default, which would make PostgreSQL's
-  // COPY insert row by row instead of in multi-row batches (ingest_store.cc).
-  bool committed_at = true;
 };
 
 // Rows for one table, built straight into COPY's text format (copy_text.h) as the message is

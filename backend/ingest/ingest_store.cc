@@ -208,8 +208,11 @@ WriteStats IngestStore::write_all(std::span<const Decoded* const> messages,
         p, "vehicle locks");
   }
   if (hook_) hook_(BatchPoint::kBeforeCopy);
-  // committed_at_us of the batch's COPYs: the database's clock once, as the batch is written.
-  std::string stamp;
+  if (!latest_only && !messages.empty()) {
+    // committed_at_us of every row of the batch: the database's clock once, as the batch is
+    // written (the column's default reads it: migration 9).
+    c.exec("SELECT set_config('fleet.batch_us', fleet_now_us()::text, true)", "batch stamp");
+  }
   // The batch's row sets by destination table, in one pass over the messages.
   std::array<std::vector<const RowSet*>, kTables.size()> sets_of;
   for (const Decoded* d : messages) {
@@ -223,12 +226,15 @@ WriteStats IngestStore::write_all(std::span<const Decoded* const> messages,
   for (std::size_t table = 0; table < kTables.size(); ++table) {
     const TableSpec* t = kTables[table];
     const std::size_t cols = static_cast<std::size_t>(t->column_count);
+    if (sets_of[table].empty()) continue;
+    if (!t->latest_value && !t->history && copy_rows(c, *t, sets_of[table], stats)) continue;
+    // The rows one by one: latest values (one per vehicle), the history, or a COPY that found a
+    // row already there (a redelivery).
     std::vector<std::string_view> staged_rows;
     for (const RowSet* set : sets_of[table]) {
       std::string_view rest = set->copy;
       while (!rest.empty()) staged_rows.push_back(next_row(rest));
     }
-    if (staged_rows.empty()) continue;
     std::int64_t superseded = 0;
     if (t->latest_value) {
       // An upsert may touch a row once per statement: keep the batch's last status per vehicle
@@ -248,14 +254,6 @@ WriteStats IngestStore::write_all(std::span<const Decoded* const> messages,
       kept.reserve(newest.size());
       for (const auto& [vehicle, i] : newest) kept.push_back(staged_rows[i]);
       staged_rows = std::move(kept);
-    }
-    if (!t->latest_value && !t->history) {
-      if (t->committed_at && stamp.empty()) {
-        stamp = std::string(c.exec("SELECT fleet_now_us()", "commit stamp").text(0, 0));
-      }
-      if (copy_rows(c, *t, sets_of[table], t->committed_at ? stamp : std::string_view(), stats)) {
-        continue;
-      }
     }
     const std::string& statement = insert_sql(c, *t);
     // Each column a text[] literal, made from the rows' COPY text without a string per value.
@@ -307,33 +305,19 @@ WriteStats IngestStore::write_all(std::span<const Decoded* const> messages,
 }
 
 bool IngestStore::copy_rows(PgConnection& c, const TableSpec& t,
-                            std::span<const RowSet* const> sets, std::string_view stamp,
-                            WriteStats& stats) {
-  // The messages' COPY text as it is, each row with the batch's stamp appended: one buffer,
-  // kept for the next table and batch (its capacity stays).
+                            std::span<const RowSet* const> sets, WriteStats& stats) {
+  // The messages' COPY text as it is, one append per message, into one buffer kept for the next
+  // table and batch (its capacity stays).
   std::string& data = copy_buffer_;
   data.clear();
   std::size_t size = 0;
-  for (const RowSet* set : sets) size += set->copy.size() + set->rows() * (stamp.size() + 1);
+  for (const RowSet* set : sets) size += set->copy.size();
   data.reserve(size);
-  for (const RowSet* set : sets) {
-    if (stamp.empty()) {
-      data += set->copy;
-      continue;
-    }
-    std::string_view rest = set->copy;
-    while (!rest.empty()) {
-      data += next_row(rest);
-      data += '\t';
-      data += stamp;
-      data += '\n';
-    }
-  }
+  for (const RowSet* set : sets) data += set->copy;
   c.exec("SAVEPOINT ingest_copy", "savepoint");
   try {
-    const std::int64_t n = c.copy_in(fmt::format("COPY {} ({}{}) FROM STDIN", t.table, t.columns,
-                                                 stamp.empty() ? "" : ", committed_at_us"),
-                                     data, t.table);
+    const std::int64_t n =
+        c.copy_in(fmt::format("COPY {} ({}) FROM STDIN", t.table, t.columns), data, t.table);
     c.exec("RELEASE SAVEPOINT ingest_copy", "savepoint");
     stats.inserted += n;
     return true;

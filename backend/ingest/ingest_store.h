@@ -105,11 +105,10 @@ class IngestStore {
                        std::span<const RejectRow> rejects);
   void insert_reject(PgConnection& c, const RejectRow& r);
   // The fast path of a record table: the batch's rows (the messages' COPY text as it is) by
-  // one COPY, under a savepoint, with committed_at_us = `stamp` when not empty (a volatile
-  // column default would make the server insert row by row). False (rolled back) when a row is
-  // already there.
+  // one COPY, under a savepoint; committed_at_us is the column's default, the batch's stamp
+  // (migration 9). False (rolled back) when a row is already there.
   bool copy_rows(PgConnection& c, const TableSpec& t, std::span<const RowSet* const> sets,
-                 std::string_view stamp, WriteStats& stats);
+                 WriteStats& stats);
   // The name of t's prepared INSERT on connection c (prepared at its first use).
   const std::string& insert_sql(PgConnection& c, const TableSpec& t);
 

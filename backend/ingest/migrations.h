@@ -34,4 +34,7 @@ std::string_view migration_v4_sql();
 // Migration 8's SQL (migrations_v8_telemetry_fix.cc): heading and accuracy per telemetry sample.
 std::string_view migration_v8_sql();
 
+// Migration 9's SQL (migrations_v9_batch_stamp.cc): committed_at_us defaults to the batch's stamp.
+std::string_view migration_v9_sql();
+
 }  // namespace fleetgw::ingest

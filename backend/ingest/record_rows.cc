@@ -48,11 +48,7 @@ const TableSpec kResults{"command_results",
 const TableSpec kCommands{"commands",
                           "command_id, vehicle_id, key_id, issued_at_us, expires_at_us, action, "
                           "target",
-                          7,
-                          kIgnore,
-                          false,
-                          false,
-                          false};
+                          7, kIgnore};
 const TableSpec kInfo{"device_info",
                       "vehicle_id, store_id, sequence, created_at_us, gateway_fw_version, nodes", 6,
                       kIgnore};
@@ -457,6 +453,13 @@ std::optional<Reject> telemetry_rows(const v1::Envelope& e, Decoded& d) {
   }
   RowSet& rows = new_rows(d, kTelemetry, static_cast<std::size_t>(e.telemetry().samples_size()));
   RowBuilder b(rows);
+  // The ids lead every sample's row: checked and escaped once per message.
+  b.check_text("vehicle_id", e.vehicle_id());
+  b.check_text("store_id", e.store_id());
+  std::string ids;
+  append_copy_text(ids, e.vehicle_id());
+  ids += '\t';
+  append_copy_text(ids, e.store_id());
   std::vector<std::uint64_t> seqs;
   seqs.reserve(e.telemetry().samples_size());
   for (const v1::TelemetrySample& s : e.telemetry().samples()) {
@@ -464,8 +467,7 @@ std::optional<Reject> telemetry_rows(const v1::Envelope& e, Decoded& d) {
       return Reject{"record_without_sequence",
                     fmt::format("telemetry sample {} has sequence 0", seqs.size())};
     }
-    b.text("vehicle_id", e.vehicle_id());
-    b.text("store_id", e.store_id());
+    b.escaped(ids, 2);
     b.u64("samples.sequence", s.sequence());
     b.i64(e.created_at_us());
     b.i64(s.sampled_at_us());

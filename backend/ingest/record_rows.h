@@ -45,12 +45,24 @@ class RowBuilder {
       : set_(set), out_(set.copy), cols_(static_cast<std::size_t>(set.table->column_count)) {}
 
   void text(std::string_view field, std::string_view s) {
+    check_text(field, s);
+    raw(s);
+  }
+  // The checks of text() alone (for a value written many times through escaped()).
+  void check_text(std::string_view field, std::string_view s) {
     if (s.size() > kMaxText) {
       fail("text_too_long", fmt::format("{}: {} bytes (at most {})", field, s.size(), kMaxText));
     } else if (s.find('\0') != std::string_view::npos) {
       fail("nul_in_text", fmt::format("{}: NUL byte in \"{}\"", field, untrusted_excerpt(s)));
     }
-    raw(s);
+  }
+  // `n` values already checked and in COPY text (escaped, tab-separated): the same leading
+  // values of every row of a message (a telemetry batch's ids) are escaped once, not per row.
+  void escaped(std::string_view values, std::size_t n) {
+    begin();
+    out_.append(values);
+    col_ += n - 1;
+    end();
   }
   void u32(std::string_view field, std::uint32_t v) {
     if (v > static_cast<std::uint32_t>(std::numeric_limits<std::int32_t>::max())) {

@@ -141,9 +141,9 @@ TEST_F(CopyBatchTest, OneVehicleWithThousandsOfTinyRangesMergesExactly) {
   EXPECT_EQ(text("SELECT count(*) FROM fault_events"), "6000");
 }
 
-// A vehicle's one range per batch grows its stored range in place (the common case), a
-// redelivered range inside a stored one changes nothing, and a range reaching the next stored
-// one joins both (the general merge): the accounted ranges stay exact on every path.
+// The shapes one (vehicle, store) range per batch takes in a stream: one growing the stored
+// range (the common case), a redelivered range inside a stored one (changes nothing), one
+// reaching the next stored range (joins both): the accounted ranges stay exact.
 TEST_F(CopyBatchTest, SingleRangesGrowInPlaceWithoutSwallowingTheNext) {
   IngestStore s(cluster_->conninfo());
   const auto write = [&](std::uint64_t first, std::uint64_t last) {
@@ -168,6 +168,32 @@ TEST_F(CopyBatchTest, SingleRangesGrowInPlaceWithoutSwallowingTheNext) {
   write(31, 31);
   EXPECT_EQ(ranges(), "1-31");
   EXPECT_TRUE(s.gaps().empty());
+}
+
+// committed_at_us is the batch's one stamp in every table it writes (the column's default reads
+// the setting the batch makes: migration 9), and a writer that sets nothing (an analyst's
+// INSERT) still gets the database's clock, never NULL.
+TEST_F(CopyBatchTest, OneStampPerBatchAcrossTablesAndTheClockForOtherWriters) {
+  IngestStore s(cluster_->conninfo());
+  v1::Envelope t;
+  t.set_vehicle_id("b1");
+  t.set_store_id("s1");
+  for (std::uint64_t q = 1; q <= 3; ++q) t.mutable_telemetry()->add_samples()->set_sequence(q);
+  const std::vector<Decoded> batch = {decode(t, "telemetry"), fault(4, "f", true)};
+  s.write_batch(pointers(batch));
+  EXPECT_EQ(text("SELECT count(DISTINCT committed_at_us) FROM (SELECT committed_at_us FROM "
+                 "telemetry_samples UNION ALL SELECT committed_at_us FROM fault_events) u"),
+            "1");
+  PgConnection c(cluster_->conninfo());
+  c.exec("INSERT INTO fault_events (vehicle_id, store_id, sequence, created_at_us, "
+         "gateway_fw_version, node, bit, name, severity, kind) VALUES ('b9', 's9', 1, 0, '', "
+         "'mc', 0, 'n', 's', 'k')",
+         "analyst insert");
+  const auto r = c.exec(
+      "SELECT committed_at_us BETWEEN fleet_now_us() - 60000000 AND fleet_now_us() FROM "
+      "fault_events WHERE vehicle_id = 'b9'",
+      "stamp");
+  EXPECT_EQ(r.text(0, 0), "t");
 }
 
 }  // namespace
