@@ -12,8 +12,13 @@
 # on `cmd` can send) arrive together just before one genuine command, REPS times: was the
 # genuine one answered and executed?
 #
+# The stop row (STOP_RUNS, default 3): a burst of STOP_N commands sent while the service is frozen,
+# which is then stopped (SIGTERM, SIGCONT) and started again on the same store and persistent
+# MQTT session: every command must still get exactly one result (shutting_down or busy from the
+# stopping process, or an answer from the restarted one), none "no result".
+#
 # Environment: FLEETGW (binary, default build/gateway/app/fleetgw), N (100), JUNK (60),
-#   REPS (3), TIMEOUT_S (90), KEEP=1 keeps the work directory.
+#   REPS (3), TIMEOUT_S (90), STOP_RUNS (3), STOP_N (40), KEEP=1 keeps the work directory.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 FLEETGW=$(realpath "${FLEETGW:-build/gateway/app/fleetgw}")
@@ -123,24 +128,27 @@ done
 wait_publishes $((sent + N))
 kill -CONT "$SERVICE_PID"
 for p in "${OPS[@]}"; do wait "$p" || true; done
-/usr/bin/python3 - "$WORK" "$N" <<'PY'
+tally_results() {  # prefix count title
+/usr/bin/python3 - "$WORK" "$2" "$1" "$3" <<'PY'
 import json, pathlib, sys
-work, n = pathlib.Path(sys.argv[1]), int(sys.argv[2])
+work, n, prefix, title = pathlib.Path(sys.argv[1]), int(sys.argv[2]), sys.argv[3], sys.argv[4]
 tally = {}
 for i in range(1, n + 1):
-    text = (work / f"op-{i}.out").read_text().strip()
+    text = (work / f"{prefix}-{i}.out").read_text().strip()
     if not text:
         key = "no result"
     else:
         r = json.loads(text)
         key = r["result"] if r["result"] != "rejected" else r["reason"].split(":")[0]
     tally[key] = tally.get(key, 0) + 1
-print(f"burst of {n} signed commands (the service frozen while they were sent):")
+print(f"{title}:")
 for k in sorted(tally, key=lambda k: -tally[k]):
     print(f"  {k:<12} {tally[k]}")
 if "no result" not in tally:
     print(f"  {'no result':<12} 0")
 PY
+}
+tally_results op "$N" "burst of $N signed commands (the service frozen while they were sent)"
 echo "  fleetgw status commands: $(status_commands)"
 
 # ---- junk before a genuine command ----
@@ -183,4 +191,26 @@ done
 echo "junk flood: $JUNK zeroed-signature commands just before a genuine one:" \
   "genuine command answered and executed in $answered of $REPS repetitions"
 echo "  fleetgw status commands: $(status_commands)"
+stop_service
+
+# ---- a burst sent while frozen, then a stop and a restart ----
+for run in $(seq "${STOP_RUNS:-3}"); do
+  n=${STOP_N:-40}
+  [[ -n $SERVICE_PID ]] || start_service "service-restart-$run"
+  sent=$(cmd_publishes)
+  kill -STOP "$SERVICE_PID"
+  OPS=()
+  for i in $(seq "$n"); do
+    operator "$WORK/stop$run-$i.out" "$([[ $((i % 2)) == 0 ]] && echo on || echo off)" &
+    OPS+=($!)
+  done
+  wait_publishes $((sent + n))
+  kill -TERM "$SERVICE_PID"
+  kill -CONT "$SERVICE_PID"
+  wait "$SERVICE_PID" || true
+  SERVICE_PID=""
+  start_service "service-after-stop-$run"
+  for p in "${OPS[@]}"; do wait "$p" || true; done
+  tally_results "stop$run" "$n" "stop row $run: $n commands sent while frozen, then SIGTERM and a restart"
+done
 stop_service
