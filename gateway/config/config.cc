@@ -379,6 +379,7 @@ Config parse_root(const toml::table& root, const std::string& name) {
       s.integer("seed", c.sim.seed, 0, INT64_MAX);
       s.boolean("start_now", c.sim.start_now);
       s.string("nmea_pty", c.sim.nmea_pty);
+      s.boolean("lockstep", c.sim.lockstep);
     }
     {
       auto s = top.sub("storage");

@@ -83,6 +83,10 @@ struct SimConfig {
   // Symlink to a pty on which the simulated bike's GNSS receiver writes NMEA for the
   // scenario's [[route]] (a gpsd reads it); empty = no simulated receiver.
   std::string nmea_pty;
+  // Lock-step: the bus's time advances with what the gateway has processed, never past it
+  // (a loaded machine slows the ride instead of making the bus "fall behind"); the speed is a
+  // ceiling. For tests and measurements of bus-time behaviour (docs/simulator.md).
+  bool lockstep = false;
 };
 
 struct StorageConfig {

@@ -44,6 +44,7 @@ BusTransport make_bus(asio::io_context& io, const config::Config& c) {
     if (c.sim.seed != 0) scenario.seed = static_cast<uint64_t>(c.sim.seed);
     auto t = std::make_unique<sim::SimTransport>(io, std::move(scenario), c.sim.speed);
     if (!c.sim.nmea_pty.empty()) t->serve_nmea(c.sim.nmea_pty);
+    t->set_lockstep(c.sim.lockstep);
     bus.sim = t.get();
     bus.sim_speed = c.sim.speed;
     bus.transport = std::move(t);

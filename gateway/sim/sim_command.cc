@@ -173,7 +173,15 @@ int run_sim(const SimCliOptions& options) {
                                   h.detail);
                    });
   if (gnss) gnss->on_bus_time(bike.current_time());  // where the bike stands at the start
-  driver.start([&](const motinova::CanFrame& frame, Micros) {
+  bool ended = false;
+  driver.start([&](const motinova::CanFrame& frame, Micros ts) {
+    // Nothing stamped past the end goes on the bus, however late the check below comes (it
+    // looks every 100 ms of real time, minutes of bus time at a high speed).
+    if (ts > end) {
+      if (!ended) shutdown();
+      ended = true;
+      return;
+    }
     if (!transport->send(frame)) ++tx_failures;
   });
   signals.async_wait([&](const std::error_code& ec, int) {

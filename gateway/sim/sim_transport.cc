@@ -51,21 +51,70 @@ void RealtimeDriver::set_low_latency(bool on) {
 }
 
 void RealtimeDriver::flush() {
-  if (!running_) return;
+  // Lock-step: nothing stamped before virtual_now() is left undelivered; nothing to do.
+  if (!running_ || lockstep_) return;
   fire();
+}
+
+Micros RealtimeDriver::paced_now() const {
+  const auto real = std::chrono::duration_cast<std::chrono::duration<double, std::micro>>(
+      std::chrono::steady_clock::now() - real_start_);
+  return virtual_start_ + Micros(static_cast<int64_t>(real.count() * acceleration_));
 }
 
 Micros RealtimeDriver::virtual_now() const {
   if (!running_ && real_start_ == std::chrono::steady_clock::time_point{}) {
     return bike_.current_time();
   }
-  const auto real = std::chrono::duration_cast<std::chrono::duration<double, std::micro>>(
-      std::chrono::steady_clock::now() - real_start_);
-  return virtual_start_ + Micros(static_cast<int64_t>(real.count() * acceleration_));
+  if (!lockstep_) return paced_now();
+  if (held_at_) return *held_at_;
+  // While an instant is delivered, that instant: the bike schedules its reactions to its own
+  // frames (hearing them on the bus) only after the handler returned, so its next event does
+  // not yet tell what is still due.
+  if (delivering_) return delivered_to_;
+  // Short of the next frame not yet delivered (by 1 µs: a frame due at that very instant has
+  // not reached the gateway), however late the event loop comes back to the driver.
+  return std::max(delivered_to_, std::min(paced_now(), bike_.next_event() - Micros(1)));
+}
+
+void RealtimeDriver::hold() {
+  if (!lockstep_ || !running_ || held_at_) return;
+  held_at_ = virtual_now();
+}
+
+void RealtimeDriver::release() {
+  if (!held_at_) return;
+  const Micros at = *held_at_;
+  held_at_.reset();
+  // The time the frames spent in flight was no bus time: the clock goes on from where it was
+  // held (on an idle machine that is microseconds; under load it is the slip).
+  if (paced_now() > at) rebase(at);
+  arm();
+}
+
+void RealtimeDriver::rebase(Micros bus_now) {
+  const auto behind_by = std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+      std::chrono::duration<double, std::micro>(
+          static_cast<double>((bus_now - virtual_start_).count()) / acceleration_));
+  real_start_ = std::chrono::steady_clock::now() - behind_by;
 }
 
 void RealtimeDriver::receive(const motinova::CanFrame& frame) {
   if (!running_) return;
+  if (lockstep_) {
+    // At the bus time the gateway sent it (held since send()); nothing of the bike's is due
+    // before that (virtual_now() stops short of its next event).
+    const Micros at = std::max(delivered_to_, virtual_now());
+    delivered_to_ = at;
+    delivering_ = true;
+    bike_.advance_to(at, bike_emit_);
+    delivering_ = false;
+    if (!running_) return;
+    if (on_advanced_) on_advanced_(at);
+    bike_.receive(frame, at);
+    if (!held_at_) arm();  // held: release() re-arms once the whole batch is in
+    return;
+  }
   // What the bike sent before this frame reached it goes first (a batch may hold it back):
   // the bike's timeline never runs backwards. More than a step of it is fire()'s work, within
   // its budget; while that leaves the bike behind (until the timer's next turn), frames reach
@@ -83,14 +132,16 @@ void RealtimeDriver::receive(const motinova::CanFrame& frame) {
 
 void RealtimeDriver::arm() {
   if (!running_) return;
-  const Micros wait_virtual = bike_.next_event() - virtual_now();
+  if (lockstep_ && held_at_) return;  // release() arms
+  // Lock-step: the next event at its paced time (at once when that has passed), no window.
+  const Micros wait_virtual = bike_.next_event() - (lockstep_ ? paced_now() : virtual_now());
   const auto wait_real = std::chrono::microseconds(static_cast<int64_t>(
       std::max<double>(0, static_cast<double>(wait_virtual.count())) / acceleration_));
   auto at = std::chrono::steady_clock::now() + wait_real;
   // Batching: the next wake-up for the bike's traffic is at least one window after the last
   // delivery; whatever falls due meanwhile waits and goes out together. Not while behind:
   // the next bounded step follows at once (after what the loop has queued meanwhile).
-  if (!low_latency_ && !behind_ && window_.count() > 0) {
+  if (!lockstep_ && !low_latency_ && !behind_ && window_.count() > 0) {
     at = std::max(at, last_delivery_ + window_);
   }
   if (armed_for_ && *armed_for_ == at) return;
@@ -110,6 +161,10 @@ Micros RealtimeDriver::step() const {
 
 void RealtimeDriver::fire() {
   if (!running_) return;
+  if (lockstep_) {
+    fire_lockstep();
+    return;
+  }
   const auto started = std::chrono::steady_clock::now();
   last_delivery_ = started;
   // Everything due, in steps, but at most kWorkBudget of real time per wake-up: a machine
@@ -124,14 +179,30 @@ void RealtimeDriver::fire() {
     if (std::chrono::steady_clock::now() - started >= kWorkBudget) break;
   }
   behind_ = delivered_to_ < target;
-  if (behind_) {
-    // The simulation slips: its clock restarts from where the bike has got to, so the gateway
-    // (which reads virtual_now() for its own deadlines) and the bike share one timeline and the
-    // gap cannot grow. The acceleration is a ceiling, not a promise, on a machine too slow for it.
-    const auto behind_by = std::chrono::duration_cast<std::chrono::steady_clock::duration>(
-        std::chrono::duration<double, std::micro>(
-            static_cast<double>((delivered_to_ - virtual_start_).count()) / acceleration_));
-    real_start_ = std::chrono::steady_clock::now() - behind_by;
+  // The simulation slips: its clock restarts from where the bike has got to, so the gateway
+  // (which reads virtual_now() for its own deadlines) and the bike share one timeline and the
+  // gap cannot grow. The acceleration is a ceiling, not a promise, on a machine too slow for it.
+  if (behind_) rebase(delivered_to_);
+  arm();
+}
+
+void RealtimeDriver::fire_lockstep() {
+  if (held_at_) return;  // the gateway's frames reach the bike first; release() re-arms
+  last_delivery_ = std::chrono::steady_clock::now();
+  const Micros next = bike_.next_event();
+  const Micros ceiling = paced_now();
+  if (next <= ceiling) {
+    // One bus instant, then the event loop: the gateway handles it (and what it sends reaches
+    // the bike at this instant) before the bus moves on.
+    delivered_to_ = std::max(delivered_to_, next);
+    delivering_ = true;
+    bike_.advance_to(delivered_to_, bike_emit_);
+    delivering_ = false;
+    if (!running_) return;  // the handler stopped us
+    if (on_advanced_) on_advanced_(delivered_to_);
+    // Behind the ceiling by more than a step (a loaded machine): slip instead of racing to
+    // catch up, so the gateway's wall-clock stages (group commit, uplink) see the same pace.
+    if (ceiling - delivered_to_ > step()) rebase(delivered_to_ + step());
   }
   arm();
 }
@@ -179,6 +250,7 @@ bool SimTransport::send(const motinova::CanFrame& frame) {
   outgoing_.push_back(frame);
   if (delivery_posted_) return true;
   delivery_posted_ = true;
+  driver_.hold();  // lock-step: the bus waits for these frames
   asio::post(io_, [this, token = std::weak_ptr<int>(alive_)] {
     if (token.expired() || stopped_) return;
     delivery_posted_ = false;
@@ -189,6 +261,8 @@ bool SimTransport::send(const motinova::CanFrame& frame) {
       if (stopped_) return;
       driver_.receive(f);
     }
+    // What the bike's answers made the gateway send meanwhile is held again by its send().
+    if (!delivery_posted_) driver_.release();
   });
   return true;
 }

@@ -19,6 +19,20 @@
 // due at once (the gateway calls it before acting on its own deadlines, so it never acts on a
 // stale view of the bus) and restarts the window; set_low_latency(true) suspends batching
 // (a command waits for the lock's answer). Window 0 (the default): one wake-up per bike event.
+//
+// Lock-step (set_lockstep(true), `[sim] lockstep = true`): the bus's virtual time advances with
+// what has been delivered and processed, never with the wall clock alone, so a loaded machine
+// slows the ride down but never shows the gateway a bus that "fell behind":
+//  * virtual_now() never passes the bike's next undelivered event: every frame stamped before
+//    the time the gateway reads has reached its handler;
+//  * a frame the gateway send()s reaches the bike at the bus time it was sent (the clock is held
+//    while it is in flight), so the bike's answer is as late in bus time as on an idle machine;
+//  * one bus instant per wake-up, then the event loop runs (the gateway reacts to every instant
+//    before the next one); batch windows and flush() have nothing to do;
+//  * the acceleration is a ceiling: a machine slower than it slips (the ride takes longer in
+//    wall time, by at most one step of catch-up) with the same frames at the same bus times.
+// Intended for tests and measurements asserting bus-time behaviour; the wall-clock pacing stays
+// the default (fewer wake-ups at speed 1).
 #pragma once
 
 #include <filesystem>
@@ -59,6 +73,14 @@ class RealtimeDriver {
   void receive(const motinova::CanFrame& frame);
   Micros virtual_now() const;
   bool running() const { return running_; }
+  // Lock-step pacing (see the top of this file); before start().
+  void set_lockstep(bool on) { lockstep_ = on; }
+  bool lockstep() const { return lockstep_; }
+  // Lock-step: frames from the gateway are on their way to the bike (posted): virtual time
+  // stands still until release(), which the delivery calls after its receive()s. No-ops
+  // otherwise.
+  void hold();
+  void release();
   // Called after each step the bike has run, with the bus time it has reached (SimGnss).
   void set_on_advanced(std::function<void(Micros)> hook) { on_advanced_ = std::move(hook); }
 
@@ -70,7 +92,13 @@ class RealtimeDriver {
 
   void arm();
   void fire();
+  void fire_lockstep();
   Micros step() const;  // kStep of real time, in bus time
+  // virtual start + elapsed real time × acceleration: the wall clock's bus time (lock-step: the
+  // ceiling).
+  Micros paced_now() const;
+  // Restarts the wall clock's bus time at `bus_now` (the simulation slips).
+  void rebase(Micros bus_now);
 
   Bike& bike_;
   double acceleration_;
@@ -87,6 +115,9 @@ class RealtimeDriver {
   std::chrono::steady_clock::time_point real_start_{};
   Micros virtual_start_{0};
   bool running_ = false;
+  bool lockstep_ = false;
+  std::optional<Micros> held_at_;  // lock-step: the bus time a gateway frame was sent at
+  bool delivering_ = false;        // lock-step: inside the bike's advance_to (an instant)
   std::shared_ptr<int> alive_ = std::make_shared<int>(0);
 };
 
@@ -106,6 +137,9 @@ class SimTransport final : public can::Transport {
   void set_batch_window(std::chrono::steady_clock::duration w) { driver_.set_batch_window(w); }
   void set_low_latency(bool on) { driver_.set_low_latency(on); }
   void flush() { driver_.flush(); }
+  // Lock-step pacing (RealtimeDriver above); before start().
+  void set_lockstep(bool on) { driver_.set_lockstep(on); }
+  bool lockstep() const { return driver_.lockstep(); }
   Bike& bike() { return bike_; }
   const Bike& bike() const { return bike_; }
   // Serves the scenario's route as NMEA on a pty linked at `link` (see SimGnss); before start().

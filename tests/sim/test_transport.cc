@@ -8,7 +8,12 @@
 #include <fstream>
 #include <sstream>
 
+#include <functional>
+#include <optional>
+#include <thread>
+
 #include <asio/io_context.hpp>
+#include <asio/post.hpp>
 #include <asio/steady_timer.hpp>
 
 #include "gateway/can/candump.h"
@@ -24,82 +29,177 @@ using testing::bundled;
 using testing::Probe;
 using testing::seconds;
 
-TEST(SimTransport, DeliversVirtualTimestampsAndAnswersRequests) {
+// Counts the event loop's turns that delivered frames: a handler posted by the first frame of a
+// turn runs once the driver's wake-up returned (exact under any load, unlike gaps in wall time).
+class TurnCounter {
+ public:
+  explicit TurnCounter(asio::io_context& io) : io_(io) {}
+  void on_frame() {
+    if (in_turn_) return;
+    in_turn_ = true;
+    ++turns;
+    asio::post(io_, [this] { in_turn_ = false; });
+  }
+  int turns = 0;
+
+ private:
+  asio::io_context& io_;
+  bool in_turn_ = false;
+};
+
+// Runs `io` until the transport was stopped (by a handler, once it saw what it waited for),
+// failing (and stopping) after `limit` of wall time: a safety net for a broken transport, not a
+// timing goal.
+void run_with_limit(asio::io_context& io, SimTransport& transport,
+                    std::chrono::seconds limit = std::chrono::seconds(60)) {
+  const auto deadline = std::chrono::steady_clock::now() + limit;
+  asio::steady_timer guard(io);
+  std::function<void()> check = [&] {
+    guard.expires_after(std::chrono::milliseconds(10));
+    guard.async_wait([&](const std::error_code& ec) {
+      if (ec || transport.health().state == can::ControllerState::kDown) return;
+      if (std::chrono::steady_clock::now() >= deadline) {
+        ADD_FAILURE() << "the transport did not get there within " << limit.count() << " s";
+        transport.stop();
+        return;
+      }
+      check();
+    });
+  };
+  check();
+  io.run();
+}
+
+// The gateway asks the BMS for its pack statistics at 10 s of bus time and the answer comes
+// a bus instant later, with monotonic virtual timestamps, on the default (wall-clock) pacing
+// and in lock-step. The request goes out from the frame handler, at a bus time the gateway
+// really reached, as the node does.
+void deliver_and_answer(bool lockstep) {
   asio::io_context io;
   const Scenario s = bundled("parked");
   SimTransport transport(io, s, /*acceleration=*/100.0);
+  transport.set_lockstep(lockstep);
   Probe probe;
   std::vector<can::ControllerState> health;
   Micros last_ts{0};
   bool monotonic = true;
+  std::optional<Micros> asked;
   transport.start(
       [&](const motinova::CanFrame& f, Micros ts) {
         monotonic = monotonic && ts >= last_ts;
         last_ts = ts;
         probe.push(f, ts);
+        if (!asked && ts >= s.start + seconds(10)) {
+          asked = transport.virtual_now();
+          for (const auto& can : motinova::segment(testing::ScriptedGateway::read(0x762, 0x54))) {
+            EXPECT_TRUE(transport.send(can));
+          }
+        }
+        if (asked && probe.first(0x725, 0x50, *asked) != nullptr) transport.stop();
       },
       [&](const can::BusHealth& h) { health.push_back(h.state); });
   ASSERT_EQ(health.size(), 1u);
   EXPECT_EQ(health[0], can::ControllerState::kUp);
-
-  // After 0.1 s real (10 s virtual) the gateway asks the BMS for its pack statistics.
-  asio::steady_timer ask(io);
-  Micros asked{0};
-  ask.expires_after(std::chrono::milliseconds(100));
-  ask.async_wait([&](const std::error_code&) {
-    asked = transport.virtual_now();
-    for (const auto& can : motinova::segment(testing::ScriptedGateway::read(0x762, 0x54))) {
-      EXPECT_TRUE(transport.send(can));
-    }
-  });
-  asio::steady_timer done(io);
-  done.expires_after(std::chrono::milliseconds(300));
-  done.async_wait([&](const std::error_code&) { transport.stop(); });
-  io.run();
+  run_with_limit(io, transport);
 
   EXPECT_TRUE(monotonic);
   EXPECT_TRUE(probe.errors.empty());
   EXPECT_GT(probe.messages.size(), 50u);
   EXPECT_GE(probe.messages.front().ts, s.start);
-  EXPECT_LT(last_ts, s.start + seconds(60));  // ~30 s virtual at x100
-  const auto* stats = probe.first(0x725, 0x50, asked);
+  ASSERT_TRUE(asked.has_value());
+  const auto* stats = probe.first(0x725, 0x50, *asked);
   ASSERT_NE(stats, nullptr);
-  EXPECT_LT(stats->ts - asked, seconds(1));
+  if (lockstep) {
+    // In lock-step the request reached the bike at the bus time it was sent, on any machine.
+    EXPECT_LT(stats->ts - *asked, seconds(0.1));
+  }
   EXPECT_EQ(transport.health().state, can::ControllerState::kDown);
   EXPECT_EQ(transport.health().tx_frames, 2u);
   EXPECT_EQ(transport.health().rx_frames, probe.can_frames);
   EXPECT_FALSE(transport.send(motinova::CanFrame{}));  // stopped
 }
 
+TEST(SimTransport, DeliversVirtualTimestampsAndAnswersRequests) {
+  deliver_and_answer(false);
+}
+
+TEST(SimTransport, LockstepDeliversVirtualTimestampsAndAnswersRequests) {
+  deliver_and_answer(true);
+}
+
+// Lock-step holds on a machine that stalls: the event loop is blocked for 300 ms of wall time
+// (30 s of bus time at x100) right after the gateway sent a request. The gateway never reads a
+// bus time past a frame it has not been given, and the bike hears the request at the bus time
+// it was sent, so its answer comes as soon as on an idle machine. On the wall-clock pacing the
+// same stall makes the bus "fall behind" by 30 s (the failure this mode exists for).
+TEST(SimTransport, LockstepBusNeverRunsAheadOfTheGatewayWhenTheMachineStalls) {
+  asio::io_context io;
+  const Scenario s = bundled("parked");
+  SimTransport transport(io, s, /*acceleration=*/100.0);
+  transport.set_lockstep(true);
+  Probe probe;
+  Micros last_ts{0};
+  std::optional<Micros> asked;
+  std::optional<Micros> after_stall;
+  bool ahead = false;  // virtual_now() read before a frame stamped earlier had arrived
+  Micros seen_now{0};
+  transport.start(
+      [&](const motinova::CanFrame& f, Micros ts) {
+        ahead = ahead || ts < seen_now;
+        last_ts = ts;
+        probe.push(f, ts);
+        seen_now = std::max(seen_now, transport.virtual_now());
+        if (!asked && ts >= s.start + seconds(5)) {
+          asked = transport.virtual_now();
+          for (const auto& can : motinova::segment(testing::ScriptedGateway::read(0x762, 0x54))) {
+            transport.send(can);
+          }
+          // A loaded machine: this process gets no CPU for 300 ms (the stall is the point).
+          std::this_thread::sleep_for(std::chrono::milliseconds(300));
+          after_stall = transport.virtual_now();
+        }
+        if (asked && probe.first(0x725, 0x50, *asked) != nullptr) transport.stop();
+      },
+      nullptr);
+  run_with_limit(io, transport);
+
+  ASSERT_TRUE(asked.has_value());
+  ASSERT_TRUE(after_stall.has_value());
+  EXPECT_FALSE(ahead) << "the gateway read a bus time past a frame not yet delivered";
+  EXPECT_EQ(*after_stall, *asked) << "the bus moved while the gateway's frames were in flight";
+  const auto* stats = probe.first(0x725, 0x50, *asked);
+  ASSERT_NE(stats, nullptr);
+  EXPECT_LT(stats->ts - *asked, seconds(0.1)) << "the answer fell behind the stall";
+}
+
 // Coalescing: with a batch window the bike's traffic arrives in few wake-ups, every frame in
 // order with its own timestamp; flush() delivers what is due at once; low latency turns
 // batching off.
 TEST(SimTransport, BatchWindowCoalescesWakeUpsAndFlushDeliversWhatIsDue) {
-  using Clock = std::chrono::steady_clock;
   asio::io_context io;
-  SimTransport transport(io, bundled("ride"), /*acceleration=*/10.0);
+  const Scenario s = bundled("ride");
+  SimTransport transport(io, s, /*acceleration=*/10.0);
   transport.set_batch_window(std::chrono::milliseconds(100));
   Probe probe;
   Micros last_ts{0};
   bool monotonic = true;
-  std::vector<Clock::time_point> deliveries;  // one entry per wake-up that delivered frames
+  TurnCounter deliveries(io);
   transport.start(
       [&](const motinova::CanFrame& f, Micros ts) {
         monotonic = monotonic && ts >= last_ts;
         last_ts = ts;
         probe.push(f, ts);
-        const auto now = Clock::now();
-        if (deliveries.empty() || now - deliveries.back() > std::chrono::milliseconds(20)) {
-          deliveries.push_back(now);
-        }
+        deliveries.on_frame();
       },
       nullptr);
   asio::steady_timer check(io);
   Micros flushed_at{0};
   Micros last_before_flush{0};
+  int turns_before_flush = 0;
   check.expires_after(std::chrono::milliseconds(650));
   check.async_wait([&](const std::error_code&) {
     last_before_flush = last_ts;
+    turns_before_flush = deliveries.turns;
     flushed_at = transport.virtual_now();
     transport.flush();
     transport.stop();
@@ -108,35 +208,34 @@ TEST(SimTransport, BatchWindowCoalescesWakeUpsAndFlushDeliversWhatIsDue) {
 
   EXPECT_TRUE(monotonic);
   EXPECT_TRUE(probe.errors.empty());
-  // 6.5 s of a ride at x10 is well over a hundred messages, in about 7 wake-ups.
+  // At least 6.5 s of a ride at x10 (more if the timer came late) is over a hundred messages,
+  // in about one wake-up per 100 ms of wall time: bounded by the bus time covered.
   EXPECT_GT(probe.messages.size(), 100u);
-  EXPECT_LE(deliveries.size(), 9u) << "one wake-up per 100 ms window, not per message";
-  EXPECT_GE(deliveries.size(), 3u);
+  const double windows = static_cast<double>((flushed_at - s.start).count()) / 1e6 / 10 / 0.1;
+  EXPECT_LE(turns_before_flush, windows + 2) << "one wake-up per 100 ms window, not per message";
+  EXPECT_GE(turns_before_flush, 3);
   // flush() delivered what was due by then: nothing older than the window is left behind.
   EXPECT_GT(last_ts, last_before_flush);
   EXPECT_LE(last_ts, flushed_at);
 }
 
 TEST(SimTransport, LowLatencyDeliversEachBikeEventAtOnce) {
-  using Clock = std::chrono::steady_clock;
   asio::io_context io;
-  SimTransport transport(io, bundled("ride"), /*acceleration=*/10.0);
+  const Scenario s = bundled("ride");
+  SimTransport transport(io, s, /*acceleration=*/10.0);
   transport.set_batch_window(std::chrono::milliseconds(100));
   transport.set_low_latency(true);
-  std::vector<Clock::time_point> deliveries;
+  TurnCounter deliveries(io);
   transport.start(
-      [&](const motinova::CanFrame&, Micros) {
-        const auto now = Clock::now();
-        if (deliveries.empty() || now - deliveries.back() > std::chrono::milliseconds(2)) {
-          deliveries.push_back(now);
-        }
+      [&](const motinova::CanFrame&, Micros ts) {
+        deliveries.on_frame();
+        if (ts >= s.start + seconds(4)) transport.stop();
       },
       nullptr);
-  asio::steady_timer stop(io);
-  stop.expires_after(std::chrono::milliseconds(400));
-  stop.async_wait([&](const std::error_code&) { transport.stop(); });
-  io.run();
-  EXPECT_GT(deliveries.size(), 15u) << "events are not held back for the window";
+  run_with_limit(io, transport);
+  // Batched, 4 s of bus at x10 would be 4-5 wake-ups; per event it is one every few ms of bus
+  // time (several per 100 ms of bus time even when a loaded machine wakes the loop late).
+  EXPECT_GT(deliveries.turns, 15) << "events are not held back for the window";
 }
 
 // Stands in for the UDP/SocketCAN transport in run_sim.
@@ -169,11 +268,16 @@ TEST(RunSim, RunsOnTheGivenTransportForTheDuration) {
     spec_seen = spec;
     return std::make_unique<FakeBus>(frames);
   };
-  const auto t0 = std::chrono::steady_clock::now();
   EXPECT_EQ(run_sim(o), 0);
-  EXPECT_LT(std::chrono::steady_clock::now() - t0, std::chrono::seconds(5));
   EXPECT_EQ(spec_seen, "fake:bus");
   EXPECT_GT(frames.size(), 300u);
+  // It stopped at the duration's bus time, not later: no more frames than the bike puts on
+  // the bus in 20 s.
+  Bike bike(load_scenario(o.scenario));
+  std::size_t in_duration = 0;
+  bike.advance_to(bike.scenario().start + seconds(20),
+                  [&](const motinova::CanFrame&) { ++in_duration; });
+  EXPECT_LE(frames.size(), in_duration);
 }
 
 TEST(RunSim, BadScenarioIsExitCode2) {
