@@ -153,8 +153,10 @@ start_workers() {
     touch "$WORK/worker-$w.log"
     # fleetgw-ingest itself (what `fleetgw ingest` execs): a worker built apart from the
     # gateway's fleetgw (FLEETGW's directory) takes options that fleetgw may not know yet.
-    # shellcheck disable=SC2086 # INGEST_ARGS: extra worker options, word-split on purpose
-    "$(dirname "$FLEETGW")/fleetgw-ingest" --broker "$BROKER_URI" --group bench --client-id "bench-worker-$w" \
+    # INGEST_WRAP: a command the worker runs under (e.g. "strace -c -f -o FILE" to count its
+    # system calls; its CPU is then counted with the worker's).
+    # shellcheck disable=SC2086 # INGEST_ARGS, INGEST_WRAP: word-split on purpose
+    ${INGEST_WRAP:-} "$(dirname "$FLEETGW")/fleetgw-ingest" --broker "$BROKER_URI" --group bench --client-id "bench-worker-$w" \
       --pg "$CONNINFO" ${INGEST_ARGS:-} >>"$WORK/worker-$w.log" 2>&1 &
     WORKERS+=("$!")
     PIDS+=("$!")

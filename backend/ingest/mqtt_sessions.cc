@@ -33,6 +33,7 @@ struct MqttSessions::Session {
   bool ever_connected = false;
   bool resumed = false;
   std::size_t held = 0;
+  std::size_t delivered = 0;  // messages handed to the sink, ever (the read loop's progress)
   std::uint64_t generation = 0;  // sealed with a batch being written (0: not sealed)
   bool closing = false;          // its DISCONNECT is ours: not a lost connection
   std::string refused;
@@ -146,6 +147,7 @@ void session_message(mosquitto*, void* obj, const mosquitto_message* msg,
   auto& s = *static_cast<MqttSessions::Session*>(obj);
   // QoS 0 has no acknowledgement to hold (the fleet publishes records at QoS 1).
   if (msg->qos > 0) ++s.held;
+  ++s.delivered;
   (*s.sink)(s.index, msg->topic != nullptr ? std::string_view(msg->topic) : std::string_view(),
             std::string_view(static_cast<const char*>(msg->payload),
                              static_cast<std::size_t>(std::max(0, msg->payloadlen))));
@@ -293,14 +295,16 @@ unsigned MqttSessions::poll(std::chrono::milliseconds timeout, std::span<const i
         mosquitto_socket(m) >= 0) {
       // One packet per call (the library reads a packet's header and body separately), while
       // the socket has bytes and the batch wants more; bounded so no session starves others.
-      // The library's own read that found the socket empty says so in errno (EAGAIN, with
-      // success): one failed read per turn instead of a FIONREAD per message (issue 25: a
-      // system call per message less). Anything else leaving EAGAIN in errno only ends this
-      // turn early: the socket stays readable for the next poll.
+      // A call that delivered no message and left EAGAIN in errno found the socket empty (the
+      // library's read says so with success): the turn ends there, one failed read per turn
+      // instead of a FIONREAD per message (issue 25: a system call per message less). A call
+      // that delivered a message may leave EAGAIN too (the library's wake-up write of each
+      // queued PUBACK fails once its socket pair is full): it does not end the turn.
       for (int k = 0; k < 4096 && want_more(); ++k) {
+        const std::size_t delivered = s.delivered;
         errno = 0;
-        if (mosquitto_loop_read(m, 1) != MOSQ_ERR_SUCCESS) break;
-        if (errno == EAGAIN || errno == EWOULDBLOCK || mosquitto_socket(m) < 0) break;
+        if (mosquitto_loop_read(m, 1) != MOSQ_ERR_SUCCESS || mosquitto_socket(m) < 0) break;
+        if (s.delivered == delivered && (errno == EAGAIN || errno == EWOULDBLOCK)) break;
       }
     }
     if (s.held == 0) write_queue(s);  // e.g. the SUBSCRIBE after a CONNACK
