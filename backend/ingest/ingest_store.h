@@ -4,7 +4,8 @@
 //  * IngestStore connects lazily (and again after a broken connection) and applies the
 //    migrations (migrations.h) at its first connection.
 //  * write_batch(messages) writes every message of the batch in ONE transaction, at bulk speed:
-//    per record table one COPY of the batch's rows (under a savepoint), and when one of them is
+//    the batch's stamp set once (`fleet.batch_us`: every row's committed_at_us, migration 9),
+//    per record table one COPY of the messages' COPY text (under a savepoint), and when one is
 //    already there (a redelivery: unique violation) instead, as for the latest-value tables,
 //    one `INSERT ... SELECT ... FROM unnest($1::text[], ...) ON CONFLICT`
 //    with every column of the batch's rows as one array parameter (records: DO NOTHING on
