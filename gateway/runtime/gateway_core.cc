@@ -4,7 +4,6 @@
 
 #include <algorithm>
 
-#include "gateway/decode/json_format.h"
 #include "gateway/runtime/clock_units.h"
 
 namespace fleetgw::runtime {
@@ -110,9 +109,9 @@ void GatewayCore::on_frame(const motinova::AppFrame& frame, Micros ts) {
   if (decoded_.status == motinova::DecodeStatus::kLengthMismatch) {
     ++stats_.length_mismatches;
     spdlog::warn(
-        "bus: {} function 0x{:02X} has {} data bytes, the catalogue expects another "
+        "bus: 0x{:03X} function 0x{:02X} has {} data bytes, the catalogue expects another "
         "length; kept as unknown",
-        decode::hex_id(frame.can_id), frame.function, frame.data.size());
+        frame.can_id, frame.function, frame.data.size());
   }
   node_->on_frame(frame, decoded_, ts);
   node_due_stale_ = true;
@@ -127,9 +126,9 @@ void GatewayCore::on_error(const motinova::ReassemblyErrorEvent& e) {
   // noisy bus cannot flood the journal.
   ++errors_since_log_;
   if (e.timestamp - last_error_log_ >= Micros(1'000'000)) {
-    spdlog::warn("bus: {} frame error(s) in the last second, latest {} on {} ({} bytes dropped)",
-                 errors_since_log_, motinova::reassembly_error_name(e.kind),
-                 decode::hex_id(e.can_id), e.bytes_dropped);
+    spdlog::warn(
+        "bus: {} frame error(s) in the last second, latest {} on 0x{:03X} ({} bytes dropped)",
+        errors_since_log_, motinova::reassembly_error_name(e.kind), e.can_id, e.bytes_dropped);
     last_error_log_ = e.timestamp;
     errors_since_log_ = 0;
   }

@@ -105,8 +105,6 @@ class GatewayCore final : private motinova::FrameSink {
   void on_frame(const motinova::AppFrame& frame, Micros ts) override;
   void on_error(const motinova::ReassemblyErrorEvent& error) override;
 
-  void dispatch(const motinova::AppFrame& frame, Micros ts);
-
   motinova::DecodeOptions options_;
   motinova::Reassembler reassembler_;
   EchoSender echo_;

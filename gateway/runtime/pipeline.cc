@@ -16,17 +16,21 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-// settle() repeats while stages keep producing work; a bound keeps one loop turn short even if
-// a stage misbehaves (the rest is picked up by the next settle, which is posted).
-constexpr int kMaxSettleRounds = 16;
-// The simulator's clock is converted to the wall clock; never wait less than this for it.
-constexpr auto kMinSimWait = std::chrono::microseconds(200);
 // The simulated bus delivers its traffic in batches at most this often (real time) while no
 // command waits for the bus: frames keep their own timestamps and are flushed before the core
 // acts on any deadline, so only the wall-clock latency of telemetry grows (it waits for its
 // group commit anyway), not the node's timing. Each wake-up of the event loop costs far more
 // than the frames it delivers; this is what makes real time cost about what a replay costs.
 constexpr auto kSimBatchWindow = std::chrono::milliseconds(500);
+
+BusClock make_bus_clock(const Env& env, const BusTransport& bus) {
+  if (bus.sim) {
+    return BusClock::simulated(
+        env, [sim = bus.sim] { return sim->virtual_now(); }, bus.sim_speed);
+  }
+  if (bus.replay) return BusClock::replay(env);
+  return BusClock::system(env);
+}
 
 }  // namespace
 
@@ -49,6 +53,9 @@ Pipeline::Pipeline(asio::io_context& io, const config::Config& config, BusTransp
     : io_(io),
       options_(std::move(options)),
       bus_(std::move(bus)),
+      env_(options_.env ? *options_.env : Env::system()),
+      clock_(make_bus_clock(env_, bus_)),
+      engine_(io, env_),
       store_(store),
       sender_(*bus_.transport, config.protocol.crc_order),
       core_(
@@ -67,8 +74,7 @@ Pipeline::Pipeline(asio::io_context& io, const config::Config& config, BusTransp
       state_throttle_(
           std::chrono::milliseconds(config.mqtt.enabled ? config.mqtt.state_interval_ms : 0)),
       state_position_(config.mqtt.state_min_move_m),
-      parked_config_(make_parked_config(config)),
-      timer_(io) {
+      parked_config_(make_parked_config(config)) {
   bus_.transport->start([this](const motinova::CanFrame& frame, Micros ts) { on_frame(frame, ts); },
                         [this](const can::BusHealth& h) {
                           spdlog::info("bus {}: {}{}{}", bus_.transport->name(),
@@ -90,8 +96,8 @@ Pipeline::Pipeline(asio::io_context& io, const config::Config& config, BusTransp
       // A stored result is published in the next settle, not at a timer.
       .result_stored =
           [this] {
-            if (!uplink_) return;
-            publish_due_ = true;
+            if (!uplink_stage_) return;
+            uplink_stage_->stored();
             request_settle();
           },
       .publish_unstored =
@@ -148,12 +154,8 @@ Pipeline::Pipeline(asio::io_context& io, const config::Config& config, BusTransp
                                        std::move(a.command_sha256)};
         });
     // Paho's threads only raise a flag and, once, post a settle to the loop.
-    uplink_->set_wakeup([this, token = std::weak_ptr<int>(alive_)] {
-      if (uplink_woken_.exchange(true)) return;
-      asio::post(io_, [this, token] {
-        if (!token.expired()) settle();
-      });
-    });
+    uplink_stage_ = std::make_unique<UplinkStage>(*uplink_, engine_);
+    uplink_->set_wakeup([stage = uplink_stage_.get()] { stage->signal(); });
   }
   core_.add_listener(*recorder_);
   start_campaigns(config);  // a listener after the recorder
@@ -165,19 +167,17 @@ Pipeline::Pipeline(asio::io_context& io, const config::Config& config, BusTransp
   if (options_.on_core) options_.on_core(core_);
   core_.start(start_);
 
-  if (options_.duration) stop_at_ = Clock::now() + *options_.duration;
-  if (options_.live_view) next_live_ = Clock::now() + std::chrono::seconds(1);
   if (bus_.replay) {
     bus_.replay->on_end([this](const can::ReplaySummary& s) {
       spdlog::info("replay finished: {} lines, {} frames, {} malformed lines", s.lines, s.frames,
                    s.malformed_lines);
-      core_.tick(last_frame_ts_ + GatewayCore::kTickInterval);
+      core_.tick(clock_.last_frame() + GatewayCore::kTickInterval);
       stop("end of replay");
     });
   }
   if (uplink_) {
-    uplink_->start(system_now());
-    publish_due_ = true;  // whatever the outbox kept from the previous run
+    uplink_->start(env_.wall_now());
+    uplink_stage_->stored();  // whatever the outbox kept from the previous run
   }
   if (config.gnss.enabled) {
     const auto colon = config.gnss.gpsd.rfind(':');
@@ -191,6 +191,7 @@ Pipeline::Pipeline(asio::io_context& io, const config::Config& config, BusTransp
     gnss_->start();
   }
   start_zones(config);
+  add_stages();
   request_settle();
 }
 
@@ -203,214 +204,178 @@ Pipeline::~Pipeline() {
 }
 
 Micros Pipeline::bus_now() const {
-  // The simulator's frames carry its virtual time; once they flow they are the clock, so a
-  // machine too slow for the acceleration sees a consistent (if slower) timeline.
-  if (bus_.sim) return last_frame_ts_.count() > 0 ? last_frame_ts_ : bus_.sim->virtual_now();
-  if (bus_.replay) return last_frame_ts_;
-  return system_now();
+  return clock_.now();
 }
 
 double Pipeline::bus_seconds() const {
-  return first_ts_.count() < 0 ? 0.0
-                               : static_cast<double>((last_frame_ts_ - first_ts_).count()) / 1e6;
+  return clock_.seconds_covered();
+}
+
+PipelineCounters Pipeline::counters() const {
+  PipelineCounters c;
+  c.settles = engine_.counters().settles;
+  c.timer_wakeups = engine_.counters().timer_wakeups;
+  c.uplink_polls = uplink_stage_ ? uplink_stage_->polls() : 0;
+  c.urgent_flushes = recorder_stage_ ? recorder_stage_->urgent_flushes() : 0;
+  c.commands = commands_handled_;
+  return c;
+}
+
+void Pipeline::add_stages() {
+  // The run's own deadlines come first: a duration reached stops before anything else runs.
+  if (options_.duration) {
+    duration_stage_ = std::make_unique<TimerStage>(
+        "duration", env_.steady_now() + *options_.duration, Clock::duration::zero());
+    engine_.add(*duration_stage_, [this] {
+      if (duration_stage_->take_due()) stop("duration reached");
+      return false;
+    });
+  }
+  core_stage_ = std::make_unique<CoreStage>(core_, clock_, bus_.sim, engine_);
+  engine_.add(*core_stage_, [this] {
+    // A tick may have raised or cleared an alarm.
+    if (core_stage_->take_timer_turn()) state_throttle_.touch();
+    return false;
+  });
+  if (options_.live_view) {
+    live_stage_ = std::make_unique<TimerStage>(
+        "live_view", env_.steady_now() + std::chrono::seconds(1), std::chrono::seconds(1));
+    engine_.add(*live_stage_, [this] {
+      if (live_stage_->take_due()) {
+        std::ostream& out = options_.live_out ? *options_.live_out : std::cout;
+        out << core_.live().line() << std::endl;
+      }
+      return false;
+    });
+  }
+  device_info_stage_ = std::make_unique<DeviceInfoStage>(device_info_, core_.node().registry());
+  engine_.add(*device_info_stage_, [this] {
+    if (!device_info_stage_->record) return false;
+    recorder_->queue_message(std::move(*device_info_stage_->record));
+    device_info_stage_->record.reset();
+    return false;  // the recorder runs later in this round
+  });
+  if (gnss_) {
+    gnss_stage_ = std::make_unique<GnssStage>(*gnss_, engine_);
+    engine_.add(*gnss_stage_, [this] { return route_gnss(); });
+  }
+  if (zones_) {
+    zones_stage_ = std::make_unique<ZonesStage>(*this);
+    engine_.add(*zones_stage_);
+  }
+  if (uplink_) {
+    state_stage_ = std::make_unique<StateStage>(*this);
+    engine_.add(*state_stage_);
+  }
+  recorder_stage_ = std::make_unique<RecorderStage>(*recorder_, clock_, engine_);
+  engine_.add(
+      *recorder_stage_,
+      [this] {
+        if (recorder_stage_->take_stored() && uplink_stage_) uplink_stage_->stored();
+        return false;  // the uplink runs next in this round
+      },
+      // The store's retry interval (one attempt per second of wall time while it fails).
+      Backoff::Options{.initial = Recorder::kRetryInterval, .max = Recorder::kRetryInterval});
+  recorder_backoff_ = engine_.backoff(*recorder_stage_);
+  if (uplink_stage_) {
+    engine_.add(*uplink_stage_, [this] { return route_uplink(); });
+  }
+  engine_.set_after_settle([this] { after_settle(); });
 }
 
 void Pipeline::on_frame(const motinova::CanFrame& frame, Micros ts) {
   if (stopping_) return;
-  if (first_ts_.count() < 0) first_ts_ = ts;
-  last_frame_ts_ = ts;
+  clock_.on_frame(ts);
   core_.on_can_frame(frame, ts);
   state_throttle_.touch();  // the live values may have changed: a check at the next allowed time
-  // Model blocks heard in one burst of frames become one DeviceInfo (queued in settle()).
+  // Model blocks heard in one burst of frames become one DeviceInfo (queued in the settle).
   if (device_info_.due()) request_settle();
   // Measured on the frames actually delivered: a paced simulator's clock can run ahead of a
   // slow machine, the traffic cannot.
-  if (options_.bus_duration && ts - first_ts_ >= *options_.bus_duration) {
+  if (options_.bus_duration && ts - clock_.first_frame() >= *options_.bus_duration) {
     stop("bus duration reached");
     return;
   }
   if (recorder_->urgent()) {
-    request_settle();
-  } else if (!armed_for_ && recorder_->flush_deadline()) {
-    arm_timer();  // first pending telemetry while nothing else is scheduled (replays)
+    // A failing store is retried at the engine's back-off, not at every frame.
+    if (!recorder_backoff_->waiting(env_.steady_now())) request_settle();
+  } else if (!engine_.armed() && recorder_->flush_deadline()) {
+    engine_.rearm();  // first pending telemetry while nothing else is scheduled (replays)
   }
 }
 
-void Pipeline::request_settle() {
-  if (settling_) return;  // the running settle() loops again
-  if (settle_posted_ || stopping_) return;
-  settle_posted_ = true;
-  asio::post(io_, [this, token = std::weak_ptr<int>(alive_)] {
-    if (token.expired()) return;
-    settle_posted_ = false;
-    settle();
-  });
+bool Pipeline::route_gnss() {
+  bool moved = false;
+  if (gnss_stage_->update) {
+    const auto u = *std::exchange(gnss_stage_->update, std::nullopt);
+    state_throttle_.touch();
+    recorder_->trackers().on_position(u.position);
+    if (zones_) apply_zones(u.wall, u.position);
+    moved = true;
+  }
+  if (gnss_stage_->fault) {
+    core_.node().set_own_fault(node::iot_fault::kGps, *gnss_stage_->fault, bus_now());
+    gnss_stage_->fault.reset();
+    moved = true;
+  }
+  return moved;
 }
 
-void Pipeline::settle() {
-  if (settling_ || stopping_) return;
-  settling_ = true;
-  ++counters_.settles;
-  for (int round = 0; round < kMaxSettleRounds; ++round) {
-    bool more = false;
-    if (device_info_.due()) queue_device_info();
-    if (gnss_ && gnss_->changed()) apply_gnss();
-    if (zones_ && !pending_bike_locks_.empty()) judge_bike_locks();
-    if (zones_) tick_zones();
-    if (uplink_ && state_throttle_.due(Clock::now())) update_vehicle_state();
-    const auto due = recorder_->flush_deadline();
-    const bool urgent = recorder_->urgent();
-    // The deadline is "at the latest": pending telemetry rides along with a wake-up that
-    // happens anyway (the node's schedule) instead of costing one of its own. Not in a replay,
-    // whose group commits should stay large.
-    const bool piggyback = woken_by_timer_ && !bus_.replay;
-    woken_by_timer_ = false;
-    if (urgent || (due && (piggyback || Clock::now() >= *due))) {
-      if (urgent) ++counters_.urgent_flushes;
-      const FlushOutcome out = recorder_->flush(bus_now());
-      if (uplink_ && out.records > 0 && !out.failed) publish_due_ = true;
-    }
-    if (uplink_) {
-      uplink_->set_bus_state(bus_state());
-      const auto poll_at = uplink_->next_deadline();
-      const bool woken = uplink_woken_.exchange(false);
-      if (publish_due_ || woken || (poll_at && Clock::now() >= *poll_at)) {
-        publish_due_ = false;
-        ++counters_.uplink_polls;
-        uplink_->poll(system_now());
-        // Commands are handled after poll() returned: poll is never re-entered.
-        auto payloads = uplink_->take_commands();
-        // A command acts on the bus as it is now, not as of the last batch.
-        if (!payloads.empty() && bus_.sim) bus_.sim->flush();
-        for (auto& payload : payloads) {
-          ++counters_.commands;
-          const auto d = commands_->on_payload(payload, bus_now());
-          spdlog::info("command received: {}", command::disposition_name(d));
-          core_.deliver_echoes();  // the LOCK/UNLOCK it sent, after the command's own work
-          more = true;
-        }
-        // What the full queue could not take: each answered `busy`, none silently lost.
-        for (const auto& busy : uplink_->take_busy_commands()) {
-          ++counters_.commands;
-          commands_->answer_busy(busy.command_id, busy.command_sha256, bus_now());
-          more = true;
-        }
-        // Zone bundles: judged here, on the loop, like commands (Paho only queued them).
-        for (const auto& bundle : uplink_->take_zone_bundles()) {
-          if (!revocations_topic_.empty() && bundle.topic == revocations_topic_) {
-            commands_->on_revocations({reinterpret_cast<const std::uint8_t*>(bundle.payload.data()),
-                                       bundle.payload.size()},
-                                      system_now());
-          } else if (campaigns_ && campaigns_->handles(bundle.topic)) {
-            campaigns_->on_payload(bundle.topic, bundle.payload, bundle.oversized_bytes, bus_now(),
-                                   bus_now());
-          } else if (zones_) {
-            on_zone_bundle(bundle);
-          }
-          more = true;
-        }
-      }
-    }
-    if (publish_due_ || recorder_->urgent()) more = true;
-    if (!more) break;
+bool Pipeline::route_uplink() {
+  UplinkStage& up = *uplink_stage_;
+  up.set_bus_state(bus_state());
+  bool moved = false;
+  // A command acts on the bus as it is now, not as of the last batch.
+  if (!up.commands.empty() && bus_.sim) bus_.sim->flush();
+  for (auto& payload : std::exchange(up.commands, {})) {
+    ++commands_handled_;
+    const auto d = commands_->on_payload(payload, bus_now());
+    spdlog::info("command received: {}", command::disposition_name(d));
+    core_.deliver_echoes();  // the LOCK/UNLOCK it sent, after the command's own work
+    moved = true;
   }
-  settling_ = false;
+  // What the full queue could not take: each answered `busy`, none silently lost.
+  for (const auto& busy : std::exchange(up.busy, {})) {
+    ++commands_handled_;
+    commands_->answer_busy(busy.command_id, busy.command_sha256, bus_now());
+    moved = true;
+  }
+  // Zone bundles: judged here, on the loop, like commands (Paho only queued them).
+  for (const auto& bundle : std::exchange(up.bundles, {})) {
+    if (!revocations_topic_.empty() && bundle.topic == revocations_topic_) {
+      commands_->on_revocations(
+          {reinterpret_cast<const std::uint8_t*>(bundle.payload.data()), bundle.payload.size()},
+          env_.wall_now());
+    } else if (campaigns_ && campaigns_->handles(bundle.topic)) {
+      campaigns_->on_payload(bundle.topic, bundle.payload, bundle.oversized_bytes, bus_now(),
+                             bus_now());
+    } else if (zones_) {
+      on_zone_bundle(bundle);
+    }
+    moved = true;
+  }
+  if (up.publish_due() || recorder_->urgent()) moved = true;
+  return moved;
+}
+
+void Pipeline::after_settle() {
   // After the publishes, so a checkpoint's fsync never sits between a result and the broker.
   recorder_->checkpoint_if_due();
-  // The bound was reached (or a flush failed and keeps its records: retried at the deadline).
   if (options_.stop_when && options_.stop_when()) {
     stop("stop condition met");
     return;
   }
-  if (publish_due_) request_settle();
   // A command (or shutdown) waiting for the bus gets every frame at once.
   if (bus_.sim) bus_.sim->set_low_latency(commands_->busy() || core_.latency_critical());
-  arm_timer();
-}
-
-std::optional<Clock::time_point> Pipeline::core_deadline() const {
-  // A replay's clock only moves with its frames, and on_can_frame() ticks the core by itself.
-  if (bus_.replay) return std::nullopt;
-  // The node's own deadlines are exact; the listeners (trackers, commands) need the timer only
-  // on a silent bus, at their idle cadence: flowing frames tick them (on_can_frame).
-  const Micros next = std::min(core_.node_deadline(), core_.idle_deadline());
-  if (bus_.sim) {
-    // Bus time -> wall time through the acceleration, on the simulator's own clock.
-    const Micros now = bus_.sim->virtual_now();
-    const auto wait =
-        std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double, std::micro>(
-            static_cast<double>((next - now).count()) / bus_.sim_speed));
-    return Clock::now() + std::max<Clock::duration>(wait, kMinSimWait);
-  }
-  return Clock::now() + std::max<Clock::duration>(next - system_now(), Clock::duration::zero());
-}
-
-void Pipeline::arm_timer() {
-  if (stopping_) return;
-  std::optional<Clock::time_point> at;
-  auto consider = [&](std::optional<Clock::time_point> t) {
-    if (t && (!at || *t < *at)) at = t;
-  };
-  consider(core_deadline());
-  consider(recorder_->flush_deadline());
-  if (uplink_) consider(uplink_->next_deadline());
-  if (gnss_) consider(gnss_->next_deadline());
-  if (zones_) consider(zones_deadline());
-  consider(state_throttle_.deadline());
-  consider(next_live_);
-  consider(stop_at_);
-  if (!at) {
-    if (armed_for_) timer_.cancel();
-    armed_for_.reset();
-    return;
-  }
-  if (armed_for_ && *armed_for_ == *at) return;
-  armed_for_ = at;
-  timer_.expires_at(*at);
-  timer_.async_wait([this, token = std::weak_ptr<int>(alive_)](const std::error_code& ec) {
-    // A cancelled wait (re-armed or stopped) does nothing: the new wait is already pending.
-    if (ec || token.expired() || stopping_) return;
-    armed_for_.reset();
-    on_timer();
-  });
-}
-
-void Pipeline::on_timer() {
-  ++counters_.timer_wakeups;
-  const auto wall = Clock::now();
-  if (stop_at_ && wall >= *stop_at_) {
-    stop("duration reached");
-    return;
-  }
-  if (!bus_.replay) {
-    Micros t = bus_now();
-    if (bus_.sim) {
-      // The core acts on its deadline with every frame due by now delivered (batching).
-      bus_.sim->flush();
-      if (stopping_) return;
-      t = std::max(bus_now(), bus_.sim->virtual_now());
-    }
-    if (t >= core_.next_event()) core_.tick(t);
-  }
-  if (gnss_) gnss_->on_timer();
-  state_throttle_.touch();  // a tick may have raised or cleared an alarm
-  if (next_live_ && wall >= *next_live_) {
-    std::ostream& out = options_.live_out ? *options_.live_out : std::cout;
-    out << core_.live().line() << std::endl;
-    next_live_ = wall + std::chrono::seconds(1);
-  }
-  woken_by_timer_ = true;
-  settle();  // due flushes and polls; re-arms the timer
 }
 
 void Pipeline::stop(const char* why) {
   if (stopping_) return;
   stopping_ = true;
   spdlog::info("stopping: {}", why);
+  engine_.stop();
   bus_.transport->stop();
   if (gnss_) gnss_->stop();
-  timer_.cancel();
-  armed_for_.reset();
   if (options_.on_stop) options_.on_stop(why);
 }
 
@@ -422,54 +387,19 @@ void Pipeline::queue_device_info() {
   }
 }
 
-void Pipeline::apply_gnss() {
-  gnss_->take_changed();
-  state_throttle_.touch();
-  const auto wall = gnss_->wall_now();
-  const auto position = gnss_->state().current(wall);
-  recorder_->trackers().on_position(position);
-  if (zones_) apply_zones(wall, position);
-  const bool fault = !position;
-  if (gnss_fault_ != fault) {
-    if (fault) {
-      spdlog::warn("gnss: position unknown ({}): IoT fault bit 0x0004 set",
-                   gnss_->state().reason(wall));
-    } else if (gnss_fault_) {
-      spdlog::info("gnss: fix acquired: IoT fault bit 0x0004 cleared");
-    }
-    gnss_fault_ = fault;
-    core_.node().set_own_fault(node::iot_fault::kGps, fault, bus_now());
-  }
-}
-
 fleetgw::v1::BusState Pipeline::bus_state() const {
-  switch (bus_.transport->health().state) {
-    case can::ControllerState::kBusOff:
-      return fleetgw::v1::BUS_STATE_BUS_OFF;
-    case can::ControllerState::kErrorPassive:
-      return fleetgw::v1::BUS_STATE_ERROR_PASSIVE;
-    case can::ControllerState::kDown:
-      return fleetgw::v1::BUS_STATE_SILENT;
-    case can::ControllerState::kUp:
-    case can::ControllerState::kErrorWarning:
-      break;
-  }
-  // Frames flowing: heard within the time after which a node counts as offline.
-  if (first_ts_.count() < 0) return fleetgw::v1::BUS_STATE_SILENT;
-  const Micros now = bus_.sim ? std::max(bus_now(), bus_.sim->virtual_now()) : bus_now();
-  return now - last_frame_ts_ > core_.node().registry().config().offline_timeout
-             ? fleetgw::v1::BUS_STATE_SILENT
-             : fleetgw::v1::BUS_STATE_ACTIVE;
+  return runtime::bus_state(*bus_.transport, clock_,
+                            core_.node().registry().config().offline_timeout);
 }
 
 void Pipeline::answer_commands_at_stop() {
   for (const auto& payload : uplink_->take_commands()) {
-    ++counters_.commands;
+    ++commands_handled_;
     commands_->answer_stopping(
         {reinterpret_cast<const std::uint8_t*>(payload.data()), payload.size()}, bus_now());
   }
   for (const auto& busy : uplink_->take_busy_commands()) {
-    ++counters_.commands;
+    ++commands_handled_;
     commands_->answer_busy(busy.command_id, busy.command_sha256, bus_now());
   }
 }
@@ -479,7 +409,7 @@ void Pipeline::finish() {
   // (the last telemetry batch included: it no longer waits for its batch delay) within the
   // grace, before the retained offline status.
   if (device_info_.due()) queue_device_info();
-  recorder_->flush(bus_.replay ? last_frame_ts_ : bus_now());
+  recorder_->flush(bus_now());
   if (!uplink_) return;
   // The state the clean stop leaves retained (online = false) is the current one, not the last
   // one the throttle let through.
@@ -496,10 +426,10 @@ void Pipeline::finish() {
   while (Clock::now() < deadline && uplink_->state() == uplink::UplinkState::kConnected) {
     answer_commands_at_stop();
     if (outbox_.stats().depth == 0) break;
-    uplink_->poll(system_now());
+    uplink_->poll(env_.wall_now());
     uplink_->wait_for_events(std::chrono::milliseconds(50));
   }
-  uplink_->stop(system_now());
+  uplink_->stop(env_.wall_now());
   answer_commands_at_stop();
   const auto s = uplink_->stats();
   spdlog::info("uplink: {} records acked in {} messages, {} reconnects, {} still queued",

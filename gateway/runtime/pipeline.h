@@ -1,41 +1,38 @@
-// Pipeline: the engine of `fleetgw run`. It owns the stages -- GatewayCore (reassembly, decode,
-// node), Recorder (domain trackers -> SQLite), CommandService, Uplink (outbox -> MQTT) -- and
-// ALL their scheduling, on one asio::io_context thread.
+// Pipeline: the WIRING of `fleetgw run`. It builds the stages -- GatewayCore (reassembly, decode,
+// node), Recorder (domain trackers -> SQLite), CommandService, Uplink (outbox -> MQTT), GNSS,
+// zones, parked mode, the vehicle-state throttle -- puts each behind the stage contract
+// (runtime/stage.h; adapters in stages.h) and hands them to the Engine (runtime/engine.h), which
+// owns the one timer, the settle loop, the wake-up from other threads and the retries. The
+// pipeline declares the routes between the stages' outputs and inputs (add_stages()).
 //
 // Contract:
-//  * Stages never call each other across the pipeline and are never re-entered. They signal:
-//    the recorder by urgent()/flush_deadline(), the command service by result_stored /
-//    publish_unstored, the uplink by its wake-up (Paho threads) and next_deadline(), the GNSS
-//    feed (gpsd) by changed() and next_deadline(): its position goes to the trackers and its
-//    fault to the node's own fault word (0x0004) in settle(). The
-//    pipeline reacts in settle(), which runs after the handler that raised the signal returned:
-//    flush the recorder when urgent, poll the uplink once, hand the commands it took
-//    (Uplink::take_commands) to the CommandService, deliver the echoes of what the node sent,
-//    and repeat until nothing is left. settle() never runs inside itself.
+//  * Stages never call each other and are never re-entered. The engine runs them in this order
+//    each settle round: duration, core (a timer turn: the simulated bus flushed, then the node's
+//    bus deadlines), live view, device info, GNSS (its position to the trackers and zones, its
+//    fault bit 0x0004 to the node), zones, vehicle state, recorder (group commit), uplink (poll;
+//    the commands, busy notices and retained documents it took are routed to the command
+//    service, the campaigns and the zones, and the echoes of what the node sent delivered). The
+//    routes run after their stage; the settle repeats until nothing moves (engine.h).
 //  * Results, faults, alarms, rides and locks are published as soon as they are stored (an
-//    urgent recorder flush, or result_stored, polls the uplink at once); only telemetry waits
-//    for its group commit (storage.flush_ms of wall time at the latest; outside replays it is
-//    written at any earlier timer wake-up, which saves a wake-up of its own) and the uplink's
-//    telemetry batch.
-//  * Deadline scheduling: ONE steady_timer, armed for the earliest real deadline: the node's
-//    next deadline (exact; bus timeline converted to the wall clock; not for replays, whose
-//    clock only moves with their frames), the listeners' idle tick (1 s, only when the bus is
-//    silent), the recorder's flush deadline, the uplink's next deadline, the live view, the
-//    run's duration, the retained vehicle state's next check (only after something changed,
-//    at most every mqtt.state_interval_ms). Nothing else wakes the loop: a replay as fast as
-//    possible is paced by its transport alone, and an idle bus costs only the node's own schedule.
+//    urgent recorder flush, or result_stored, makes the uplink poll in the same settle); only
+//    telemetry waits for its group commit (storage.flush_ms of wall time at the latest; outside
+//    replays it is written at any earlier timer turn, which saves a wake-up of its own) and the
+//    uplink's telemetry batch.
+//  * Deadlines: each stage's next_deadline(), in engine time. The node's come from the bus
+//    timeline through the BusClock (runtime/bus_clock.h; none for replays, whose clock only
+//    moves with their frames); the listeners' idle tick (1 s) only when the bus is silent.
+//    Nothing else wakes the loop: a replay as fast as possible is paced by its transport alone,
+//    and an idle bus costs only the node's own schedule.
 //  * The simulated bus is read in batches (SimTransport::set_batch_window, 500 ms) except while
 //    a command or the shutdown waits for the bus; it is flushed before the core acts on a
 //    deadline and before a command is handled, so batching delays telemetry, never decisions.
-//  * Time: the core, trackers and commands run on the transport's timeline (virtual for the
-//    simulator and replays, the system clock otherwise); the network and group commit run on
-//    the wall clock, even when the bus is accelerated.
+//  * Time: the core, trackers and commands run on the bus timeline (BusClock); the network and
+//    group commit on the Env's clocks, even when the bus is accelerated.
 //  * stop() is idempotent; finish() (after io.run() returned) flushes the recorder, gives the
 //    uplink up to 5 s to send what is queued and publishes the retained offline status.
 #pragma once
 
 #include <asio/io_context.hpp>
-#include <asio/steady_timer.hpp>
 #include <atomic>
 #include <chrono>
 #include <functional>
@@ -55,10 +52,13 @@
 #include "gateway/geofence/zone_lock_watch.h"
 #include "gateway/gnss/gnss_feed.h"
 #include "gateway/node/transport_sender.h"
+#include "gateway/runtime/bus_clock.h"
 #include "gateway/runtime/device_info_reporter.h"
+#include "gateway/runtime/engine.h"
 #include "gateway/runtime/gateway_core.h"
 #include "gateway/runtime/parked_mode.h"
 #include "gateway/runtime/recorder.h"
+#include "gateway/runtime/stages.h"
 #include "gateway/runtime/status_provider.h"
 #include "gateway/runtime/store_outbox.h"
 #include "gateway/runtime/vehicle_state.h"
@@ -87,6 +87,8 @@ struct PipelineOptions {
   // Checked after every settle: stop as soon as it holds (tests and benchmarks wait for an
   // outcome instead of a fixed run length).
   std::function<bool()> stop_when;
+  // The environment (clocks); nullptr: the real machine.
+  Env* env = nullptr;
 };
 
 // A stage could not be built from the configuration; what() names the section.
@@ -136,8 +138,9 @@ class Pipeline {
   const uplink::Uplink* uplink() const { return uplink_.get(); }
   uplink::Uplink* uplink() { return uplink_.get(); }
   const gnss::GnssFeed* gnss() const { return gnss_.get(); }
+  const Engine& engine() const { return engine_; }
   const Recorder& recorder() const { return *recorder_; }
-  const PipelineCounters& counters() const { return counters_; }
+  PipelineCounters counters() const;
   // The geofence section of the status; nullopt when [geofence] is disabled.
   std::optional<GeofenceStatus> geofence_status() const;
   // The campaigns section of the status (issue 29); nullopt without [command.trusted_keys]
@@ -152,15 +155,17 @@ class Pipeline {
 
  private:
   class CommandFeed;
+  class ZonesStage;  // pipeline_zones.cc
+  class StateStage;  // pipeline_state.cc
 
   void on_frame(const motinova::CanFrame& frame, Micros ts);
-  void request_settle();
-  void settle();
-  void on_timer();
-  void arm_timer();
-  std::optional<std::chrono::steady_clock::time_point> core_deadline() const;
+  void request_settle() { engine_.request_settle(); }
+  // The wiring: the stages in their order and the routes between their outputs and inputs.
+  void add_stages();
+  bool route_uplink();
+  bool route_gnss();
+  void after_settle();
   void queue_device_info();
-  void apply_gnss();
   // Collection campaigns (issue 29; pipeline_campaigns.cc): their topics, the service fed by
   // the core after the recorder, their records queued through the recorder.
   void add_campaign_topics(const config::Config& config, uplink::UplinkConfig& uplink_config);
@@ -180,7 +185,7 @@ class Pipeline {
   // Raises / clears the outside_operating_area alarm when the engine's demand changes.
   void update_area_alarm(Micros wall, const std::optional<gnss::Fix>& position);
   std::optional<std::chrono::steady_clock::time_point> zones_deadline() const;
-  void update_vehicle_state();
+  bool update_vehicle_state();
   void attach_parked_feed();
   void apply_parked_rates(bool parked);
   fleetgw::v1::BusState bus_state() const;
@@ -188,6 +193,9 @@ class Pipeline {
   asio::io_context& io_;
   PipelineOptions options_;
   BusTransport bus_;
+  Env& env_;
+  BusClock clock_;
+  Engine engine_;
   storage::Store& store_;
   node::TransportSender sender_;
   GatewayCore core_;
@@ -201,7 +209,6 @@ class Pipeline {
   std::unique_ptr<uplink::Uplink> uplink_;
   DeviceInfoReporter device_info_;
   std::unique_ptr<gnss::GnssFeed> gnss_;
-  std::optional<bool> gnss_fault_;  // last value given to the node's fault bit
   // nullptr when [geofence] is disabled.
   std::unique_ptr<geofence::ZoneController> zones_;
   bool zone_write_running_ = false;      // an MC write of the zones is under way
@@ -226,20 +233,46 @@ class Pipeline {
   std::unique_ptr<ParkedController> parked_;         // parked/riding (pipeline_state.cc)
   std::chrono::milliseconds parked_batch_delay_{0};  // [parked] telemetry_batch_ms
 
-  asio::steady_timer timer_;
-  std::optional<std::chrono::steady_clock::time_point> armed_for_;
-  std::optional<std::chrono::steady_clock::time_point> stop_at_;
-  std::optional<std::chrono::steady_clock::time_point> next_live_;
-  std::atomic<bool> uplink_woken_{false};  // set by Paho threads, consumed by settle()
-  bool settle_posted_ = false;
-  bool settling_ = false;
-  bool publish_due_ = false;  // something was stored that the uplink has not seen
+  // The stages, in the order the engine runs them (add_stages()).
+  std::unique_ptr<TimerStage> duration_stage_;
+  std::unique_ptr<CoreStage> core_stage_;
+  std::unique_ptr<TimerStage> live_stage_;
+  std::unique_ptr<DeviceInfoStage> device_info_stage_;
+  std::unique_ptr<GnssStage> gnss_stage_;
+  std::unique_ptr<ZonesStage> zones_stage_;
+  std::unique_ptr<StateStage> state_stage_;
+  std::unique_ptr<RecorderStage> recorder_stage_;
+  std::unique_ptr<UplinkStage> uplink_stage_;
+  const Backoff* recorder_backoff_ = nullptr;  // the engine's retry state of the recorder
   bool stopping_ = false;
-  bool woken_by_timer_ = false;  // this settle() runs in a timer wake-up (flush piggyback)
-  Micros first_ts_{-1};
-  Micros last_frame_ts_{0};
-  PipelineCounters counters_;
+  std::uint64_t commands_handled_ = 0;
   std::shared_ptr<int> alive_ = std::make_shared<int>(0);  // guards posted handlers
+};
+
+// Zones (pipeline_zones.cc): bike locks noted by the recorder's turn judged, MC zone writes
+// started, the operating-area alarm re-judged at its deadline.
+class Pipeline::ZonesStage final : public Stage {
+ public:
+  explicit ZonesStage(Pipeline& p) : p_(p) {}
+  std::string_view name() const override { return "zones"; }
+  std::optional<EngineTime> next_deadline() const override { return p_.zones_deadline(); }
+  StageRun run(EngineTime now) override;
+
+ private:
+  Pipeline& p_;
+};
+
+// The retained vehicle state (pipeline_state.cc): rebuilt when its throttle says a check is due,
+// handed to the uplink only when it changed.
+class Pipeline::StateStage final : public Stage {
+ public:
+  explicit StateStage(Pipeline& p) : p_(p) {}
+  std::string_view name() const override { return "vehicle_state"; }
+  std::optional<EngineTime> next_deadline() const override { return p_.state_throttle_.deadline(); }
+  StageRun run(EngineTime now) override;
+
+ private:
+  Pipeline& p_;
 };
 
 }  // namespace fleetgw::runtime

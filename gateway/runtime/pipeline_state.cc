@@ -29,13 +29,13 @@ void Pipeline::apply_parked_rates(bool parked) {
   if (uplink_) {
     uplink_->set_telemetry_batch_delay(
         parked ? std::optional<std::chrono::milliseconds>(parked_batch_delay_) : std::nullopt);
-    publish_due_ = true;  // a batch held back while parked may be due now
+    uplink_stage_->stored();  // a batch held back while parked may be due now
   }
   spdlog::info("vehicle {}", parked ? "parked: polling and uplink at the parked rates"
                                     : "riding: polling and uplink at the riding rates");
 }
 
-void Pipeline::update_vehicle_state() {
+bool Pipeline::update_vehicle_state() {
   VehicleStateInputs in;
   in.live = &core_.live();
   const domain::DomainTrackers& trackers = recorder_->trackers();
@@ -48,13 +48,17 @@ void Pipeline::update_vehicle_state() {
   in.now = bus_now();
   in.position = state_position_.comparable(position);
   const std::optional<gnss::Fix> compared = in.position;
-  if (!state_throttle_.offer(build_vehicle_state(in, false), std::chrono::steady_clock::now())) {
-    return;
-  }
+  if (!state_throttle_.offer(build_vehicle_state(in, false), env_.steady_now())) return false;
   state_position_.handed_over(compared);
   in.position = position;
   uplink_->set_vehicle_state(build_vehicle_state(in));
-  publish_due_ = true;
+  uplink_stage_->stored();
+  return true;
+}
+
+StageRun Pipeline::StateStage::run(EngineTime now) {
+  if (!p_.state_throttle_.due(now)) return {};
+  return {.produced = p_.update_vehicle_state() ? 1u : 0u, .error = std::nullopt};
 }
 
 }  // namespace fleetgw::runtime

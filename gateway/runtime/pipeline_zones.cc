@@ -328,13 +328,19 @@ void Pipeline::tick_zones() {
   zone_refusal_.clear();
 }
 
+StageRun Pipeline::ZonesStage::run(EngineTime) {
+  if (!p_.pending_bike_locks_.empty()) p_.judge_bike_locks();
+  p_.tick_zones();
+  return {};
+}
+
 std::optional<std::chrono::steady_clock::time_point> Pipeline::zones_deadline() const {
-  const Micros now = system_now();
+  // The zones' deadlines are wall time (positions are judged by when they were received).
+  const Micros now = env_.wall_now();
   const auto next = zones_->next_deadline(now);
   if (!next) return std::nullopt;
-  return std::chrono::steady_clock::now() +
-         std::chrono::duration_cast<std::chrono::steady_clock::duration>(
-             std::max(*next - now, Micros(0)));
+  return env_.steady_now() + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                                 std::max(*next - now, Micros(0)));
 }
 
 }  // namespace fleetgw::runtime

@@ -169,10 +169,6 @@ void Recorder::note_pending() {
   if (!first_pending_ && !sink_.empty()) first_pending_ = wall();
 }
 
-bool Recorder::retry_due() const {
-  return !next_retry_ || wall() >= *next_retry_;
-}
-
 void Recorder::on_message(const motinova::DecodedMessage& message, Micros now) {
   last_now_ = std::max(last_now_, now);
   trackers_.on_message(message, last_now_);
@@ -184,9 +180,15 @@ void Recorder::tick(Micros now) {
   trackers_.tick(last_now_);
   note_pending();
   if (!flush_on_tick_) return;
+  const auto w = wall();
+  if (tick_retry_.waiting(w)) return;  // failing: wait for the retry interval
   const auto deadline = flush_deadline();
-  if (urgent() || (deadline && wall() >= *deadline)) {
-    flush(last_now_);
+  if (urgent() || (deadline && w >= *deadline)) {
+    if (flush(last_now_).failed) {
+      tick_retry_.failed(w);
+    } else {
+      tick_retry_.succeeded();
+    }
     checkpoint_if_due();
   }
 }
@@ -212,14 +214,12 @@ void Recorder::record_zone_event(storage::ZoneEventRow record, storage::Bytes pa
 
 bool Recorder::urgent() const {
   if (pending_records() == 0) return false;
-  if (next_retry_ && !retry_due()) return false;  // failing: wait for the retry interval
   const auto& b = sink_.batch();
   return has_non_telemetry(b) || has_non_telemetry(retry_) || b.size() >= kMaxBatchRecords;
 }
 
 std::optional<std::chrono::steady_clock::time_point> Recorder::flush_deadline() const {
   if (pending_records() == 0) return std::nullopt;
-  if (next_retry_) return *next_retry_;
   if (first_pending_) return *first_pending_ + flush_interval_;
   return wall();
 }
@@ -237,7 +237,6 @@ FlushOutcome Recorder::flush(Micros now) {
     ++batches_;
     out.records = retry_.size();
     retry_.clear();
-    next_retry_.reset();
     if (last_flush_failed_) error_log_.resolved("storage: pending records written, storage OK");
     last_flush_failed_ = false;
     failing_since_us_ = 0;
@@ -246,7 +245,6 @@ FlushOutcome Recorder::flush(Micros now) {
   }
 
   ++failures_;
-  out.failed = true;
   if (!last_flush_failed_) failing_since_us_ = system_now_us();
   last_flush_failed_ = true;
   last_error_ = store_.health().last_error;
@@ -255,16 +253,15 @@ FlushOutcome Recorder::flush(Micros now) {
     error_log_.report("storage: refused a batch (dropped): " + result.error->message);
     dropped_ += retry_.size();
     retry_.clear();
-    next_retry_.reset();
     return out;
   }
+  out.failed = true;  // records kept: retried by the caller's back-off
   error_log_.report("storage: write failed, records kept in memory for a retry: " + last_error_);
   if (result.error->code == storage::StoreError::Code::kFull &&
       (!retry_.telemetry.empty() || !retry_.packs.empty()) && has_non_telemetry(retry_)) {
     const auto first = write_without_evictable(now);
     out.records += first.records;
   }
-  next_retry_ = wall() + kRetryInterval;
   bound_retry_memory();
   return out;
 }

@@ -10,9 +10,10 @@
 //  * urgent(): a pending record is not telemetry (command results, faults, rides, locks, pack
 //    snapshots, journal...) or the pending batch reached kMaxBatchRecords: the pipeline should
 //    flush at once. flush_deadline(): when pending telemetry must be written at the latest
-//    (first pending record + flush_ms of wall time); nullopt when nothing is pending. While the
-//    store is failing, both wait for the next retry (once per retry interval of wall time), so
-//    a full disk is not hammered.
+//    (first pending record + flush_ms of wall time); nullopt when nothing is pending. Neither
+//    times retries: a caller that schedules flush() (the engine) retries a failed flush with its
+//    back-off (runtime/backoff.h); tick() in its own mode retries with the same Backoff, once
+//    per kRetryInterval of wall time, so a full disk is not hammered.
 //  * flush(bus_now) writes everything pending now and returns what it wrote and whether it
 //    failed. tick(bus_now) still flushes when urgent() or the deadline has passed, so a caller
 //    that only ticks keeps working.
@@ -37,6 +38,7 @@
 #include "gateway/config/config.h"
 #include "gateway/domain/domain_sink.h"
 #include "gateway/domain/domain_trackers.h"
+#include "gateway/runtime/backoff.h"
 #include "gateway/runtime/gateway_core.h"
 #include "storage/health.h"
 #include "storage/rate_limited_log.h"
@@ -103,7 +105,6 @@ class Recorder final : public MessageListener {
  private:
   std::chrono::steady_clock::time_point wall() const;
   void note_pending();
-  bool retry_due() const;
   void bound_retry_memory();
   FlushOutcome write_without_evictable(Micros now);
 
@@ -115,7 +116,8 @@ class Recorder final : public MessageListener {
   std::chrono::steady_clock::duration flush_interval_;
   std::optional<std::chrono::steady_clock::time_point> first_pending_;
   bool flush_on_tick_ = true;
-  std::optional<std::chrono::steady_clock::time_point> next_retry_;
+  // tick()'s own mode only (flush_on_tick): when the next attempt after a failure is due.
+  Backoff tick_retry_{Backoff::Options{.initial = kRetryInterval, .max = kRetryInterval}};
   std::size_t retry_memory_bytes_ = kRetryMemoryBytes;
   Micros last_now_{0};
   uint64_t batches_ = 0;
