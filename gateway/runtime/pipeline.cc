@@ -354,7 +354,11 @@ bool Pipeline::route_uplink() {
     }
     moved = true;
   }
-  if (up.publish_due() || recorder_->urgent()) moved = true;
+  // Records the commands produced are stored in the next round (a failing store: at its retry).
+  if (up.publish_due() ||
+      (recorder_->urgent() && !recorder_backoff_->waiting(env_.steady_now()))) {
+    moved = true;
+  }
   return moved;
 }
 
