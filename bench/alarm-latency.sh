@@ -8,11 +8,11 @@
 # first_evidence_us. At speed 1 with sim.start_now (the default) the simulated bus clock is the
 # system clock from the service's start on, so both are on one clock; the simulator delivers
 # frames in batches of up to 500 ms (docs/ARCHITECTURE.md), which the figure includes.
-# Environment: FLEETGW (binary, default build/gateway/app/fleetgw), RUNS (3), KEEP=1 keeps the
+# Environment: FLEETGW (binary, default build/bin/fleetgw), RUNS (3), KEEP=1 keeps the
 #   work directory.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-FLEETGW=$(realpath "${FLEETGW:-build/gateway/app/fleetgw}")
+FLEETGW=$(realpath "${FLEETGW:-build/bin/fleetgw}")
 RUNS=${RUNS:-3}
 VEHICLE=alarm-bench
 [[ -x $FLEETGW ]] || { echo "alarm-latency: no binary $FLEETGW" >&2; exit 1; }

@@ -13,11 +13,11 @@
 #   4. Real time against replay: `fleetgw run` on the simulator at speed 1 for RT_S s (bike
 #      simulation included) and the first RT_S s of the ride log replayed at recorded speed,
 #      each as CPU per bus-hour, against the replay of the same log as fast as possible.
-# Environment: FLEETGW (binary, default build/gateway/app/fleetgw), RIDE_S (1800), RT_S (60),
+# Environment: FLEETGW (binary, default build/bin/fleetgw), RIDE_S (1800), RT_S (60),
 #   KEEP=1 keeps the work directory.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-FLEETGW=${FLEETGW:-build/gateway/app/fleetgw}
+FLEETGW=${FLEETGW:-build/bin/fleetgw}
 RIDE_S=${RIDE_S:-1800}
 RT_S=${RT_S:-60}
 WORST_S=${WORST_S:-600}

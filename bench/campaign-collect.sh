@@ -15,11 +15,11 @@
 #     bus's is the log's numeric values per CAN frame times the frames a saturated bus carries
 #     (8-byte standard frames: 111 bits without stuffing, 135 with the worst stuffing).
 #
-# Environment: FLEETGW (binary, default build/gateway/app/fleetgw), RUNS (2), DURATION (bus
+# Environment: FLEETGW (binary, default build/bin/fleetgw), RUNS (2), DURATION (bus
 #   seconds of the log, 1200), KEEP=1 keeps the work directory. Needs sqlite3, protoc, python3.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-FLEETGW=$(realpath "${FLEETGW:-build/gateway/app/fleetgw}")
+FLEETGW=$(realpath "${FLEETGW:-build/bin/fleetgw}")
 RUNS=${RUNS:-2}
 DURATION=${DURATION:-1200}
 [[ -x $FLEETGW ]] || { echo "campaign-collect: no binary $FLEETGW" >&2; exit 1; }

@@ -13,11 +13,11 @@
 # in the store's meta table as the gateway stores accepted ones, so the replay (MQTT off) restores
 # and runs them from its first frame.
 #
-# Environment: FLEETGW (binary, default build/gateway/app/fleetgw), RUNS (3), KEEP=1 keeps the
+# Environment: FLEETGW (binary, default build/bin/fleetgw), RUNS (3), KEEP=1 keeps the
 #   work directory.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-FLEETGW=${FLEETGW:-build/gateway/app/fleetgw}
+FLEETGW=${FLEETGW:-build/bin/fleetgw}
 RUNS=${RUNS:-3}
 [[ -x $FLEETGW ]] || { echo "campaign-cpu: no binary $FLEETGW" >&2; exit 1; }
 WORK=$(mktemp -d /tmp/fleetgw-campaign-XXXXXX)

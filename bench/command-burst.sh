@@ -17,11 +17,11 @@
 # MQTT session: every command must still get exactly one result (shutting_down or busy from the
 # stopping process, or an answer from the restarted one), none "no result".
 #
-# Environment: FLEETGW (binary, default build/gateway/app/fleetgw), N (100), JUNK (60),
+# Environment: FLEETGW (binary, default build/bin/fleetgw), N (100), JUNK (60),
 #   REPS (3), TIMEOUT_S (90), STOP_RUNS (3), STOP_N (40), KEEP=1 keeps the work directory.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-FLEETGW=$(realpath "${FLEETGW:-build/gateway/app/fleetgw}")
+FLEETGW=$(realpath "${FLEETGW:-build/bin/fleetgw}")
 N=${N:-100}
 JUNK=${JUNK:-60}
 REPS=${REPS:-3}

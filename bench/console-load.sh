@@ -3,11 +3,11 @@
 # first load in Debian's chromium (time from navigation to every bike drawn on the map, bytes
 # received, cache off), and GET /api/fleet requests per second one fleetgw serve sustains with
 # its CPU time (tests/web/fleet_list_rate.py, C keep-alive clients for S seconds).
-#   FLEETGW=$PWD/build/gateway/app/fleetgw bench/console-load.sh [N] [C] [S]
+#   FLEETGW=$PWD/build/bin/fleetgw bench/console-load.sh [N] [C] [S]
 # Needs root (PostgreSQL runs as postgres), node/npm/chromium (tests/web/browser).
 set -euo pipefail
 here=$(cd "$(dirname "$0")" && pwd)
-FLEETGW=${FLEETGW:-$here/../build/gateway/app/fleetgw}
+FLEETGW=${FLEETGW:-$here/../build/bin/fleetgw}
 n=${1:-10000}
 clients=${2:-2}
 seconds=${3:-10}

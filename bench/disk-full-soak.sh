@@ -9,11 +9,11 @@
 #   the status showing storage.failing, seconds from freeing the space to status OK, and the
 #   service's CPU time (user + sys).
 # Needs root (mount -t tmpfs); prints "SKIPPED" and exits 0 otherwise.
-# Environment: FLEETGW (binary, default build/gateway/app/fleetgw), DURATION (600), SPEED (100),
+# Environment: FLEETGW (binary, default build/bin/fleetgw), DURATION (600), SPEED (100),
 #   CMD_EVERY (5), FILL_AFTER (10), FREE_BEFORE_END (60), KEEP=1 keeps the work directory.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-FLEETGW=$(realpath "${FLEETGW:-build/gateway/app/fleetgw}")
+FLEETGW=$(realpath "${FLEETGW:-build/bin/fleetgw}")
 DURATION=${DURATION:-600}
 SPEED=${SPEED:-100}
 CMD_EVERY=${CMD_EVERY:-5}

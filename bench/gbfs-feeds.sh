@@ -16,12 +16,12 @@ BUILD=$(realpath "${1:?usage: bench/gbfs-feeds.sh BUILD_DIR [VEHICLES] [SECONDS]
 N=${2:-10000}
 SECS=${3:-5}
 CLIENTS=${4:-4}
-FLEETGW=$BUILD/gateway/app/fleetgw-serve  # ingest-lib.sh checks it and fleetgw-ingest beside it
-SERVE=$BUILD/gateway/app/fleetgw-serve
+FLEETGW=$BUILD/bin/fleetgw-serve  # ingest-lib.sh checks it and fleetgw-ingest beside it
+SERVE=$BUILD/bin/fleetgw-serve
 [[ -x $SERVE ]] || { echo "gbfs bench: no $SERVE" >&2; exit 1; }
 source "$(dirname "$0")/ingest-lib.sh"
 start_postgres
-"$BUILD/gateway/app/fleetgw-ingest" --gaps --pg "$CONNINFO" >"$WORK/ingest-schema.log" 2>&1
+"$BUILD/bin/fleetgw-ingest" --gaps --pg "$CONNINFO" >"$WORK/ingest-schema.log" 2>&1
 PROVIDER=3c95765d-4da6-41c6-b61e-1954472ec6c9
 printf 'vehicle_type_id,name,form_factor,propulsion_type,max_speed_kph,battery_capacity_wh,wh_per_km\nebike,City e-bike,bicycle,electric_assist,25,500,10\n' >"$WORK/types.csv"
 "$SERVE" --pg "$CONNINFO" --import-vehicle-types "$WORK/types.csv" >/dev/null

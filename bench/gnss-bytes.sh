@@ -11,11 +11,11 @@
 # figures are scaled by 60 / MINUTES. The ride record (with its track) is sent once the ride
 # ends: MINUTES >= 16 includes it (the scenario's ride ends at 15.8 min), fewer leave it out.
 # CPU is user + sys of each process. A benchmark, not a test.
-# Environment: FLEETGW (default build/gateway/app/fleetgw), MINUTES (default 17, 1-17),
+# Environment: FLEETGW (default build/bin/fleetgw), MINUTES (default 17, 1-17),
 #   KEEP=1 keeps the work directory.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-FLEETGW=$(realpath "${FLEETGW:-build/gateway/app/fleetgw}")
+FLEETGW=$(realpath "${FLEETGW:-build/bin/fleetgw}")
 MINUTES=${MINUTES:-17}
 [[ -x $FLEETGW ]] || { echo "gnss-bytes: no binary $FLEETGW" >&2; exit 1; }
 command -v mosquitto_sub >/dev/null || { echo "gnss-bytes: needs mosquitto-clients" >&2; exit 1; }

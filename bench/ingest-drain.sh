@@ -20,7 +20,7 @@
 # rate per CPU), KEEP=1.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-FLEETGW=$(realpath -m "${FLEETGW:-build/gateway/app/fleetgw}")
+FLEETGW=$(realpath -m "${FLEETGW:-build/bin/fleetgw}")
 VEHICLES=${VEHICLES:-1000}
 DURATION_S=${DURATION_S:-60}
 RIDING_SHARE=${RIDING_SHARE:-0.3}

@@ -26,13 +26,13 @@
 # QUERY_TIMEOUT_S, 600). A benchmark, not a test. Needs root (PostgreSQL runs as `postgres`).
 # From a fresh clone after scripts/install-deps.sh, one command: `sudo bench/ingest-fleet.sh`
 # (the default FLEETGW is built first in build/, Release: ingest-lib.sh).
-# Environment: FLEETGW (default build/gateway/app/fleetgw; fleetgw-ingest and fleetgw-fleet-sim
+# Environment: FLEETGW (default build/bin/fleetgw; fleetgw-ingest and fleetgw-fleet-sim
 #   beside it), VEHICLES (1000), DURATION_S (120; 600 is the issue's 10 minutes), RIDING_SHARE
 #   (0.3), WORKERS (2), CONNECT_RATE (1000 sessions/s), PER_BROKER (18000), INGEST_ARGS, KEEP=1
 #   keeps the work directory.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-FLEETGW=$(realpath -m "${FLEETGW:-build/gateway/app/fleetgw}")
+FLEETGW=$(realpath -m "${FLEETGW:-build/bin/fleetgw}")
 VEHICLES=${VEHICLES:-1000}
 DURATION_S=${DURATION_S:-120}
 RIDING_SHARE=${RIDING_SHARE:-0.3}

@@ -4,8 +4,8 @@
 # BROKER, BROKER_URI, WORKERS (pids), PGPID and the functions below.
 # From a fresh clone (scripts/install-deps.sh run): the default FLEETGW is built first, a Release
 # tree in build/ with the three programs the benchmarks run (BUILD=0 skips this).
-if [[ ${BUILD:-1} == 1 && $FLEETGW == "$PWD/build/gateway/app/fleetgw" &&
-  ! ( -x $FLEETGW && -x build/gateway/app/fleetgw-ingest && -x build/gateway/app/fleetgw-fleet-sim ) ]]; then
+if [[ ${BUILD:-1} == 1 && $FLEETGW == "$PWD/build/bin/fleetgw" &&
+  ! ( -x $FLEETGW && -x build/bin/fleetgw-ingest && -x build/bin/fleetgw-fleet-sim ) ]]; then
   echo "ingest bench: building fleetgw, fleetgw-ingest and fleetgw-fleet-sim in build/ (Release)"
   cmake -S . -B build -DCMAKE_BUILD_TYPE=Release -DFLEETGW_BUILD_BENCH=OFF >"${TMPDIR:-/tmp}/fleetgw-bench-build.log" 2>&1 &&
     cmake --build build -j"$(nproc)" --target fleetgw fleetgw-ingest fleetgw-fleet-sim >>"${TMPDIR:-/tmp}/fleetgw-bench-build.log" 2>&1 ||

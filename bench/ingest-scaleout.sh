@@ -7,12 +7,12 @@
 # fleet-sim's own count of records per store (all acknowledged) against the rows in PostgreSQL,
 # and the gap report, which must be empty. Exit 0 only then.
 # Root (namespaces, PostgreSQL as `postgres`). Every step has a timeout (see ingest-lib.sh).
-# Environment: FLEETGW (default build/gateway/app/fleetgw, fleetgw-ingest and fleetgw-fleet-sim
+# Environment: FLEETGW (default build/bin/fleetgw, fleetgw-ingest and fleetgw-fleet-sim
 #   beside it), VEHICLES (2000), DURATION_S (90), RIDING_SHARE (0.3), WORKERS (3),
 #   KILL_EVERY_S (15), INGEST_ARGS, KEEP=1.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-FLEETGW=$(realpath -m "${FLEETGW:-build/gateway/app/fleetgw}")
+FLEETGW=$(realpath -m "${FLEETGW:-build/bin/fleetgw}")
 VEHICLES=${VEHICLES:-2000}
 DURATION_S=${DURATION_S:-90}
 RIDING_SHARE=${RIDING_SHARE:-0.3}

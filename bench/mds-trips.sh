@@ -13,12 +13,12 @@ set -euo pipefail
 BUILD=$(realpath "${1:?usage: bench/mds-trips.sh BUILD_DIR [VEHICLES] [RIDES_PER_VEHICLE]}")
 N=${2:-1000}
 R=${3:-10}
-FLEETGW=$BUILD/gateway/app/fleetgw-serve  # ingest-lib.sh checks it and fleetgw-ingest beside it
-SERVE=$BUILD/gateway/app/fleetgw-serve
+FLEETGW=$BUILD/bin/fleetgw-serve  # ingest-lib.sh checks it and fleetgw-ingest beside it
+SERVE=$BUILD/bin/fleetgw-serve
 [[ -x $SERVE ]] || { echo "mds bench: no $SERVE" >&2; exit 1; }
 source "$(dirname "$0")/ingest-lib.sh"
 start_postgres
-"$BUILD/gateway/app/fleetgw-ingest" --gaps --pg "$CONNINFO" >"$WORK/ingest-schema.log" 2>&1
+"$BUILD/bin/fleetgw-ingest" --gaps --pg "$CONNINFO" >"$WORK/ingest-schema.log" 2>&1
 PROVIDER=3c95765d-4da6-41c6-b61e-1954472ec6c9
 printf 'vehicle_type_id,form_factor,propulsion_type,battery_capacity_wh,wh_per_km\nebike,bicycle,electric_assist,500,10\n' >"$WORK/types.csv"
 "$SERVE" --pg "$CONNINFO" --import-vehicle-types "$WORK/types.csv" >/dev/null

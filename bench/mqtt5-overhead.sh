@@ -7,11 +7,11 @@
 # (MQTT framing, pings included) and $SYS/broker/publish/messages/received its publishes. CPU is
 # user + sys of the process (start-up included). Per-hour figures are the measured ones scaled
 # by 60 / MINUTES. A benchmark, not a test.
-# Environment: FLEETGW (binary, default build/gateway/app/fleetgw), MINUTES (default 5, 1-20),
+# Environment: FLEETGW (binary, default build/bin/fleetgw), MINUTES (default 5, 1-20),
 #   KEEP=1 keeps the work directory.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-FLEETGW=$(realpath "${FLEETGW:-build/gateway/app/fleetgw}")
+FLEETGW=$(realpath "${FLEETGW:-build/bin/fleetgw}")
 MINUTES=${MINUTES:-5}
 [[ -x $FLEETGW ]] || { echo "mqtt5-overhead: no binary $FLEETGW" >&2; exit 1; }
 command -v mosquitto_sub >/dev/null || { echo "mqtt5-overhead: needs mosquitto-clients" >&2; exit 1; }

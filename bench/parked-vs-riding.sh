@@ -10,11 +10,11 @@
 # (MQTT framing, pings and reconnects included; the counter's own subscriber adds one CONNECT
 # and one SUBSCRIBE, < 100 bytes). CPU is user + sys of the process (start-up included). Per-hour
 # figures are the measured ones scaled by 60 / MINUTES. A benchmark, not a test.
-# Environment: FLEETGW (binary, default build/gateway/app/fleetgw), MINUTES (10: the parked
+# Environment: FLEETGW (binary, default build/bin/fleetgw), MINUTES (10: the parked
 #   scenario lasts 10 minutes), KEEP=1 keeps the work directory.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-FLEETGW=$(realpath "${FLEETGW:-build/gateway/app/fleetgw}")
+FLEETGW=$(realpath "${FLEETGW:-build/bin/fleetgw}")
 MINUTES=${MINUTES:-10}
 [[ -x $FLEETGW ]] || { echo "parked-vs-riding: no binary $FLEETGW" >&2; exit 1; }
 command -v mosquitto_sub >/dev/null || { echo "parked-vs-riding: needs mosquitto-clients" >&2; exit 1; }

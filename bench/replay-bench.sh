@@ -14,11 +14,11 @@
 #   3. Syscalls per bus-hour of both replays (strace -f -c, a separate run: strace slows it).
 #   4. `fleetgw decode LOG > /dev/null` on the ride log. Target >= 2 M frames/s of CPU.
 #
-# Environment: FLEETGW (binary, default build/gateway/app/fleetgw), RUNS (3), KEEP=1 keeps the
+# Environment: FLEETGW (binary, default build/bin/fleetgw), RUNS (3), KEEP=1 keeps the
 #   work directory.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-FLEETGW=${FLEETGW:-build/gateway/app/fleetgw}
+FLEETGW=${FLEETGW:-build/bin/fleetgw}
 RUNS=${RUNS:-3}
 [[ -x $FLEETGW ]] || { echo "replay-bench: no binary $FLEETGW" >&2; exit 1; }
 WORK=$(mktemp -d /tmp/fleetgw-replay-XXXXXX)

@@ -19,7 +19,7 @@ build=${1:-build}
 shift || true
 sizes=("$@")
 [[ ${#sizes[@]} -gt 0 ]] || sizes=(1000 10000 100000)
-bin=$build/gateway/app/fleetgw
+bin=$build/bin/fleetgw
 [[ -x $bin ]] || bin=$(find "$build" -name fleetgw -type f -perm -u+x | head -1)
 [[ -x $bin ]] || { echo "zone-bundle-cost.sh: no fleetgw binary under $build" >&2; exit 1; }
 

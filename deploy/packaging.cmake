@@ -1,9 +1,9 @@
 # Debian packages (CPack DEB, one per component): `cmake --build <build> --target package`.
 #
 # fleetgw (component fleetgw), the IoT node's: /usr/bin/fleetgw and fleetgw-watch (from
-# gateway/app), /etc/fleetgw/fleetgw.toml (conffile: dpkg keeps the technician's edits across
-# upgrades), /lib/systemd/system/fleetgw.service, the CAN set-up helper and its networkd example,
-# docs/deployment.md, the manual pages and the bash completion
+# gateway/cli and gateway/tools/operator), /etc/fleetgw/fleetgw.toml (conffile: dpkg keeps the
+# technician's edits across upgrades), /lib/systemd/system/fleetgw.service, the CAN set-up
+# helper and its networkd example, docs/deployment.md, the manual pages and the bash completion
 # (/usr/share/bash-completion/completions/fleetgw), both generated from the CLI definitions.
 # /var/lib/fleetgw and the `fleetgw` system user come from the maintainer scripts in
 # deploy/debian/ (and StateDirectory=).

@@ -79,7 +79,7 @@ fi
 
 if [ -z "$BUILD_DIR" ]; then
   BUILD_DIR=$ROOT/build
-  FLEETGW=$BUILD_DIR/gateway/app/fleetgw
+  FLEETGW=$BUILD_DIR/bin/fleetgw
   if [ ! -x "$FLEETGW" ]; then
     section "first run: Debian packages, then the build of fleetgw (about 8 minutes on 2 cores;"
     echo "   later runs rebuild only what changed, in seconds); then the demo itself, about a minute"
@@ -109,8 +109,8 @@ if [ -z "$BUILD_DIR" ]; then
   fi
   echo "   build: done after $((SECONDS / 60))m$((SECONDS % 60))s"
 fi
-FLEETGW=$BUILD_DIR/gateway/app/fleetgw
-[ -x "$FLEETGW" ] || { echo "demo: no fleetgw in $BUILD_DIR/gateway/app" >&2; exit 1; }
+FLEETGW=$BUILD_DIR/bin/fleetgw
+[ -x "$FLEETGW" ] || { echo "demo: no fleetgw in $BUILD_DIR/bin" >&2; exit 1; }
 OUT=${OUT:-$ROOT/build/demo}
 mkdir -p "$OUT"
 OUT=$(cd "$OUT" && pwd)

@@ -1,4 +1,5 @@
-// The telemetry of a time window, typed, for `fleetgw ride plot` (gateway/app/ride_command.h).
+// The telemetry of a time window, typed, for `fleetgw ride plot`
+// (gateway/tools/store/ride_command.h).
 // Read-only: works on a store opened with read_only.
 #include "storage/store_impl.h"
 

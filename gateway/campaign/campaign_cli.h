@@ -1,5 +1,5 @@
 // The command-line words of issue 29, registered on `fleetgw`'s CLI11 app from here so that
-// gateway/app/cli.cc carries two lines for them: `fleetgw signals [--json]` and
+// gateway/cli/cli.cc carries two lines for them: `fleetgw signals [--json]` and
 // `fleetgw campaign sign|check` (campaign_tool.h).
 //
 // Contract: add() registers the subcommands (before parsing); run() after parsing returns the

@@ -1,6 +1,6 @@
 // Signing commands and keys: `fleetgw keygen` (an Ed25519 key pair for signing commands) and the
 // building blocks the operator tool, the tests and the benchmarks sign with. No network here:
-// the MQTT side of `fleetgw command` lives in gateway/app/command_tool.h.
+// the MQTT side of `fleetgw command` lives in gateway/tools/operator/command_tool.h.
 //
 // Contract:
 //  * run_keygen() writes <prefix>.pem (PKCS#8 private key, mode 0600, never overwriting an

@@ -10,7 +10,7 @@
 //
 // These are the checks of the file on its own. The checks that need the machine (files named
 // by the config exist, trusted keys decode, broker credentials policy...) live in
-// gateway/app/check_config.h, shared by `fleetgw check-config` and `fleetgw run`.
+// gateway/cli/check_config.h, shared by `fleetgw check-config` and `fleetgw run`.
 #pragma once
 
 #include <array>

@@ -23,7 +23,7 @@
 //    moves with their frames); the listeners' idle tick (1 s) only when the bus is silent.
 //    Nothing else wakes the loop: a replay as fast as possible is paced by its transport alone,
 //    and an idle bus costs only the node's own schedule.
-//  * The simulated bus is read in batches (SimTransport::set_batch_window, 500 ms) except while
+//  * The simulated bus is read in batches (PacedTransport::set_batch_window, 500 ms) except while
 //    a command or the shutdown waits for the bus; it is flushed before the core acts on a
 //    deadline and before a command is handled, so batching delays telemetry, never decisions.
 //  * Time: the core, trackers and commands run on the bus timeline (BusClock); the network and
@@ -44,6 +44,7 @@
 #include <vector>
 
 #include "gateway/campaign/campaign_service.h"
+#include "gateway/can/paced_transport.h"
 #include "gateway/can/replay_transport.h"
 #include "gateway/can/transport.h"
 #include "gateway/command/command_service.h"
@@ -62,7 +63,6 @@
 #include "gateway/runtime/status_provider.h"
 #include "gateway/runtime/store_outbox.h"
 #include "gateway/runtime/vehicle_state.h"
-#include "gateway/sim/sim_transport.h"
 #include "gateway/uplink/uplink.h"
 #include "storage/store.h"
 
@@ -72,7 +72,7 @@ namespace fleetgw::runtime {
 // own timeline.
 struct BusTransport {
   std::unique_ptr<can::Transport> transport;
-  sim::SimTransport* sim = nullptr;
+  can::PacedTransport* sim = nullptr;  // the simulated bike (gateway/sim/sim_bus.h)
   double sim_speed = 1.0;
   can::ReplayTransport* replay = nullptr;
 };

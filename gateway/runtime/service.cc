@@ -12,8 +12,6 @@
 #include "gateway/runtime/pipeline.h"
 #include "gateway/runtime/recorder.h"
 #include "gateway/runtime/status_provider.h"
-#include "gateway/sim/scenario.h"
-#include "gateway/sim/sim_transport.h"
 #include "gateway/status/notifier.h"
 #include "gateway/status/status_message.h"
 #include "gateway/status/status_server.h"
@@ -36,15 +34,11 @@ std::pair<std::string, uint16_t> endpoint(const std::string& text, const char* k
   return {text.substr(0, colon), static_cast<uint16_t>(port)};
 }
 
-BusTransport make_bus(asio::io_context& io, const config::Config& c) {
+BusTransport make_bus(asio::io_context& io, const config::Config& c, const SimBusOpener& open_sim) {
   BusTransport bus;
   if (c.can.transport == "sim") {
-    sim::Scenario scenario = sim::load_scenario(c.sim.scenario);
-    if (c.sim.start_now) scenario.start = system_now();
-    if (c.sim.seed != 0) scenario.seed = static_cast<uint64_t>(c.sim.seed);
-    auto t = std::make_unique<sim::SimTransport>(io, std::move(scenario), c.sim.speed);
-    if (!c.sim.nmea_pty.empty()) t->serve_nmea(c.sim.nmea_pty);
-    t->set_lockstep(c.sim.lockstep);
+    if (!open_sim) throw std::runtime_error("this program was built without the simulator");
+    auto t = open_sim(io, c.sim, system_now());
     bus.sim = t.get();
     bus.sim_speed = c.sim.speed;
     bus.transport = std::move(t);
@@ -113,7 +107,7 @@ int run_service(const config::Config& config, const ServiceOptions& options,
   asio::signal_set signals(io, SIGINT, SIGTERM);
   BusTransport bus;
   try {
-    bus = make_bus(io, config);
+    bus = make_bus(io, config, options.open_sim);
   } catch (const std::exception& e) {
     spdlog::critical("cannot open the CAN bus ({}): {}", config.can.transport, e.what());
     return 1;

@@ -12,15 +12,25 @@
 
 #include <chrono>
 #include <functional>
+#include <memory>
 #include <optional>
 #include <ostream>
 
+#include <asio/io_context.hpp>
+
+#include "gateway/can/paced_transport.h"
 #include "gateway/config/config.h"
 #include "gateway/runtime/gateway_core.h"
 #include "gateway/runtime/pipeline.h"
 #include "gateway/uplink/uplink_config.h"
 
 namespace fleetgw::runtime {
+
+// Opens the simulated bike as the bus (can.transport = "sim"): sim::open_sim_bus
+// (gateway/sim/sim_bus.h), passed in by whoever links the simulator. `wall_now` is the system
+// clock (microseconds since the epoch) for sim.start_now.
+using SimBusOpener = std::function<std::unique_ptr<can::PacedTransport>(
+    asio::io_context&, const config::SimConfig&, Micros wall_now)>;
 
 struct ServiceOptions {
   std::optional<std::chrono::milliseconds> duration;  // stop after this much real time
@@ -33,6 +43,8 @@ struct ServiceOptions {
   std::function<void(GatewayCore&)> on_core;
   // Checked after the pipeline handled each burst of work: the run stops once it holds.
   std::function<bool()> stop_when;
+  // can.transport = "sim" needs it; without it such a run fails to open the bus (exit 1).
+  SimBusOpener open_sim;
 };
 
 struct ServiceReport {

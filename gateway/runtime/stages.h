@@ -21,6 +21,7 @@
 #include <string>
 #include <vector>
 
+#include "gateway/can/paced_transport.h"
 #include "gateway/can/transport.h"
 #include "gateway/gnss/gnss_feed.h"
 #include "gateway/runtime/bus_clock.h"
@@ -28,14 +29,14 @@
 #include "gateway/runtime/engine.h"
 #include "gateway/runtime/gateway_core.h"
 #include "gateway/runtime/recorder.h"
-#include "gateway/sim/sim_transport.h"
 #include "gateway/uplink/uplink.h"
 
 namespace fleetgw::runtime {
 
 class CoreStage final : public Stage {
  public:
-  CoreStage(GatewayCore& core, const BusClock& clock, sim::SimTransport* sim, const Engine& engine)
+  CoreStage(GatewayCore& core, const BusClock& clock, can::PacedTransport* sim,
+            const Engine& engine)
       : core_(core), clock_(clock), sim_(sim), engine_(engine) {}
   std::string_view name() const override { return "core"; }
   std::optional<EngineTime> next_deadline() const override;
@@ -46,7 +47,7 @@ class CoreStage final : public Stage {
  private:
   GatewayCore& core_;
   const BusClock& clock_;
-  sim::SimTransport* sim_;
+  can::PacedTransport* sim_;
   const Engine& engine_;
   bool timer_turn_ = false;
 };

@@ -1,6 +1,6 @@
 // `fleetgw sim`: runs a scenario as its own process, putting the simulated bike on a real bus
 // (the UDP tunnel or a SocketCAN interface such as vcan0) in real time × an acceleration factor,
-// or writing it to a candump -L file. The CLI11 wiring lives in gateway/app/.
+// or writing it to a candump -L file. The CLI11 wiring lives in gateway/cli/.
 //
 // Contract: run_sim() returns a process exit code (0 ok, 2 bad scenario/options, 1 runtime
 // failure) and reports problems on stderr with the file/line/key or the transport's message;

@@ -3,7 +3,7 @@
 //  * RealtimeDriver paces a Bike against the steady clock: virtual time = virtual start +
 //    elapsed real time × acceleration. It is what `fleetgw sim` uses to put the bike on a real
 //    (UDP / SocketCAN) bus.
-//  * SimTransport is a fleetgw::can::Transport whose "bus" is a simulated Bike in the same
+//  * SimTransport is a fleetgw::can::PacedTransport whose "bus" is a simulated Bike in the same
 //    process: frames the gateway send()s go to Bike::receive, frames the bike emits reach the
 //    gateway's handler stamped with their virtual time (Micros on the scenario's timeline, which
 //    starts at Scenario::start). virtual_now() is the clock a gateway runtime should use when it
@@ -45,7 +45,7 @@
 #include <asio/io_context.hpp>
 #include <asio/steady_timer.hpp>
 
-#include "gateway/can/transport.h"
+#include "gateway/can/paced_transport.h"
 #include "gateway/sim/bike.h"
 
 namespace fleetgw::sim {
@@ -121,7 +121,7 @@ class RealtimeDriver {
   std::shared_ptr<int> alive_ = std::make_shared<int>(0);
 };
 
-class SimTransport final : public can::Transport {
+class SimTransport final : public can::PacedTransport {
  public:
   SimTransport(asio::io_context& io, Scenario scenario, double acceleration = 1.0);
   ~SimTransport() override;
@@ -132,11 +132,13 @@ class SimTransport final : public can::Transport {
   const can::BusHealth& health() const override { return health_; }
   std::string_view name() const override { return name_; }
 
-  Micros virtual_now() const { return driver_.virtual_now(); }
+  Micros virtual_now() const override { return driver_.virtual_now(); }
   // See RealtimeDriver (coalescing).
-  void set_batch_window(std::chrono::steady_clock::duration w) { driver_.set_batch_window(w); }
-  void set_low_latency(bool on) { driver_.set_low_latency(on); }
-  void flush() { driver_.flush(); }
+  void set_batch_window(std::chrono::steady_clock::duration w) override {
+    driver_.set_batch_window(w);
+  }
+  void set_low_latency(bool on) override { driver_.set_low_latency(on); }
+  void flush() override { driver_.flush(); }
   // Lock-step pacing (RealtimeDriver above); before start().
   void set_lockstep(bool on) { driver_.set_lockstep(on); }
   bool lockstep() const { return driver_.lockstep(); }

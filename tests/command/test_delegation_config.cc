@@ -5,7 +5,7 @@
 
 #include <string>
 
-#include "gateway/app/check_config.h"
+#include "gateway/cli/check_config.h"
 #include "gateway/command/command_service.h"
 #include "gateway/command/ed25519.h"
 #include "gateway/config/config.h"

@@ -11,8 +11,8 @@
 
 #include <nlohmann/json.hpp>
 
-#include "gateway/app/command_tool.h"
 #include "gateway/runtime/store_outbox.h"
+#include "gateway/tools/operator/command_tool.h"
 #include "gateway/uplink/uplink.h"
 #include "tests/command/command_test_util.h"
 

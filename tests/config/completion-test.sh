@@ -3,7 +3,7 @@
 # completion function called as bash calls it (COMP_WORDS, COMP_CWORD set; COMPREPLY read
 # back), for subcommands, nested subcommands, options, enumerated option values (both
 # `--opt VALUE` and `--opt=VALUE`) and file names. The expected words come from the CLI
-# definitions in gateway/app and gateway/decode; a completion that drifts from them fails here.
+# definitions in gateway/cli and gateway/decode; a completion that drifts from them fails here.
 #
 # Usage: completion-test.sh FLEETGW
 # Exit: 0 pass, 1 fail.

@@ -30,7 +30,7 @@ SKIP = 77
 SVG_NS = "{http://www.w3.org/2000/svg}"
 SERIES_COLOURS = {"speed": (0x1F, 0x77, 0xB4), "power": (0xD6, 0x27, 0x28),
                   "soc": (0x2C, 0xA0, 0x2C), "assist": (0x94, 0x67, 0xBD)}
-TRACK_COLOUR = (0xFF, 0x7F, 0x0E)  # kTrackColour, gateway/app/ride_plot_map.h
+TRACK_COLOUR = (0xFF, 0x7F, 0x0E)  # kTrackColour, gateway/tools/plot/ride_plot_map.h
 
 
 def fail(message):

@@ -1,4 +1,4 @@
-// The pieces behind `--since` and `--format table|json|csv` (gateway/app/time_arg.h,
+// The pieces behind `--since` and `--format table|json|csv` (gateway/tools/common/time_arg.h,
 // table_format.h): every accepted form of a time, the refused ones, RFC 4180 CSV read back by
 // a strict reader, and hostile strings that must never break a table row.
 #include <gtest/gtest.h>
@@ -9,8 +9,8 @@
 #include <string>
 #include <vector>
 
-#include "gateway/app/table_format.h"
-#include "gateway/app/time_arg.h"
+#include "gateway/tools/common/table_format.h"
+#include "gateway/tools/common/time_arg.h"
 
 namespace fleetgw::app::cli_format_test {
 namespace {

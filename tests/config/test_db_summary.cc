@@ -1,8 +1,9 @@
-// The sentence and counts of `fleetgw db summary` (gateway/app/db_summary.h) from listing rows,
-// without a store: plurals, empty areas, reasons by code, alarm kinds in words, hostile strings.
+// The sentence and counts of `fleetgw db summary` (gateway/tools/store/db_summary.h) from listing
+// rows, without a store: plurals, empty areas, reasons by code, alarm kinds in words, hostile
+// strings.
 #include <gtest/gtest.h>
 
-#include "gateway/app/db_summary.h"
+#include "gateway/tools/store/db_summary.h"
 
 namespace fleetgw::app {
 namespace {

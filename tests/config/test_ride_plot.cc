@@ -1,7 +1,7 @@
-// The SVG builder of `fleetgw ride plot` (gateway/app/ride_plot.h) without a store: the document
-// is well-formed XML (checked by a small parser of the subset it writes), strings are escaped,
-// gaps stay gaps, assist levels are steps with their names, long rides are thinned.
-#include "gateway/app/ride_plot.h"
+// The SVG builder of `fleetgw ride plot` (gateway/tools/plot/ride_plot.h) without a store: the
+// document is well-formed XML (checked by a small parser of the subset it writes), strings are
+// escaped, gaps stay gaps, assist levels are steps with their names, long rides are thinned.
+#include "gateway/tools/plot/ride_plot.h"
 
 #include <gtest/gtest.h>
 

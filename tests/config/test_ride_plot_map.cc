@@ -1,8 +1,8 @@
-// The map panel of `fleetgw ride plot` (gateway/app/ride_plot_map.h) without a store: a known
-// track drawn north up, east right, at one scale on both axes that the scale bar agrees with;
+// The map panel of `fleetgw ride plot` (gateway/tools/plot/ride_plot_map.h) without a store: a
+// known track drawn north up, east right, at one scale on both axes that the scale bar agrees with;
 // start and end markers and the caption; no panel but a note without a track; a stored track
 // that is damaged, hostile or huge gives no panel and a warning naming the ride, never a crash.
-#include "gateway/app/ride_plot_map.h"
+#include "gateway/tools/plot/ride_plot_map.h"
 
 #include <gtest/gtest.h>
 
@@ -13,7 +13,7 @@
 #include <string_view>
 #include <vector>
 
-#include "gateway/app/ride_plot.h"
+#include "gateway/tools/plot/ride_plot.h"
 #include "storage/track_text.h"
 #include "tests/config/svg_xml_check.h"
 

@@ -119,7 +119,7 @@ build_s=$((SECONDS - build_t0))
 
 step "check the binaries are arm64"
 if [ "$FIGURES" = 1 ]; then
-  bin="$BUILD/gateway/app/fleetgw"
+  bin="$BUILD/bin/fleetgw"
 else
   bin=$(find "$BUILD/tests" -type f -name "${present[0]}" -perm -u+x | head -1)
 fi

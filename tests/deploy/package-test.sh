@@ -51,7 +51,7 @@ grep -q "fleetgw-ingest" <<<"$contents" && fail "package contains fleetgw-ingest
   ok "no fleetgw-ingest files"
 # A manual page for every subcommand `fleetgw --help` lists (fleetgw-ingest's, fleetgw-serve's and
 # fleetgw-fleet-sim's are in package fleetgw-ingest, with their programs).
-subcommands=$("$BUILD/gateway/app/fleetgw" --help |
+subcommands=$("$BUILD/bin/fleetgw" --help |
   sed -n '/^Subcommands:/,/^$/s/^  \([a-z][a-z0-9-]*\).*/\1/p')
 [ -n "$subcommands" ] || fail "no subcommands in fleetgw --help"
 for sub in $subcommands; do

@@ -7,6 +7,7 @@
 
 #include "gateway/runtime/service.h"
 #include "gateway/sim/bus_log_writer.h"
+#include "gateway/sim/sim_bus.h"
 #include "runtime_test_util.h"
 #include "storage/store.h"
 
@@ -44,6 +45,7 @@ TEST(ServiceE2E, RideScenarioEndsUpAsRideAndTelemetryInTheStore) {
   const auto cfg =
       make_config(service_config(dir, "ride", 400, "[ride]\nstationary_end_s = 120\n"));
   ServiceOptions opts;
+  opts.open_sim = sim::open_sim_bus;
   // Bus time, not wall time, bounds the run: a slow (sanitizer) build covers the same ride.
   opts.bus_duration = sec(1900);
   opts.duration = std::chrono::milliseconds(120'000);
@@ -86,6 +88,7 @@ TEST(ServiceE2E, ServiceKeepsRunningThroughBusTrouble) {
   TempDir dir;
   const auto cfg = make_config(service_config(dir, "bus-trouble", 500));
   ServiceOptions opts;
+  opts.open_sim = sim::open_sim_bus;
   opts.bus_duration = sec(450);
   opts.duration = std::chrono::milliseconds(120'000);
   ServiceReport report;

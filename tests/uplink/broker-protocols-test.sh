@@ -20,7 +20,7 @@ build=${1:?usage: broker-protocols-test.sh BUILD_DIR OUT_DIR}
 out=${2:?usage: broker-protocols-test.sh BUILD_DIR OUT_DIR}
 here=$(cd "$(dirname "$0")" && pwd)
 root=$(cd "$here/../.." && pwd)
-fleetgw=$build/gateway/app/fleetgw
+fleetgw=$build/bin/fleetgw
 mosquitto=$(command -v mosquitto || echo /usr/sbin/mosquitto)
 if [ ! -x "$mosquitto" ] || ! command -v mosquitto_sub >/dev/null; then
   echo "SKIP: mosquitto / mosquitto_sub not installed"

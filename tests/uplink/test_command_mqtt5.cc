@@ -10,8 +10,8 @@
 #include <string>
 
 #include "fleetgw/v1/command.pb.h"
-#include "gateway/app/command_tool.h"
 #include "gateway/command/signing.h"
+#include "gateway/tools/operator/command_tool.h"
 #include "tests/support/mosquitto_fixture.h"
 #include "tests/support/temp_dir.h"
 #include "tests/uplink/mqtt5_test_util.h"

@@ -9,8 +9,8 @@
 #include <sstream>
 #include <string>
 
-#include "gateway/app/command_tool.h"
 #include "gateway/command/signing.h"
+#include "gateway/tools/operator/command_tool.h"
 #include "tests/support/mosquitto_fixture.h"
 #include "tests/support/temp_dir.h"
 #include "tests/uplink/expired_pki.h"
