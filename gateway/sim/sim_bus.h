@@ -5,7 +5,8 @@
 // Contract: open_sim_bus(io, config, wall_now) loads config.scenario (throws naming the file on a
 // bad scenario), applies seed (0 keeps the scenario's) and start_now (the timeline starts at
 // `wall_now`, microseconds since the epoch), and returns a SimTransport at config.speed, serving
-// NMEA on config.nmea_pty when it is set, lock-step when config.lockstep. Nothing runs until the transport is started.
+// NMEA on config.nmea_pty when it is set, lock-step when config.lockstep. Nothing runs until the
+// transport is started.
 #pragma once
 
 #include <memory>
