@@ -11,7 +11,7 @@ std::vector<OutboxRow> Store::peek_outbox(std::size_t limit, std::size_t max_byt
 }
 
 std::vector<OutboxRow> Store::peek_outbox(std::size_t limit, std::size_t max_bytes,
-                                            std::span<const OutboxKind> skip_kinds) {
+                                          std::span<const OutboxKind> skip_kinds) {
   std::vector<OutboxRow> out;
   if (limit == 0) return out;
   try {
@@ -42,9 +42,11 @@ std::vector<OutboxRow> Store::peek_outbox(std::size_t limit, std::size_t max_byt
       if (auto k = outbox_kind_from_string(kind)) {
         e.kind = *k;
       } else {
-        impl_->log->error("storage: outbox entry {} has unknown kind '{}'; sending it as 'info'",
-                          seq, kind);
-        e.kind = OutboxKind::kInfo;
+        // Never guessed as another kind (it would go out as the wrong message): the reader
+        // refuses it by name.
+        impl_->log->error("storage: outbox entry {}: {}; refused", seq,
+                          records::unknown_kind_message(kind));
+        e.unknown_kind = kind;
       }
       e.created_us = st->column_int64(3);
       e.payload = st->column_blob(4);

@@ -2,41 +2,13 @@
 
 #include <nlohmann/json.hpp>
 
-#include <array>
-#include <utility>
-
 namespace fleetgw::storage {
-namespace {
-
-constexpr std::array<std::pair<OutboxKind, std::string_view>, 12> kKindNames = {{
-    {OutboxKind::kTelemetry, "telemetry"},
-    {OutboxKind::kRide, "ride"},
-    {OutboxKind::kFault, "fault"},
-    {OutboxKind::kPack, "pack"},
-    {OutboxKind::kLock, "lock"},
-    {OutboxKind::kInfo, "info"},
-    {OutboxKind::kStatus, "status"},
-    {OutboxKind::kCommandResult, "command_result"},
-    {OutboxKind::kEvictionReport, "eviction_report"},
-    {OutboxKind::kAlarm, "alarm"},
-    {OutboxKind::kZone, "zone"},
-    {OutboxKind::kCampaign, "campaign"},
-}};
-
-}  // namespace
-
 std::string_view to_string(OutboxKind kind) {
-  for (const auto& [k, name] : kKindNames) {
-    if (k == kind) return name;
-  }
-  return "invalid";
+  return records::stored_name(kind);
 }
 
 std::optional<OutboxKind> outbox_kind_from_string(std::string_view text) {
-  for (const auto& [k, name] : kKindNames) {
-    if (name == text) return k;
-  }
-  return std::nullopt;
+  return records::kind_from_stored_name(text);
 }
 
 std::string_view to_string(FaultEventKind kind) {

@@ -20,6 +20,8 @@
 #include <string_view>
 #include <vector>
 
+#include "proto/record_kinds.h"
+
 namespace fleetgw::storage {
 
 using Bytes = std::vector<std::uint8_t>;
@@ -186,40 +188,31 @@ struct CommandJournalRow {
   friend bool operator==(const CommandJournalRow&, const CommandJournalRow&) = default;
 };
 
-enum class OutboxKind : std::uint8_t {
-  kTelemetry,
-  kRide,
-  kFault,
-  kPack,
-  kLock,
-  kInfo,
-  kStatus,
-  kCommandResult,
-  kEvictionReport,
-  kAlarm,
-  kZone,
-  kCampaign,  // collection campaign samples (issue 29): no table row, lowest priority
-};
+// The outbox's record kinds are THE record-kind table's (proto/record_kinds.h): the `kind` TEXT
+// column holds records::stored_name(kind).
+using OutboxKind = records::RecordKind;
 
-// Lower value = more urgent. Alarms share the top priority with command results (both are
-// what an operator waits for; within a priority the sequence number orders them).
+// Lower value = more urgent; the defaults of the record-kind table. Alarms share the top
+// priority with command results (both are what an operator waits for; within a priority the
+// sequence number orders them).
 enum class OutboxPriority : std::uint8_t {
-  kAlarm = 0,
-  kCommandResult = 0,
-  kFault = 1,
-  kZone = 1,
-  kRide = 2,
-  kLock = 3,
-  kPack = 4,
-  kTelemetry = 5,
+  kAlarm = records::default_priority(OutboxKind::kAlarm),
+  kCommandResult = records::default_priority(OutboxKind::kCommandResult),
+  kFault = records::default_priority(OutboxKind::kFault),
+  kZone = records::default_priority(OutboxKind::kZone),
+  kRide = records::default_priority(OutboxKind::kRide),
+  kLock = records::default_priority(OutboxKind::kLock),
+  kPack = records::default_priority(OutboxKind::kPack),
+  kTelemetry = records::default_priority(OutboxKind::kTelemetry),
   // Below telemetry, only for OutboxKind::kCampaign (issue 29): campaign samples never hold back
   // a record of the product, and their bytes in the store are these priorities' depth. A
   // campaign of priority p (0..9, campaign.proto) is queued at kCampaign + p (6..15).
-  kCampaign = 6,
+  kCampaign = records::default_priority(OutboxKind::kCampaign),
 };
 inline constexpr int kLowestPriority = 5;
 inline constexpr int kLowestCampaignPriority = 15;  // kCampaign + 9
 
+// records::stored_name(kind) / records::kind_from_stored_name(text).
 std::string_view to_string(OutboxKind kind);
 std::optional<OutboxKind> outbox_kind_from_string(std::string_view text);
 std::string_view to_string(FaultEventKind kind);
@@ -233,13 +226,18 @@ struct OutboxRow {
   std::int64_t created_us = 0;
   Bytes payload;                          // opaque bytes produced by the gateway
   std::optional<std::int64_t> source_id;  // rowid in the kind's table, if any
+  // Set when the stored kind is not one this version knows (a newer version wrote it): `kind`
+  // is then meaningless and the reader refuses the entry (the uplink drops it, logged).
+  std::optional<std::string> unknown_kind;
   friend bool operator==(const OutboxRow&, const OutboxRow&) = default;
 };
 
 // What one eviction pass removed to bring the database back under its disk budget. The store
 // logs it, persists the per-table counters and queues it as an outbox entry of kind
-// kEvictionReport with a JSON payload (to_json()); write() also returns it so the gateway can
-// build its own protobuf report instead.
+// kEvictionReport whose payload StoreOptions::encode_eviction_report makes (the gateway's
+// fleetgw.v1.EvictionReport wire bytes; storage does not know protobuf). Without an encoder
+// (tools, storage's own tests) and in stores written before that seam, the payload is
+// to_json(); write() also returns the pass.
 struct EvictionPass {
   std::int64_t at_us = 0;
   std::uint64_t budget_bytes = 0;

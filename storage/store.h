@@ -104,6 +104,11 @@ struct StoreOptions {
   std::shared_ptr<spdlog::logger> logger{};  // default: spdlog's default logger
   // Wall clock (us since epoch) used only to name a moved-aside corrupt file. Default: system.
   std::function<std::int64_t()> wall_clock_us{};
+  // The payload of an eviction report queued by an eviction pass (`seq`: the report's own
+  // outbox sequence number). The gateway sets its fleetgw.v1.EvictionReport encoder
+  // (gateway/domain/payloads.h), so the report is stored as the wire bytes it is published as;
+  // default: EvictionPass::to_json() (storage knows no protobuf).
+  std::function<Bytes(const EvictionPass&, std::uint64_t seq)> encode_eviction_report{};
 };
 
 // A record plus, optionally, its uplink payload. With a payload the record is queued in the

@@ -244,10 +244,16 @@ std::optional<EvictionPass> Store::Impl::enforce_budget(std::int64_t now_us, Sta
   budget_exhausted_logged = report.budget_exhausted;
   if (!evicted_any && !first_exhaustion) return std::nullopt;
 
-  const std::string payload = report.to_json();
-  enqueue(outbox, OutboxKind::kEvictionReport, kEvictionReportPriority,
-          std::span(reinterpret_cast<const std::uint8_t*>(payload.data()), payload.size()),
-          std::nullopt, now_us, seq);
+  if (options.encode_eviction_report) {
+    const Bytes payload = options.encode_eviction_report(report, seq);
+    enqueue(outbox, OutboxKind::kEvictionReport, kEvictionReportPriority, payload, std::nullopt,
+            now_us, seq);
+  } else {
+    const std::string payload = report.to_json();
+    enqueue(outbox, OutboxKind::kEvictionReport, kEvictionReportPriority,
+            std::span(reinterpret_cast<const std::uint8_t*>(payload.data()), payload.size()),
+            std::nullopt, now_us, seq);
+  }
   return report;
 }
 

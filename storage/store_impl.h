@@ -37,7 +37,7 @@ namespace fleetgw::storage {
 inline constexpr std::string_view kNextSeqKey = "storage.next_seq";
 // Reserved meta key of the store's random identifier (Store::store_id()).
 inline constexpr std::string_view kStoreIdKey = "storage.store_id";
-inline constexpr int kEvictionReportPriority = static_cast<int>(OutboxPriority::kFault);
+inline constexpr int kEvictionReportPriority = records::default_priority(OutboxKind::kEvictionReport);
 
 // flock()-based exclusive lock on "<db>.lock": one writer per database, across processes.
 // A separate file is used because closing any descriptor of the database file itself would

@@ -15,6 +15,7 @@
 #include "backend/ingest/safe_text.h"
 #include "fleetgw/v1/command.pb.h"
 #include "fleetgw/v1/envelope.pb.h"
+#include "proto/record_kinds.h"
 
 namespace fleetgw::ingest {
 namespace {
@@ -53,42 +54,27 @@ std::variant<Decoded, Reject> command_message(std::string_view vehicle, std::str
   return d;
 }
 
-// The leaf each body must arrive on.
+// The leaf each body must arrive on: the record-kind table's topic (proto/record_kinds.h), and
+// "state" for the retained VehicleState (no record). Empty for a body newer than this ingest:
+// rejected as unsupported.
 std::string_view leaf_of(v1::Envelope::BodyCase body) {
-  switch (body) {
-    case v1::Envelope::kTelemetry:
-      return "telemetry";
-    case v1::Envelope::kRide:
-      return "ride";
-    case v1::Envelope::kFault:
-      return "fault";
-    case v1::Envelope::kPack:
-      return "pack";
-    case v1::Envelope::kLock:
-      return "lock";
-    case v1::Envelope::kInfo:
-      return "info";
-    case v1::Envelope::kStatus:
-      return "status";
-    case v1::Envelope::kCommandResult:
-      return "cmd/result";
-    case v1::Envelope::kEviction:
-      return "eviction";
-    case v1::Envelope::kAlarm:
-      return "alarm";
-    case v1::Envelope::kState:
-      return "state";
-    case v1::Envelope::kZone:
-      return "zone";
-    case v1::Envelope::kCampaign:
-      return "campaign";
-    default:
-      break;  // a body newer than this ingest: rejected as unsupported
-  }
-  return {};
+  if (body == v1::Envelope::kState) return "state";
+  const auto* kind = records::find_by_envelope_field(static_cast<int>(body));
+  return kind != nullptr ? kind->topic_leaf : std::string_view();
 }
 
 }  // namespace
+
+const TableSpec* table_of(int envelope_field) {
+  if (envelope_field == v1::Envelope::kState) return &kState;
+  const auto* kind = records::find_by_envelope_field(envelope_field);
+  if (kind == nullptr) return nullptr;
+  for (const TableSpec* t : {&kRides, &kFaults, &kPacks, &kLocks, &kInfo, &kResults, &kAlarms,
+                             &kZones, &kEvictions, &kStatus, &kTelemetry, &kCampaignSamplesTable}) {
+    if (t->table == kind->ingest_table) return t;
+  }
+  return nullptr;
+}
 
 std::vector<PgParam> RowSet::values() const {
   std::vector<PgParam> out;
@@ -178,44 +164,8 @@ std::variant<Decoded, Reject> decode_message(std::string_view topic_prefix, std:
     d.ranges.push_back({e.sequence(), e.sequence()});
     return d;
   }
-  const TableSpec* spec = nullptr;
-  switch (body) {
-    case v1::Envelope::kRide:
-      spec = &kRides;
-      break;
-    case v1::Envelope::kFault:
-      spec = &kFaults;
-      break;
-    case v1::Envelope::kPack:
-      spec = &kPacks;
-      break;
-    case v1::Envelope::kLock:
-      spec = &kLocks;
-      break;
-    case v1::Envelope::kInfo:
-      spec = &kInfo;
-      break;
-    case v1::Envelope::kCommandResult:
-      spec = &kResults;
-      break;
-    case v1::Envelope::kAlarm:
-      spec = &kAlarms;
-      break;
-    case v1::Envelope::kZone:
-      spec = &kZones;
-      break;
-    case v1::Envelope::kEviction:
-      spec = &kEvictions;
-      break;
-    case v1::Envelope::kStatus:
-      spec = &kStatus;
-      break;
-    case v1::Envelope::kState:
-      spec = &kState;
-      break;
-    default:
-      return Reject{"no_body", "unexpected body"};
-  }
+  const TableSpec* spec = table_of(static_cast<int>(body));
+  if (spec == nullptr) return Reject{"no_body", "unexpected body"};
   RowSet& rows = new_rows(d, *spec);
   RowBuilder b(rows);
   switch (body) {

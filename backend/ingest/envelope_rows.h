@@ -87,6 +87,10 @@ constexpr std::size_t kMaxSamples = 10'000;
 std::variant<Decoded, Reject> decode_message(std::string_view topic_prefix, std::string_view topic,
                                              std::string_view payload);
 
+// The table an Envelope body field's rows go to, by the record-kind table's ingest_table
+// (proto/record_kinds.h); nullptr for a field that is no known body.
+const TableSpec* table_of(int envelope_field);
+
 // Sorted, merged runs of `seqs` (consumed; duplicates allowed).
 std::vector<SequenceRange> to_ranges(std::vector<std::uint64_t> seqs);
 

@@ -23,7 +23,7 @@
 //    journaled with the rejection). The one exception is `busy` (answer_busy(): the uplink's
 //    queue was full): it says "not taken, nothing happened", is not journaled, and the same
 //    command sent again gets its one real result. A result is written with the journal's final
-//    state in ONE transaction, at outbox priority 0 (kind command_result -> uplink cmd_result) with
+//    state in ONE transaction, at outbox priority 0 (kind command_result, topic cmd/result) with
 //    the serialized fleetgw.v1.CommandResult as payload, so it survives outages and restarts; after
 //    each stored result CommandContext::result_stored() runs (the pipeline publishes at once).
 //  * Every result carries command_sha256, the SHA-256 of the exact SignedCommand.command bytes

@@ -5,6 +5,10 @@
 #include <cstdint>
 #include <limits>
 
+#include <google/protobuf/io/coded_stream.h>
+#include <google/protobuf/io/zero_copy_stream_impl_lite.h>
+
+#include "fleetgw/v1/eviction.pb.h"
 #include "fleetgw/v1/fault.pb.h"
 #include "fleetgw/v1/lock.pb.h"
 #include "fleetgw/v1/pack.pb.h"
@@ -236,6 +240,26 @@ storage::Bytes lock_payload(const storage::LockEventRow& e, int old_raw, int new
   }
   if (where) set_position(*m.mutable_position(), *where);
   return bytes_of(m);
+}
+
+storage::Bytes eviction_report_payload(const storage::EvictionPass& pass, std::uint64_t seq) {
+  // What the uplink used to derive from the store's JSON report on every peek, now made once.
+  v1::EvictionReport report;
+  report.set_evicted_records(pass.telemetry_rows + pass.pack_snapshot_rows);
+  (*report.mutable_evicted_by_kind())["telemetry"] = pass.telemetry_rows;
+  (*report.mutable_evicted_by_kind())["pack"] = pass.pack_snapshot_rows;
+  if (pass.oldest_telemetry_kept_us)
+    report.set_newest_created_at_us(*pass.oldest_telemetry_kept_us);
+  report.set_reason(pass.budget_exhausted ? "disk budget exhausted" : "disk budget reached");
+  report.set_last_sequence(seq);
+  std::string bytes;
+  {
+    google::protobuf::io::StringOutputStream stream(&bytes);
+    google::protobuf::io::CodedOutputStream out(&stream);
+    out.SetSerializationDeterministic(true);
+    report.SerializeToCodedStream(&out);
+  }
+  return storage::Bytes(bytes.begin(), bytes.end());
 }
 
 }  // namespace fleetgw::domain

@@ -64,4 +64,10 @@ storage::Bytes telemetry_payload(const TelemetryReading& reading);
 storage::Bytes lock_payload(const storage::LockEventRow& event, int old_raw, int new_raw,
                             const std::optional<gnss::Fix>& where = std::nullopt);
 
+// The fleetgw.v1.EvictionReport of one eviction pass, stored as the outbox payload of its
+// report (`seq`: the report's own outbox sequence, sent as last_sequence). Serialised
+// deterministically (evicted_by_kind in key order), so the stored bytes do not depend on a
+// map's hash order. Given to the store as StoreOptions::encode_eviction_report.
+storage::Bytes eviction_report_payload(const storage::EvictionPass& pass, std::uint64_t seq);
+
 }  // namespace fleetgw::domain

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 
+#include "gateway/domain/payloads.h"
 #include "gateway/runtime/clock_units.h"
 
 namespace fleetgw::runtime {
@@ -126,6 +127,8 @@ storage::StoreOptions make_store_options(const config::Config& c) {
   o.max_bytes = static_cast<uint64_t>(c.storage.max_mb) * 1024 * 1024;
   o.durability =
       c.storage.synchronous == "full" ? storage::Durability::kFull : storage::Durability::kNormal;
+  // Eviction reports are stored as the fleetgw.v1.EvictionReport they are published as.
+  o.encode_eviction_report = domain::eviction_report_payload;
   return o;
 }
 

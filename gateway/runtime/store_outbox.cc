@@ -9,50 +9,12 @@
 
 namespace fleetgw::runtime {
 
-namespace {
-
-// Every storage kind, to translate the uplink's excluded kinds back (uplink_kind() is the map).
-constexpr storage::OutboxKind kStorageKinds[] = {
-    storage::OutboxKind::kTelemetry,      storage::OutboxKind::kRide,
-    storage::OutboxKind::kFault,          storage::OutboxKind::kPack,
-    storage::OutboxKind::kLock,           storage::OutboxKind::kInfo,
-    storage::OutboxKind::kStatus,         storage::OutboxKind::kCommandResult,
-    storage::OutboxKind::kEvictionReport, storage::OutboxKind::kAlarm,
-    storage::OutboxKind::kZone,           storage::OutboxKind::kCampaign,
-};
-
-}  // namespace
-
 std::string uplink_kind(storage::OutboxKind kind) {
-  switch (kind) {
-    case storage::OutboxKind::kTelemetry:
-      return uplink::kind::kTelemetry;
-    case storage::OutboxKind::kRide:
-      return uplink::kind::kRide;
-    case storage::OutboxKind::kFault:
-      return uplink::kind::kFault;
-    case storage::OutboxKind::kPack:
-      return uplink::kind::kPack;
-    case storage::OutboxKind::kLock:
-      return uplink::kind::kLock;
-    case storage::OutboxKind::kInfo:
-      return uplink::kind::kInfo;
-    case storage::OutboxKind::kStatus:
-      return uplink::kind::kStatus;
-    case storage::OutboxKind::kCommandResult:
-      return uplink::kind::kCommandResult;
-    case storage::OutboxKind::kEvictionReport:
-      return uplink::kind::kEviction;
-    case storage::OutboxKind::kAlarm:
-      return uplink::kind::kAlarm;
-    case storage::OutboxKind::kZone:
-      return uplink::kind::kZone;
-    case storage::OutboxKind::kCampaign:
-      return uplink::kind::kCampaign;
-  }
-  return "invalid";
+  return std::string(storage::to_string(kind));
 }
 
+// Stores written before eviction reports were stored as protobuf hold the JSON report
+// (EvictionPass::to_json()); so does a store opened without the gateway's encoder.
 std::string eviction_payload_from_json(std::string_view text, uint64_t seq) {
   fleetgw::v1::EvictionReport report;
   const auto j = nlohmann::json::parse(text, nullptr, /*allow_exceptions=*/false);
@@ -75,6 +37,16 @@ std::string eviction_payload_from_json(std::string_view text, uint64_t seq) {
   return report.SerializeAsString();
 }
 
+namespace {
+
+// A JSON report starts with '{' (0x7b: field 15, wire type 3, a group start). EvictionReport has
+// no field 15 and proto3 never writes groups, so its wire bytes never start with it.
+bool is_legacy_json_report(const storage::Bytes& payload) {
+  return !payload.empty() && payload.front() == '{';
+}
+
+}  // namespace
+
 std::vector<uplink::OutgoingRecord> StoreOutbox::peek(std::size_t max_entries,
                                                       std::size_t max_bytes,
                                                       const std::set<std::uint64_t>& exclude,
@@ -83,10 +55,8 @@ std::vector<uplink::OutgoingRecord> StoreOutbox::peek(std::size_t max_entries,
   if (max_entries == 0) return out;
   retry_deletes();
   std::vector<storage::OutboxKind> skip;
-  if (!exclude_kinds.empty()) {
-    for (const auto k : kStorageKinds) {
-      if (exclude_kinds.contains(uplink_kind(k))) skip.push_back(k);
-    }
+  for (const auto& name : exclude_kinds) {
+    if (const auto k = storage::outbox_kind_from_string(name)) skip.push_back(*k);
   }
   store_.release_all();
   auto rows = store_.peek_outbox(max_entries + exclude.size() + undeleted_.size(),
@@ -98,9 +68,11 @@ std::vector<uplink::OutgoingRecord> StoreOutbox::peek(std::size_t max_entries,
     uplink::OutgoingRecord e;
     e.seq = row.seq;
     e.priority = row.priority;
-    e.kind = uplink_kind(row.kind);
+    // An unknown stored kind keeps its name: the uplink refuses it by name and drops it.
+    e.kind = row.unknown_kind ? *row.unknown_kind : uplink_kind(row.kind);
     e.created_us = row.created_us;
-    if (row.kind == storage::OutboxKind::kEvictionReport) {
+    if (row.kind == storage::OutboxKind::kEvictionReport && !row.unknown_kind &&
+        is_legacy_json_report(row.payload)) {
       e.payload = eviction_payload_from_json(
           std::string_view(reinterpret_cast<const char*>(row.payload.data()), row.payload.size()),
           row.seq);

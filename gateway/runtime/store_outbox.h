@@ -5,8 +5,11 @@
 //    (filtered in the store's query) and returns entries in (priority, sequence) order; the first
 //    entry is always returned, whatever its size. The store's own in-flight marks are not used: the
 //    uplink is the single owner of "in flight".
-//  * Kind names are translated from storage's vocabulary to the uplink's; the store's JSON
-//    eviction reports become fleetgw.v1.EvictionReport payloads on the way out.
+//  * Kinds go by their stored names (proto/record_kinds.h) on both sides; an entry of a kind
+//    this version does not know keeps its stored name, so the uplink refuses and drops it.
+//    Payloads are passed on as stored (eviction reports are stored as fleetgw.v1.EvictionReport,
+//    StoreOptions::encode_eviction_report); only a JSON eviction report of an older store is
+//    converted on the way out.
 //  * ack() deletes exactly the acknowledged rows. Nothing here throws (storage contract B). A
 //    failed ack (full disk) is remembered: those rows are no longer offered by peek() (the
 //    broker has them; re-sending them in a loop would only burn CPU and bandwidth) and their
@@ -46,7 +49,8 @@ class StoreOutbox final : public uplink::OutboxSource {
   std::chrono::steady_clock::time_point next_delete_retry_{};
 };
 
-// Exposed for tests: storage kind -> uplink kind, and the eviction JSON -> protobuf conversion.
+// Exposed for tests: storage kind -> uplink kind (its stored name), and the legacy eviction
+// JSON -> protobuf conversion.
 std::string uplink_kind(storage::OutboxKind kind);
 std::string eviction_payload_from_json(std::string_view json, uint64_t seq);
 

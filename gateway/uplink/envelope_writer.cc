@@ -3,6 +3,8 @@
 #include <google/protobuf/io/coded_stream.h>
 #include <google/protobuf/wire_format_lite.h>
 
+#include <array>
+
 #include "fleetgw/v1/envelope.pb.h"
 #include "gateway/uplink/outbox_source.h"
 
@@ -10,37 +12,36 @@ namespace fleetgw::uplink {
 
 namespace {
 
-using google::protobuf::MessageLite;
 using google::protobuf::internal::WireFormatLite;
 using google::protobuf::io::CodedInputStream;
 using google::protobuf::io::CodedOutputStream;
 
-constexpr KindRoute kRoutes[] = {
-    {kind::kRide, &Topics::ride, [](v1::Envelope& e) -> MessageLite* { return e.mutable_ride(); }},
-    {kind::kFault, &Topics::fault,
-     [](v1::Envelope& e) -> MessageLite* { return e.mutable_fault(); }},
-    {kind::kPack, &Topics::pack, [](v1::Envelope& e) -> MessageLite* { return e.mutable_pack(); }},
-    {kind::kLock, &Topics::lock, [](v1::Envelope& e) -> MessageLite* { return e.mutable_lock(); }},
-    {kind::kInfo, &Topics::info, [](v1::Envelope& e) -> MessageLite* { return e.mutable_info(); }},
-    {kind::kStatus, &Topics::status,
-     [](v1::Envelope& e) -> MessageLite* { return e.mutable_status(); }},
-    {kind::kCommandResult, &Topics::cmd_result,
-     [](v1::Envelope& e) -> MessageLite* { return e.mutable_command_result(); }},
-    {kind::kEviction, &Topics::eviction,
-     [](v1::Envelope& e) -> MessageLite* { return e.mutable_eviction(); }},
-    {kind::kAlarm, &Topics::alarm,
-     [](v1::Envelope& e) -> MessageLite* { return e.mutable_alarm(); }},
-    {kind::kZone, &Topics::zone, [](v1::Envelope& e) -> MessageLite* { return e.mutable_zone(); }},
-    {kind::kCampaign, &Topics::campaign,
-     [](v1::Envelope& e) -> MessageLite* { return e.mutable_campaign(); }},
-    {kind::kTelemetry, &Topics::telemetry,
-     [](v1::Envelope& e) -> MessageLite* { return e.mutable_telemetry(); }},
-};
+// One route per record kind, in RecordKind order, derived from the record-kind table and the
+// topic table.
+constexpr std::array<KindRoute, records::kRecordKinds.size()> make_routes() {
+  std::array<KindRoute, records::kRecordKinds.size()> out{};
+  for (std::size_t i = 0; i < out.size(); ++i) {
+    const auto& spec = records::kRecordKinds[i];
+    const TopicSpec* topic = record_kind_topic(spec.kind);
+    out[i] = KindRoute{&spec, topic != nullptr ? topic->member : nullptr};
+  }
+  return out;
+}
+constexpr auto kRoutes = make_routes();
+
+constexpr bool every_kind_has_a_topic() {
+  for (const auto& r : kRoutes) {
+    if (r.topic == nullptr) return false;
+  }
+  return true;
+}
+static_assert(every_kind_has_a_topic(), "a record kind without a kTopicTable entry (topics.h)");
 
 // Field numbers of the wire format we write by hand (proto/fleetgw/v1/*.proto).
 constexpr int kSampleSequenceField = 1;  // TelemetrySample.sequence (uint64)
 constexpr int kBatchSamplesField = 1;    // TelemetryBatch.samples
-constexpr int kEnvelopeTelemetryField = 10;
+constexpr int kEnvelopeTelemetryField =
+    records::spec(records::RecordKind::kTelemetry).envelope_field;
 
 constexpr std::uint32_t kSequenceTag =
     (kSampleSequenceField << 3) | WireFormatLite::WIRETYPE_VARINT;
@@ -90,13 +91,33 @@ void append_varint(std::string& out, std::uint64_t v) {
   out.append(reinterpret_cast<const char*>(buf), static_cast<std::size_t>(end - buf));
 }
 
+// The tag of length-delimited field `field` (a varint: two bytes from field 16 on).
+void append_tag(std::string& out, int field) {
+  append_varint(
+      out, (static_cast<std::uint32_t>(field) << 3) | WireFormatLite::WIRETYPE_LENGTH_DELIMITED);
+}
+
 }  // namespace
 
 const KindRoute* find_route(std::string_view kind) {
-  for (const auto& r : kRoutes) {
-    if (r.kind == kind) return &r;
+  const auto k = records::kind_from_stored_name(kind);
+  return k ? &kRoutes[static_cast<std::size_t>(*k)] : nullptr;
+}
+
+const KindRoute& route(records::RecordKind kind) {
+  return kRoutes[static_cast<std::size_t>(kind)];
+}
+
+bool well_formed(std::string_view bytes) {
+  CodedInputStream in(reinterpret_cast<const std::uint8_t*>(bytes.data()),
+                      static_cast<int>(bytes.size()));
+  while (static_cast<std::size_t>(in.CurrentPosition()) != bytes.size()) {
+    const std::uint32_t tag = in.ReadTag();
+    if (tag == 0) return false;  // a truncated tag, or field number 0
+    if (WireFormatLite::GetTagWireType(tag) == WireFormatLite::WIRETYPE_END_GROUP) return false;
+    if (!WireFormatLite::SkipField(&in, tag)) return false;
   }
-  return nullptr;
+  return true;
 }
 
 void fill_header(v1::Envelope& env, const EnvelopeHeader& h) {
@@ -109,12 +130,18 @@ void fill_header(v1::Envelope& env, const EnvelopeHeader& h) {
 
 std::optional<std::string> serialize_record(const KindRoute& route, const EnvelopeHeader& header,
                                             std::string_view body) {
+  if (!well_formed(body)) return std::nullopt;
   v1::Envelope env;
   fill_header(env, header);
-  if (!route.body(env)->ParseFromArray(body.data(), static_cast<int>(body.size()))) {
-    return std::nullopt;
-  }
-  return env.SerializeAsString();
+  std::string out;
+  out.reserve(env.ByteSizeLong() + body.size() + 8);
+  env.AppendToString(&out);
+  // The generated code writes fields in number order; the body's number (>= 10) follows every
+  // header field's (1..5), and a oneof has one member set: the splice is byte-identical.
+  append_tag(out, route.spec->envelope_field);
+  append_varint(out, body.size());
+  out.append(body);
+  return out;
 }
 
 std::optional<SampleSplice> TelemetryBatchWriter::prepare(std::string_view stored_sample,
@@ -157,8 +184,7 @@ std::string TelemetryBatchWriter::take_envelope(const EnvelopeHeader& header) {
   std::string out;
   out.reserve(env.ByteSizeLong() + batch_.size() + 8);
   env.AppendToString(&out);
-  out.push_back(static_cast<char>((kEnvelopeTelemetryField << 3) |
-                                  WireFormatLite::WIRETYPE_LENGTH_DELIMITED));
+  append_tag(out, kEnvelopeTelemetryField);
   append_varint(out, batch_.size());
   out.append(batch_);
   batch_.clear();

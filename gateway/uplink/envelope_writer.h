@@ -1,20 +1,27 @@
-// Serialising outbox records as fleetgw.v1.Envelope messages.
+// Writing outbox records as fleetgw.v1.Envelope messages, without parsing them.
 //
-// Why: telemetry is serialised once, in domain/. A TelemetryBatch envelope is written around the
-// stored sample bytes (protobuf wire format: an embedded message is tag + length + bytes), so
-// the uplink never parses and re-serialises a sample.
+// Why: a record is serialised once, where it is born (gateway/domain, the command service, the
+// campaign service, the eviction encoder); the outbox keeps those bytes. The uplink writes the
+// Envelope around them (protobuf wire format: an embedded message is tag + length + bytes): the
+// header fields with the generated code, then the kind's body field spliced. Telemetry batches
+// splice each stored sample the same way, setting its sequence.
 //
 // Contract:
-//  * find_route() maps a record kind (outbox_source.h) to its Envelope body and topic; nullptr
-//    for an unknown kind.
+//  * find_route() maps a record kind's stored name (outbox_source.h) to its entry of the
+//    record-kind table (proto/record_kinds.h) and its topic; nullptr for an unknown kind.
+//  * serialize_record() returns the Envelope of one non-telemetry record: bytes identical to
+//    the generated code's (parse the body into the kind's field, fill the header,
+//    SerializeAsString) for any body the generated code wrote (the only producer); tests/uplink
+//    pin this for every kind. It walks the body's wire format first (tags, lengths, groups) and
+//    returns nullopt, writing nothing, when it is not well-formed: a corrupted stored body never
+//    leaves. Text fields are made valid UTF-8 where they are born (tests/command
+//    test_hostile_strings), which the walk does not re-check.
 //  * TelemetryBatchWriter::add() takes the stored bytes of one fleetgw.v1.TelemetrySample and the
 //    record's outbox sequence. It checks that the bytes are well-formed wire format (tags, lengths,
 //    groups) and returns false, adding nothing, when they are not. envelope() returns bytes
 //    identical to building the same Envelope with the generated classes -- parse each sample,
 //    set_sequence(seq), add it to the batch, SerializeAsString -- for any sample bytes that the
 //    generated code wrote (the only producer); tests/uplink pin this.
-//  * serialize_record() handles the other kinds the old way (parse to validate, serialise), so
-//    an undecodable body or invalid UTF-8 is refused; it returns nullopt then.
 #pragma once
 
 #include <cstddef>
@@ -24,10 +31,8 @@
 #include <string_view>
 
 #include "gateway/uplink/topics.h"
+#include "proto/record_kinds.h"
 
-namespace google::protobuf {
-class MessageLite;
-}
 namespace fleetgw::v1 {
 class Envelope;
 }
@@ -43,18 +48,21 @@ struct EnvelopeHeader {
 };
 
 struct KindRoute {
-  std::string_view kind;
+  const records::RecordKindSpec* spec;  // stored name, Envelope field, messages, ...
   const std::string Topics::*topic;
-  google::protobuf::MessageLite* (*body)(v1::Envelope&);
 };
 
 const KindRoute* find_route(std::string_view kind);
+const KindRoute& route(records::RecordKind kind);
+
+// True when `bytes` is well-formed protobuf wire format (what serialize_record() checks).
+bool well_formed(std::string_view bytes);
 
 // Sets the Envelope's header fields.
 void fill_header(v1::Envelope& env, const EnvelopeHeader& header);
 
-// A non-telemetry record as a serialized Envelope; nullopt if `body` does not decode as the
-// route's message.
+// A non-telemetry record as a serialized Envelope (its stored body spliced); nullopt if `body`
+// is not well-formed wire format.
 std::optional<std::string> serialize_record(const KindRoute& route, const EnvelopeHeader& header,
                                             std::string_view body);
 

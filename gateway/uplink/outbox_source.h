@@ -27,30 +27,38 @@
 #include <string>
 #include <vector>
 
+#include "proto/record_kinds.h"
+
 namespace fleetgw::uplink {
 
-// Record kinds understood by the uplink: the `kind` column of the outbox. Each maps to one
-// Envelope body field and one topic (docs/uplink.md).
+// Record kinds understood by the uplink: their stored names (the `kind` column of the outbox),
+// from the record-kind table, proto/record_kinds.h (which also gives each one's Envelope body
+// field, topic and payload message; docs/uplink.md).
 namespace kind {
-inline constexpr const char* kTelemetry = "telemetry";       // payload: fleetgw.v1.TelemetrySample
-inline constexpr const char* kRide = "ride";                 // payload: fleetgw.v1.RideRecord
-inline constexpr const char* kFault = "fault";               // payload: fleetgw.v1.FaultEvent
-inline constexpr const char* kPack = "pack";                 // payload: fleetgw.v1.PackStatistics
-inline constexpr const char* kLock = "lock";                 // payload: fleetgw.v1.LockEvent
-inline constexpr const char* kInfo = "info";                 // payload: fleetgw.v1.DeviceInfo
-inline constexpr const char* kStatus = "status";             // payload: fleetgw.v1.Status
-inline constexpr const char* kCommandResult = "cmd_result";  // payload: fleetgw.v1.CommandResult
-inline constexpr const char* kEviction = "eviction";         // payload: fleetgw.v1.EvictionReport
-inline constexpr const char* kAlarm = "alarm";               // payload: fleetgw.v1.Alarm
-inline constexpr const char* kZone = "zone";                 // payload: fleetgw.v1.ZoneEvent
-inline constexpr const char* kCampaign = "campaign";  // payload: fleetgw.v1.CampaignSamples
+namespace detail {
+constexpr const char* name(records::RecordKind k) {
+  return records::stored_name(k).data();
+}
+}  // namespace detail
+inline constexpr const char* kTelemetry = detail::name(records::RecordKind::kTelemetry);
+inline constexpr const char* kRide = detail::name(records::RecordKind::kRide);
+inline constexpr const char* kFault = detail::name(records::RecordKind::kFault);
+inline constexpr const char* kPack = detail::name(records::RecordKind::kPack);
+inline constexpr const char* kLock = detail::name(records::RecordKind::kLock);
+inline constexpr const char* kInfo = detail::name(records::RecordKind::kInfo);
+inline constexpr const char* kStatus = detail::name(records::RecordKind::kStatus);
+inline constexpr const char* kCommandResult = detail::name(records::RecordKind::kCommandResult);
+inline constexpr const char* kEviction = detail::name(records::RecordKind::kEvictionReport);
+inline constexpr const char* kAlarm = detail::name(records::RecordKind::kAlarm);
+inline constexpr const char* kZone = detail::name(records::RecordKind::kZone);
+inline constexpr const char* kCampaign = detail::name(records::RecordKind::kCampaign);
 }  // namespace kind
 
 // One stored record as the uplink sees it (storage::OutboxRow is the store's row type).
 struct OutgoingRecord {
   std::uint64_t seq = 0;        // outbox sequence number (unique, increasing)
   int priority = 0;             // lower leaves first
-  std::string kind;             // one of fleetgw::uplink::kind
+  std::string kind;             // a stored name (fleetgw::uplink::kind), or an unknown one
   std::int64_t created_us = 0;  // when the record was made, microseconds since the Unix epoch
   std::string payload;          // the serialized body message named by `kind` (not an Envelope)
 

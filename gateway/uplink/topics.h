@@ -6,13 +6,17 @@
 // broker ACL shipped in deploy/mosquitto/acl is checked against it (acl_patterns(), tested in
 // tests/uplink/test_topic_acl.cc), so a new topic cannot ship without the broker granting it.
 // The constructor validates prefix and vehicle id (std::invalid_argument naming the field); the
-// resulting names never contain wildcards or empty levels.
+// resulting names never contain wildcards or empty levels. A record kind's leaf and name come
+// from the record-kind table (proto/record_kinds.h), so they cannot disagree with the outbox,
+// the Envelope or the ingest.
 #pragma once
 
 #include <array>
 #include <string>
 #include <string_view>
 #include <vector>
+
+#include "proto/record_kinds.h"
 
 namespace fleetgw::uplink {
 
@@ -26,11 +30,11 @@ struct Topics {
 
   std::string base;  // <prefix>/<vehicle_id>
   std::string telemetry, ride, fault, pack, lock, info, status, eviction, alarm, zone;
-  std::string state;        // retained fleetgw.v1.VehicleState
-  std::string cmd;          // subscribed
-  std::string cmd_result;   // <base>/cmd/result
-  std::string zones;        // subscribed: this vehicle's zone bundles (<base>/zones)
-  std::string fleet_zones;  // subscribed: the fleet-wide zone bundles (<prefix>/zones)
+  std::string state;            // retained fleetgw.v1.VehicleState
+  std::string cmd;              // subscribed
+  std::string command_result;   // <base>/cmd/result (the historic leaf: a wire contract)
+  std::string zones;            // subscribed: this vehicle's zone bundles (<base>/zones)
+  std::string fleet_zones;      // subscribed: the fleet-wide zone bundles (<prefix>/zones)
   std::string campaign;         // campaign samples (issue 29)
   std::string campaigns;        // subscribed: this vehicle's campaigns (<base>/campaigns)
   std::string fleet_campaigns;  // subscribed: the fleet-wide campaigns (<prefix>/campaigns)
@@ -44,32 +48,44 @@ struct TopicSpec {
   TopicDirection direction;      // what the gateway does with it (the broker must grant it)
   bool fleet_wide;               // shared by every vehicle: <prefix>/<leaf>
   std::string Topics::*member;   // where Topics keeps the full name
-  std::string_view record_kind;  // the outbox kind published there (outbox_source.h); "" if none
+  std::string_view record_kind;  // the record kind published there (its stored name); "" if none
 };
 
-// The record kinds are spelled out (not taken from outbox_source.h) to keep this header free of
-// the outbox; test_topic_acl.cc checks every route of envelope_writer.cc lands on its own entry.
+// A record kind's topic: leaf and name from the record-kind table (proto/record_kinds.h).
+constexpr TopicSpec record_topic(records::RecordKind kind, std::string Topics::*member) {
+  return {records::spec(kind).topic_leaf, TopicDirection::kPublish, false, member,
+          records::stored_name(kind)};
+}
+
 inline constexpr std::array<TopicSpec, 19> kTopicTable{{
-    {"telemetry", TopicDirection::kPublish, false, &Topics::telemetry, "telemetry"},
-    {"ride", TopicDirection::kPublish, false, &Topics::ride, "ride"},
-    {"fault", TopicDirection::kPublish, false, &Topics::fault, "fault"},
-    {"pack", TopicDirection::kPublish, false, &Topics::pack, "pack"},
-    {"lock", TopicDirection::kPublish, false, &Topics::lock, "lock"},
-    {"info", TopicDirection::kPublish, false, &Topics::info, "info"},
-    {"status", TopicDirection::kPublish, false, &Topics::status, "status"},  // + the last will
-    {"eviction", TopicDirection::kPublish, false, &Topics::eviction, "eviction"},
-    {"alarm", TopicDirection::kPublish, false, &Topics::alarm, "alarm"},
-    {"zone", TopicDirection::kPublish, false, &Topics::zone, "zone"},
-    {"state", TopicDirection::kPublish, false, &Topics::state, "state"},  // retained
-    {"cmd/result", TopicDirection::kPublish, false, &Topics::cmd_result, "cmd_result"},
+    record_topic(records::RecordKind::kTelemetry, &Topics::telemetry),
+    record_topic(records::RecordKind::kRide, &Topics::ride),
+    record_topic(records::RecordKind::kFault, &Topics::fault),
+    record_topic(records::RecordKind::kPack, &Topics::pack),
+    record_topic(records::RecordKind::kLock, &Topics::lock),
+    record_topic(records::RecordKind::kInfo, &Topics::info),
+    record_topic(records::RecordKind::kStatus, &Topics::status),  // + the last will
+    record_topic(records::RecordKind::kEvictionReport, &Topics::eviction),
+    record_topic(records::RecordKind::kAlarm, &Topics::alarm),
+    record_topic(records::RecordKind::kZone, &Topics::zone),
+    {"state", TopicDirection::kPublish, false, &Topics::state, "state"},  // retained, no record
+    record_topic(records::RecordKind::kCommandResult, &Topics::command_result),  // "cmd/result"
     {"cmd", TopicDirection::kSubscribe, false, &Topics::cmd, ""},
     {"zones", TopicDirection::kSubscribe, false, &Topics::zones, ""},
     {"zones", TopicDirection::kSubscribe, true, &Topics::fleet_zones, ""},
-    {"campaign", TopicDirection::kPublish, false, &Topics::campaign, "campaign"},
+    record_topic(records::RecordKind::kCampaign, &Topics::campaign),
     {"campaigns", TopicDirection::kSubscribe, false, &Topics::campaigns, ""},
     {"campaigns", TopicDirection::kSubscribe, true, &Topics::fleet_campaigns, ""},
     {"revocations", TopicDirection::kSubscribe, false, &Topics::revocations, ""},
 }};
+
+// The kTopicTable entry a record kind is published on (every kind has exactly one; tested).
+constexpr const TopicSpec* record_kind_topic(records::RecordKind kind) {
+  for (const auto& t : kTopicTable) {
+    if (t.record_kind == records::stored_name(kind)) return &t;
+  }
+  return nullptr;
+}
 
 // The entry whose full name in `topics` is `*topic` (compared by address: Topics' own members);
 // nullptr for any other string.

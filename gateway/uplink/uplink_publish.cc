@@ -133,7 +133,7 @@ bool Uplink::Impl::publish_direct(std::string_view kind, std::string payload, Mi
     envelope = serialize_record(*route, header(0, now.count()), payload);
   }
   if (!envelope) {
-    spdlog::error("uplink: direct {} record ({} bytes) does not decode; not published", kind,
+    spdlog::error("uplink: direct {} record ({} bytes) is not well-formed; not published", kind,
                   payload.size());
     return false;
   }
@@ -366,7 +366,7 @@ bool Uplink::Impl::publish_record(const OutgoingRecord& e) {
   }
   auto envelope = serialize_record(*route, header(e.seq, e.created_us), e.payload);
   if (!envelope) {
-    reject(e, "payload does not decode as the kind's message");
+    reject(e, "payload is not well-formed protobuf wire format");
     return true;
   }
   return publish(topics.*(route->topic), std::move(*envelope), config.qos, false, {e.seq});

@@ -13,6 +13,7 @@
 
 #include "fleetgw/v1/command.pb.h"
 #include "fleetgw/v1/envelope.pb.h"
+#include "proto/record_kinds.h"
 
 namespace {
 
@@ -20,7 +21,10 @@ using fleetgw::ingest::decode_message;
 using fleetgw::ingest::Decoded;
 using fleetgw::ingest::Reject;
 using fleetgw::ingest::SequenceRange;
+using fleetgw::ingest::table_of;
+using fleetgw::ingest::TableSpec;
 using fleetgw::ingest::to_ranges;
+namespace records = fleetgw::records;
 namespace v1 = fleetgw::v1;
 
 v1::Envelope envelope(std::uint64_t seq) {
@@ -66,6 +70,17 @@ std::string value(const Decoded& d, std::string_view column, std::size_t row = 0
   }
   const auto v = set.values().at(row * set.table->column_count + index);
   return v ? *v : "";
+}
+
+// The ingest's table of each record kind is the record-kind table's (proto/record_kinds.h).
+TEST(IngestRows, EveryRecordKindGoesToTheTableTheRecordKindTableNames) {
+  for (const auto& spec : records::kRecordKinds) {
+    const TableSpec* t = table_of(spec.envelope_field);
+    ASSERT_NE(t, nullptr) << spec.stored_name;
+    EXPECT_EQ(t->table, spec.ingest_table) << spec.stored_name;
+  }
+  EXPECT_EQ(table_of(static_cast<int>(v1::Envelope::kState))->table, "vehicle_state");
+  EXPECT_EQ(table_of(99), nullptr);
 }
 
 TEST(IngestRows, RideBecomesOneRowWithItsKeyAndAccountsForItsSequence) {

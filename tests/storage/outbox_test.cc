@@ -61,6 +61,28 @@ TEST(Outbox, PeekOrdersByPriorityThenSequence) {
   EXPECT_TRUE(entries[0].source_id.has_value());
 }
 
+// A kind this version does not know (a newer version wrote it) is never guessed as another kind:
+// the entry comes back marked with its stored name, for the reader to refuse and drop.
+TEST(Outbox, AnUnknownStoredKindIsRefusedNotGuessed) {
+  TempDir dir;
+  Store store(StoreOptions{.path = dir.file("o.db")});
+  store.write(mixed_batch(1000));
+  {
+    Database raw(store.path());
+    raw.exec("UPDATE outbox SET kind = 'teleport' WHERE kind = 'fault'");
+  }
+  const auto entries = store.peek_outbox(100, 1 << 20);
+  ASSERT_EQ(entries.size(), 6u);
+  int unknown = 0;
+  for (const auto& e : entries) {
+    if (!e.unknown_kind) continue;
+    ++unknown;
+    EXPECT_EQ(*e.unknown_kind, "teleport");
+    EXPECT_EQ(e.payload, payload_of("fault"));
+  }
+  EXPECT_EQ(unknown, 1);
+}
+
 TEST(Outbox, PeekSkipsInFlightAndHonoursLimits) {
   TempDir dir;
   Store store(StoreOptions{.path = dir.file("o.db")});

@@ -209,14 +209,15 @@ TEST(UplinkMqtt, BadRecordsAreDroppedWithoutBlockingTheQueue) {
   MemoryOutbox box;
   box.push(0, "no_such_kind", 1, "x");
   box.push(0, kind::kTelemetry, 2, std::string("\xff\xff\xff\xff", 4));
-  box.push(1, kind::kRide, 3, testing::ride_payload("good"));
+  box.push(0, kind::kFault, 3, std::string("\x0a\x05" "ab", 4));  // a corrupted stored body
+  box.push(1, kind::kRide, 4, testing::ride_payload("good"));
   Uplink up(plain_config(broker.uri(), "bike-poison"), box);
   up.start(wall_now());
   ASSERT_TRUE(drive(
       up, [&] { return box.stats().depth == 0; }, 10s));
-  EXPECT_EQ(up.stats().rejected_records, 2u);
+  EXPECT_EQ(up.stats().rejected_records, 3u);
   EXPECT_TRUE(sub.wait_until(
-      [](auto& m) { return received_sequences(m, "bike-poison") == std::vector<std::uint64_t>{3}; },
+      [](auto& m) { return received_sequences(m, "bike-poison") == std::vector<std::uint64_t>{4}; },
       5s));
 }
 

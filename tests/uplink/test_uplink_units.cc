@@ -185,7 +185,7 @@ TEST(Topics, NamesPerVehicle) {
   EXPECT_EQ(t.telemetry, "fleet/v1/bike-7/telemetry");
   EXPECT_EQ(t.status, "fleet/v1/bike-7/status");
   EXPECT_EQ(t.cmd, "fleet/v1/bike-7/cmd");
-  EXPECT_EQ(t.cmd_result, "fleet/v1/bike-7/cmd/result");
+  EXPECT_EQ(t.command_result, "fleet/v1/bike-7/cmd/result");
   EXPECT_THROW(Topics("fleet/v1/", "bike"), std::invalid_argument);
   EXPECT_THROW(Topics("fleet/v1", "bi+ke"), std::invalid_argument);
   EXPECT_THROW(Topics("fleet//v1", "bike"), std::invalid_argument);
