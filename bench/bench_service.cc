@@ -19,7 +19,9 @@
 #include <optional>
 
 #include "tests/runtime/service_process.h"
+#include "tests/support/gateway_config.h"
 #include "tests/support/mosquitto_fixture.h"
+#include "tests/support/wait.h"
 
 namespace {
 
@@ -31,19 +33,17 @@ class ServiceRig {
   ServiceRig() {
     broker_.start();
     auto key = fleetgw::command::Ed25519PrivateKey::generate();
-    fleetgw::testing::ServiceConfigText c;
-    c.scenario = std::filesystem::path(FLEETGW_SOURCE_DIR) / "config/scenarios/parked.toml";
     // SIM_SPEED overrides: the simulated nodes' own reply times are bus time / speed.
-    c.speed = std::getenv("SIM_SPEED") ? std::atof(std::getenv("SIM_SPEED")) : 20.0;
-    c.db = dir_.path() / "fleetgw.db";
-    c.broker_uri = broker_.uri();
-    c.vehicle = "bench-svc";
-    c.key_id = "ops";
-    c.public_key_b64 = key.public_key().base64();
+    const double speed = std::getenv("SIM_SPEED") ? std::atof(std::getenv("SIM_SPEED")) : 20.0;
     // A 600 s parked scenario at speed 20 lasts 30 s of wall time; repeat it as needed.
-    std::ofstream(dir_.path() / "fleetgw.toml") << c.text();
+    fleetgw::testing::service_config(
+        "bench-svc", dir_.path(),
+        std::filesystem::path(FLEETGW_SOURCE_DIR) / "config/scenarios/parked.toml", speed,
+        broker_.uri(), "ops", key.public_key().base64())
+        .write(dir_.path() / "fleetgw.toml");
     service_.emplace(FLEETGW_BIN, dir_.path() / "fleetgw.toml", dir_.path() / "service.log");
-    ready_ = fleetgw::testing::wait_for_text(dir_.path() / "service.log", "uplink: connected", 30s);
+    ready_ = fleetgw::testing::wait_until(
+        [&] { return service_->log_contains("uplink: connected"); }, 30s);
     // The MC has answered its first polls (settings included) before the first command.
     std::this_thread::sleep_for(1500ms);
     op_.emplace(broker_.uri(), "bench-svc", std::move(key), "ops");

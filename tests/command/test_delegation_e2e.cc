@@ -30,14 +30,15 @@ class DelegationE2e : public ::testing::Test {
                            "--serial",     "7",           "--holder",
                            "console",      "--out",       path("console-1.deleg")});
     ASSERT_EQ(d.code, 0) << d.err;
-    write_text(dir_.path() / "fleetgw.toml",
-               "[vehicle]\nid = \"bike-deleg\"\ngroups = [\"berlin-north\"]\n[can]\ntransport = "
-               "\"sim\"\n[sim]\nscenario = \"" +
-                   std::string(FLEETGW_SOURCE_DIR) +
-                   "/config/scenarios/demo.toml\"\nspeed = 1\n[storage]\npath = \"" +
-                   path("fleetgw.db") +
-                   "\"\n[status]\nsocket = \"\"\n[mqtt]\nenabled = true\nuri = \"" + broker_.uri() +
-                   "\"\ntopic_prefix = \"fleet/v1\"\n" + "[command.root_keys]\n" + root.out);
+    write_text_file(
+        dir_.path() / "fleetgw.toml",
+        "[vehicle]\nid = \"bike-deleg\"\ngroups = [\"berlin-north\"]\n[can]\ntransport = "
+        "\"sim\"\n[sim]\nscenario = \"" +
+            std::string(FLEETGW_SOURCE_DIR) +
+            "/config/scenarios/demo.toml\"\nspeed = 1\nlockstep = true\n[storage]\npath = \"" +
+            path("fleetgw.db") + "\"\n[status]\nsocket = \"\"\n[mqtt]\nenabled = true\nuri = \"" +
+            broker_.uri() + "\"\ntopic_prefix = \"fleet/v1\"\n" + "[command.root_keys]\n" +
+            root.out);
   }
 
   std::string path(const std::string& name) const { return (dir_.path() / name).string(); }
@@ -75,7 +76,7 @@ class DelegationE2e : public ::testing::Test {
 
 TEST_F(DelegationE2e, DelegatedCommandRunsThenItsRevokedKeyIsRefusedAlsoAfterARestartOffline) {
   auto gateway = start_gateway("1");
-  ASSERT_TRUE(wait_for([&] { return subscribed(1); }, std::chrono::seconds(30)))
+  ASSERT_TRUE(wait_until([&] { return subscribed(1); }, std::chrono::seconds(30)))
       << gateway->err() << broker_.log();
 
   const Result ok = command("unlock");
@@ -90,7 +91,7 @@ TEST_F(DelegationE2e, DelegatedCommandRunsThenItsRevokedKeyIsRefusedAlsoAfterARe
                            "--broker", broker_.uri()});
   ASSERT_EQ(pub.code, 0) << pub.err;
   const auto log_of = [&](Child& c) { return c.out() + c.err(); };
-  ASSERT_TRUE(wait_for(
+  ASSERT_TRUE(wait_until(
       [&] { return log_of(*gateway).find("revocation list version 1") != std::string::npos; },
       std::chrono::seconds(20)))
       << log_of(*gateway);
@@ -108,7 +109,7 @@ TEST_F(DelegationE2e, DelegatedCommandRunsThenItsRevokedKeyIsRefusedAlsoAfterARe
   ASSERT_EQ(gateway->wait(std::chrono::seconds(20)), 0) << gateway->err();
   broker_.stop();
   auto restarted = start_gateway("2");
-  ASSERT_TRUE(wait_for(
+  ASSERT_TRUE(wait_until(
       [&] {
         return log_of(*restarted)
                    .find(
@@ -119,7 +120,7 @@ TEST_F(DelegationE2e, DelegatedCommandRunsThenItsRevokedKeyIsRefusedAlsoAfterARe
       << log_of(*restarted);
   broker_.start();  // no persistence: nothing retained
   const std::size_t before = cmd_mentions();
-  ASSERT_TRUE(wait_for([&] { return subscribed(before + 1); }, std::chrono::seconds(40)))
+  ASSERT_TRUE(wait_until([&] { return subscribed(before + 1); }, std::chrono::seconds(40)))
       << restarted->err() << broker_.log();
   const Result still = command("lock");
   EXPECT_EQ(still.code, 1) << still.out << still.err;

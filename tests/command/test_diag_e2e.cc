@@ -12,6 +12,7 @@
 
 #include "gateway/command/ed25519.h"
 #include "tests/runtime/service_process.h"
+#include "tests/support/gateway_config.h"
 #include "tests/support/mosquitto_fixture.h"
 #include "tests/support/process.h"
 #include "tests/support/temp_dir.h"
@@ -22,30 +23,20 @@ namespace {
 
 using namespace std::chrono_literals;
 
-std::string diag_e2e_read(const std::filesystem::path& p) {
-  std::ifstream in(p);
-  std::ostringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
-
+using ::fleetgw::testing::read_text_file;
 struct DiagE2e {
   DiagE2e() {
     broker.start();
-    fleetgw::testing::ServiceConfigText c;
-    c.scenario = std::filesystem::path(__FILE__).parent_path().parent_path().parent_path() /
-                 "config" / "scenarios" / "parked.toml";
-    c.speed = 1;
-    c.db = dir.path() / "fleetgw.db";
-    c.storage_extra = "[status]\nsocket = \"" + (dir.path() / "status.sock").string() + "\"\n";
-    c.broker_uri = broker.uri();
-    c.vehicle = "rt-diag";
-    c.key_id = "tech";
-    c.public_key_b64 = key.public_key().base64();
-    std::ofstream(dir.path() / "fleetgw.toml") << c.text();
+    fleetgw::testing::service_config(
+        "rt-diag", dir.path(),
+        std::filesystem::path(__FILE__).parent_path().parent_path().parent_path() / "config" /
+            "scenarios" / "parked.toml",
+        1, broker.uri(), "tech", key.public_key().base64())
+        .write(dir.path() / "fleetgw.toml");
     std::ofstream(dir.path() / "tech.pem") << key.pem();
     service.emplace(FLEETGW_BIN, dir.path() / "fleetgw.toml", dir.path() / "service.log");
-    ready = fleetgw::testing::wait_for_text(dir.path() / "service.log", "uplink: connected", 30s);
+    ready = fleetgw::testing::wait_until([&] { return service->log_contains("uplink: connected"); },
+                                         30s);
   }
 
   struct Run {
@@ -63,12 +54,12 @@ struct DiagE2e {
     const auto err = dir.path() / ("diag-" + std::to_string(runs) + ".err");
     Run r;
     r.exit_code = fleetgw::testing::run_for_exit_code(argv, out, err);
-    r.err = diag_e2e_read(err);
-    const std::string text = diag_e2e_read(out);
+    r.err = read_text_file(err);
+    const std::string text = read_text_file(out);
     if (!text.empty()) r.result = nlohmann::json::parse(text, nullptr, false);
     return r;
   }
-  std::string log() const { return diag_e2e_read(dir.path() / "service.log"); }
+  std::string log() const { return read_text_file(dir.path() / "service.log"); }
 
   fleetgw::testing::TempDir dir{"fleetgw-diag-e2e"};
   fleetgw::testing::MosquittoBroker broker;

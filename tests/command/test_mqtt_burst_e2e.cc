@@ -14,6 +14,7 @@
 
 #include "tests/command/burst_client.h"
 #include "tests/runtime/service_process.h"
+#include "tests/support/gateway_config.h"
 #include "tests/support/mosquitto_fixture.h"
 #include "tests/support/process.h"
 #include "tests/support/temp_dir.h"
@@ -24,13 +25,7 @@ namespace {
 
 using namespace std::chrono_literals;
 
-std::string read_file(const std::filesystem::path& p) {
-  std::ifstream in(p);
-  std::ostringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
-
+using ::fleetgw::testing::read_text_file;
 // FLEETGW_BURST_TEST_BIN runs these tests against another build of the binary (to show they
 // fail on one without the fix); the default is the one built with the tests.
 std::string fleetgw_binary() {
@@ -42,19 +37,16 @@ struct BurstE2e {
   static constexpr const char* kBike = "rt-burst";
   BurstE2e() {
     broker.start();
-    fleetgw::testing::ServiceConfigText c;
     // tests/command/ -> the source root.
-    c.scenario = std::filesystem::path(__FILE__).parent_path().parent_path().parent_path() /
-                 "config" / "scenarios" / "parked.toml";
-    c.db = dir.path() / "fleetgw.db";
-    c.storage_extra = "[status]\nsocket = \"" + (dir.path() / "status.sock").string() + "\"\n";
-    c.broker_uri = broker.uri();
-    c.vehicle = kBike;
-    c.key_id = "ops";
-    c.public_key_b64 = key.public_key().base64();
-    std::ofstream(dir.path() / "fleetgw.toml") << c.text();
+    fleetgw::testing::service_config(
+        kBike, dir.path(),
+        std::filesystem::path(__FILE__).parent_path().parent_path().parent_path() / "config" /
+            "scenarios" / "parked.toml",
+        1, broker.uri(), "ops", key.public_key().base64())
+        .write(dir.path() / "fleetgw.toml");
     service.emplace(fleetgw_binary(), dir.path() / "fleetgw.toml", dir.path() / "service.log");
-    ready = fleetgw::testing::wait_for_text(dir.path() / "service.log", "uplink: connected", 30s);
+    ready = fleetgw::testing::wait_until([&] { return service->log_contains("uplink: connected"); },
+                                         30s);
     if (ready) backend.emplace(broker.uri(), kBike);
   }
 
@@ -87,13 +79,13 @@ struct BurstE2e {
         {FLEETGW_BIN, "status", "--config", (dir.path() / "fleetgw.toml").string(), "--format",
          format},
         out, dir.path() / "status.err");
-    return read_file(out);
+    return read_text_file(out);
   }
   nlohmann::json commands_status() {
     const auto doc = nlohmann::json::parse(status_text("json"), nullptr, false);
     return doc.is_object() && doc.contains("commands") ? doc["commands"] : nlohmann::json();
   }
-  std::string log() const { return read_file(dir.path() / "service.log"); }
+  std::string log() const { return read_text_file(dir.path() / "service.log"); }
 
   fleetgw::testing::TempDir dir{"fleetgw-burst-e2e"};
   fleetgw::testing::MosquittoBroker broker;

@@ -14,6 +14,7 @@
 #include "fleetgw/v1/envelope.pb.h"
 #include "gateway/command/ed25519.h"
 #include "tests/runtime/service_process.h"
+#include "tests/support/gateway_config.h"
 #include "tests/support/mosquitto_fixture.h"
 #include "tests/support/process.h"
 #include "tests/support/sqlite_query.h"
@@ -45,24 +46,19 @@ struct McE2e {
   explicit McE2e(const std::string& scenario = "parked", double speed = 1,
                  const std::string& scenario_text = {}) {
     broker.start();
-    fleetgw::testing::ServiceConfigText c;
-    c.scenario = mc_e2e_scenario(scenario);
+    std::filesystem::path scenario_file = mc_e2e_scenario(scenario);
     if (!scenario_text.empty()) {
-      c.scenario = dir.path() / (scenario + ".toml");
-      std::ofstream(c.scenario) << scenario_text;
+      scenario_file = dir.path() / (scenario + ".toml");
+      std::ofstream(scenario_file) << scenario_text;
     }
-    c.speed = speed;
-    c.db = dir.path() / "fleetgw.db";
     // The status socket in the rig's directory, not /run/fleetgw (`fleetgw status` reads it).
-    c.storage_extra = "[status]\nsocket = \"" + (dir.path() / "status.sock").string() + "\"\n";
-    c.broker_uri = broker.uri();
-    c.vehicle = "rt-mc";
-    c.key_id = "ops";
-    c.public_key_b64 = key.public_key().base64();
-    std::ofstream(dir.path() / "fleetgw.toml") << c.text();
+    fleetgw::testing::service_config("rt-mc", dir.path(), scenario_file, speed, broker.uri(), "ops",
+                                     key.public_key().base64())
+        .write(dir.path() / "fleetgw.toml");
     std::ofstream(dir.path() / "ops.pem") << key.pem();
     service.emplace(FLEETGW_BIN, dir.path() / "fleetgw.toml", dir.path() / "service.log");
-    ready = fleetgw::testing::wait_for_text(dir.path() / "service.log", "uplink: connected", 30s);
+    ready = fleetgw::testing::wait_until([&] { return service->log_contains("uplink: connected"); },
+                                         30s);
   }
 
   struct Run {

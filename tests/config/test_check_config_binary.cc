@@ -43,7 +43,7 @@ class CheckConfig : public ::testing::Test {
   }
   fs::path write(const std::string& text, const std::string& name = "fleetgw.toml") {
     const fs::path p = dir_.path() / name;
-    write_text(p, text);
+    write_text_file(p, text);
     return p;
   }
   Result check(const fs::path& file) {
@@ -207,9 +207,9 @@ TEST(Cli, BadOptionValuesExitWithTwo) {
 TEST(Cli, UnknownCommandIsNamedAndExitsTwo) {
   TempDir dir;
   const std::string text = "fleetgw: unknown command 'nosuch'; see fleetgw --help";
-  for (const std::vector<std::string>& args :
-       {std::vector<std::string>{kBin, "nosuch"}, {kBin, "nosuch", "--help"},
-        {kBin, "nosuch", "run"}}) {
+  for (const std::vector<std::string>& args : {std::vector<std::string>{kBin, "nosuch"},
+                                               {kBin, "nosuch", "--help"},
+                                               {kBin, "nosuch", "run"}}) {
     const Result r = run(args, dir.path());
     EXPECT_EQ(r.code, 2) << args.size() << ": " << r.out << r.err;
     EXPECT_EQ(r.out, "") << "no help text for a typo";
@@ -243,10 +243,10 @@ TEST(Cli, StatusConfigAsksTheConfiguredSocket) {
   TempDir dir;
   const fs::path sock = dir.path() / "gw-status.sock";
   const fs::path file = dir.path() / "fleetgw.toml";
-  write_text(file, "[can]\ntransport = \"sim\"\n[sim]\nscenario = \"" + kSource +
-                       "/config/scenarios/demo.toml\"\nspeed = 1\n[storage]\npath = \"" +
-                       (dir.path() / "fleetgw.db").string() + "\"\n[status]\nsocket = \"" +
-                       sock.string() + "\"\n");
+  write_text_file(file, "[can]\ntransport = \"sim\"\n[sim]\nscenario = \"" + kSource +
+                            "/config/scenarios/demo.toml\"\nspeed = 1\n[storage]\npath = \"" +
+                            (dir.path() / "fleetgw.db").string() + "\"\n[status]\nsocket = \"" +
+                            sock.string() + "\"\n");
   // Nothing running: exit 3, naming the socket taken from the file.
   const Result none = run({kBin, "status", "--config", file.string()}, dir.path());
   EXPECT_EQ(none.code, 3);
@@ -255,7 +255,7 @@ TEST(Cli, StatusConfigAsksTheConfiguredSocket) {
   Child service({kBin, "run", "--config", file.string(), "--duration", "60"},
                 dir.path() / "svc.out", dir.path() / "svc.err");
   Result answer;
-  ASSERT_TRUE(wait_for(
+  ASSERT_TRUE(wait_until(
       [&] {
         answer = run({kBin, "status", "--config", file.string(), "--json"}, dir.path());
         return answer.code != 3;

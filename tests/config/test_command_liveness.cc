@@ -51,7 +51,7 @@ class CommandLiveness : public ::testing::Test {
   }
   void retain(const std::string& vehicle, const std::string& payload) {
     const fs::path file = dir_.path() / ("status-" + vehicle + ".bin");
-    write_text(file, payload);
+    write_text_file(file, payload);
     run_program({"mosquitto_pub", "-h", "127.0.0.1", "-p", std::to_string(broker_.port()), "-q",
                  "1", "-r", "-t", "fleet/v1/" + vehicle + "/status", "-f", file.string()},
                 dir_.path() / "pub.log");
@@ -113,18 +113,18 @@ TEST_F(CommandLiveness, OnlineButSilentAndGarbageStatus) {
 // the retained offline status, stamped with the time it stopped.
 TEST_F(CommandLiveness, RealGatewayThatStoppedIsOfflineSinceItStopped) {
   const fs::path file = dir_.path() / "fleetgw.toml";
-  write_text(file,
-             "[vehicle]\nid = \"bike-real\"\n[can]\ntransport = \"sim\"\n[sim]\nscenario = \"" +
-                 std::string(FLEETGW_SOURCE_DIR) +
-                 "/config/scenarios/demo.toml\"\nspeed = 1\n[storage]\npath = \"" +
-                 (dir_.path() / "fleetgw.db").string() +
-                 "\"\n[status]\nsocket = \"\"\n[mqtt]\nenabled = true\nuri = \"" + broker_.uri() +
-                 "\"\ntopic_prefix = \"fleet/v1\"\n");
+  write_text_file(
+      file, "[vehicle]\nid = \"bike-real\"\n[can]\ntransport = \"sim\"\n[sim]\nscenario = \"" +
+                std::string(FLEETGW_SOURCE_DIR) +
+                "/config/scenarios/demo.toml\"\nspeed = 1\nlockstep = true\n[storage]\npath = \"" +
+                (dir_.path() / "fleetgw.db").string() +
+                "\"\n[status]\nsocket = \"\"\n[mqtt]\nenabled = true\nuri = \"" + broker_.uri() +
+                "\"\ntopic_prefix = \"fleet/v1\"\n");
   Child service({FLEETGW_BIN, "run", "--config", file.string(), "--duration", "60"},
                 dir_.path() / "svc.out", dir_.path() / "svc.err");
   ASSERT_TRUE(
-      wait_for([&] { return broker_.log().find("fleet/v1/bike-real/cmd") != std::string::npos; },
-               std::chrono::seconds(30)))
+      wait_until([&] { return broker_.log().find("fleet/v1/bike-real/cmd") != std::string::npos; },
+                 std::chrono::seconds(30)))
       << service.err() << broker_.log();
   service.signal(SIGTERM);
   ASSERT_EQ(service.wait(std::chrono::seconds(20)), 0) << service.err();

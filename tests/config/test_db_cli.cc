@@ -263,7 +263,7 @@ TEST_F(DbCli, InspectionLeavesTheStoreUntouched) {
       ::stat(e.path().c_str(), &st);
       s.push_back(name + " " + std::to_string(st.st_size) + " " +
                   std::to_string(st.st_mtim.tv_sec) + "." + std::to_string(st.st_mtim.tv_nsec) +
-                  " " + slurp(e.path()));
+                  " " + read_text_file(e.path()));
     }
     std::sort(s.begin(), s.end());
     return s;
@@ -283,14 +283,15 @@ TEST(DbCliLive, ListingsWhileTheServiceWrites) {
   TempDir dir("fleetgw-db-live");
   const fs::path db = dir.path() / "fleetgw.db";
   const fs::path file = dir.path() / "fleetgw.toml";
-  write_text(file, "[can]\ntransport = \"sim\"\n[sim]\nscenario = \"" +
-                       std::string(FLEETGW_SOURCE_DIR) +
-                       "/config/scenarios/demo.toml\"\nspeed = 100\n[storage]\npath = \"" +
-                       db.string() + "\"\n[status]\nsocket = \"\"\n");
+  write_text_file(
+      file,
+      "[can]\ntransport = \"sim\"\n[sim]\nscenario = \"" + std::string(FLEETGW_SOURCE_DIR) +
+          "/config/scenarios/demo.toml\"\nspeed = 100\nlockstep = true\n[storage]\npath = \"" +
+          db.string() + "\"\n[status]\nsocket = \"\"\n");
   Child service(
       {FLEETGW_BIN, "run", "--config", file.string(), "--bus-duration", "1330", "--duration", "60"},
       dir.path() / "svc.out", dir.path() / "svc.err");
-  ASSERT_TRUE(wait_for([&] { return fs::exists(db); }, std::chrono::seconds(20)));
+  ASSERT_TRUE(wait_until([&] { return fs::exists(db); }, std::chrono::seconds(20)));
   // Until the service has created its tables the file is not a store yet (exit 2); from the
   // first answer on, every one must succeed.
   int rounds = 0;
@@ -322,10 +323,10 @@ TEST(StatusFormat, CsvAndJsonFromTheRunningServiceJsonIsAnAlias) {
   TempDir dir("fleetgw-status-format");
   const fs::path sock = dir.path() / "status.sock";
   const fs::path file = dir.path() / "fleetgw.toml";
-  write_text(
+  write_text_file(
       file, "[vehicle]\nid = \"bike-fmt\"\n[can]\ntransport = \"sim\"\n[sim]\nscenario = \"" +
                 std::string(FLEETGW_SOURCE_DIR) +
-                "/config/scenarios/demo.toml\"\nspeed = 1\n[storage]\npath = \"" +
+                "/config/scenarios/demo.toml\"\nspeed = 1\nlockstep = true\n[storage]\npath = \"" +
                 (dir.path() / "fleetgw.db").string() + "\"\n[status]\nsocket = \"" + sock.string() +
                 "\"\n");
   EXPECT_EQ(run({FLEETGW_BIN, "status", "--json", "--format", "csv"}, dir.path()).code, 2);
@@ -333,7 +334,7 @@ TEST(StatusFormat, CsvAndJsonFromTheRunningServiceJsonIsAnAlias) {
   Child service({FLEETGW_BIN, "run", "--config", file.string(), "--duration", "60"},
                 dir.path() / "svc.out", dir.path() / "svc.err");
   Result csv;
-  ASSERT_TRUE(wait_for(
+  ASSERT_TRUE(wait_until(
       [&] {
         csv =
             run({FLEETGW_BIN, "status", "--config", file.string(), "--format", "csv"}, dir.path());

@@ -75,7 +75,7 @@ class DbGeojson : public ::testing::Test {
   // Python's json module and the RFC 7946 structure rules: the summary it prints.
   json python_check(const std::string& text) {
     const fs::path file = dir_.path() / "rides.geojson";
-    write_text(file, text);
+    write_text_file(file, text);
     const Result r =
         run({"python3", std::string(FLEETGW_SOURCE_DIR) + "/tests/support/check_geojson.py",
              file.string()},

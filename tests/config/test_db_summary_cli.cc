@@ -28,7 +28,7 @@ storage::RideRow summary_ride(const std::string& id, std::int64_t start, double 
 }
 
 storage::CommandResultRow result(const std::string& id, std::int64_t at, const std::string& result,
-                              const std::string& reason) {
+                                 const std::string& reason) {
   return {0, id, at, result, reason, "unlocked", 40};
 }
 
@@ -303,27 +303,32 @@ TEST(DbSummaryRun, ExactCountsOfARealSimulatedRide) {
     events +=
         "[[event]]\nat_s = 400\naction = \"lock\"\nnode = \"lock" + std::to_string(lock) + "\"\n";
   }
-  write_text(scenario,
-             "[scenario]\nduration_s = 480\nstart_utc = 2024-06-01T08:00:00Z\n"
-             "[bike]\nseed = 11\nsoc_pct = 80\nlocks_locked = false\n"
-             "[[ride]]\nduration_s = 20\nspeed_kmh = 0\n"
-             "[[ride]]\nduration_s = 300\nspeed_kmh = 20\n"
-             "[[ride]]\nduration_s = 160\nspeed_kmh = 0\n"
-             "[[event]]\nat_s = 100\naction = \"fault\"\nnode = \"mc\"\nfault = "
-             "\"over_heat_protect\"\n"
-             "[[event]]\nat_s = 160\naction = \"clear\"\nnode = \"mc\"\nfault = "
-             "\"over_heat_protect\"\n"
-             "[[event]]\nat_s = 200\naction = \"fault\"\nnode = \"mc\"\nfault = "
-             "\"speed_sensor_fault\"\n"
-             "[[event]]\nat_s = 260\naction = \"clear\"\nnode = \"mc\"\n" +
-                 events);
+  write_text_file(scenario,
+                  "[scenario]\nduration_s = 480\nstart_utc = 2024-06-01T08:00:00Z\n"
+                  "[bike]\nseed = 11\nsoc_pct = 80\nlocks_locked = false\n"
+                  "[[ride]]\nduration_s = 20\nspeed_kmh = 0\n"
+                  "[[ride]]\nduration_s = 300\nspeed_kmh = 20\n"
+                  "[[ride]]\nduration_s = 160\nspeed_kmh = 0\n"
+                  "[[event]]\nat_s = 100\naction = \"fault\"\nnode = \"mc\"\nfault = "
+                  "\"over_heat_protect\"\n"
+                  "[[event]]\nat_s = 160\naction = \"clear\"\nnode = \"mc\"\nfault = "
+                  "\"over_heat_protect\"\n"
+                  "[[event]]\nat_s = 200\naction = \"fault\"\nnode = \"mc\"\nfault = "
+                  "\"speed_sensor_fault\"\n"
+                  "[[event]]\nat_s = 260\naction = \"clear\"\nnode = \"mc\"\n" +
+                      events);
   const fs::path config = dir.path() / "fleetgw.toml";
-  write_text(config, "[can]\ntransport = \"sim\"\n[sim]\nscenario = \"" + scenario.string() +
-                         "\"\nspeed = 100\n[storage]\npath = \"" + db.string() +
-                         "\"\n[status]\nsocket = \"\"\n");
+  write_text_file(config, "[can]\ntransport = \"sim\"\n[sim]\nscenario = \"" + scenario.string() +
+                              "\"\nspeed = 100\nlockstep = true\n[storage]\npath = \"" +
+                              db.string() + "\"\n[status]\nsocket = \"\"\n");
+  // Lock-step: a loaded machine takes longer over the 480 s of bus time but sees the same ride;
+  // the wall-clock duration only ends a hung run.
   const Result service = run({FLEETGW_BIN, "run", "--config", config.string(), "--bus-duration",
-                              "480", "--duration", "60"},
-                             dir.path(), std::chrono::seconds(90));
+                              "480", "--duration", "300"},
+                             dir.path(), std::chrono::seconds(330));
+  EXPECT_NE((service.out + service.err).find("stopping: bus duration reached"), std::string::npos)
+      << "the run ended before the ride did\n"
+      << service.out << service.err;
   ASSERT_EQ(service.code, 0) << service.err;
   const Result r =
       run({FLEETGW_BIN, "db", "summary", "--db", db.string(), "--format", "json"}, dir.path());

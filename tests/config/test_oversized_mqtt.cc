@@ -42,26 +42,26 @@ TEST(OversizedMqtt, ResidentMemoryStaysBoundedAfterOversizedCommands) {
   const fs::path file = dir.path() / "fleetgw.toml";
   // A replay-free, bus-free set-up would be ideal; the simulator at real time is the quietest
   // transport that runs here (it writes a little telemetry, which is what a field unit does).
-  write_text(file,
-             "[vehicle]\nid = \"bike-mem\"\n[can]\ntransport = \"sim\"\n[sim]\nscenario = \"" +
-                 std::string(FLEETGW_SOURCE_DIR) +
-                 "/config/scenarios/demo.toml\"\nspeed = 1\n[storage]\npath = \"" +
-                 (dir.path() / "fleetgw.db").string() + "\"\n[status]\nsocket = \"" +
-                 (dir.path() / "status.sock").string() + "\"\n[mqtt]\nenabled = true\nuri = \"" +
-                 broker.uri() + "\"\ntopic_prefix = \"fleet/v1\"\n");
+  write_text_file(
+      file, "[vehicle]\nid = \"bike-mem\"\n[can]\ntransport = \"sim\"\n[sim]\nscenario = \"" +
+                std::string(FLEETGW_SOURCE_DIR) +
+                "/config/scenarios/demo.toml\"\nspeed = 1\nlockstep = true\n[storage]\npath = \"" +
+                (dir.path() / "fleetgw.db").string() + "\"\n[status]\nsocket = \"" +
+                (dir.path() / "status.sock").string() + "\"\n[mqtt]\nenabled = true\nuri = \"" +
+                broker.uri() + "\"\ntopic_prefix = \"fleet/v1\"\n");
   Child service({FLEETGW_BIN, "run", "--config", file.string(), "--duration", "90"},
                 dir.path() / "svc.out", dir.path() / "svc.err");
 
   // Connected and subscribed: the broker log shows the gateway's subscription to its cmd topic.
   const std::string cmd_topic = "fleet/v1/bike-mem/cmd";
-  ASSERT_TRUE(wait_for([&] { return broker.log().find(cmd_topic) != std::string::npos; },
-                       std::chrono::seconds(30)))
+  ASSERT_TRUE(wait_until([&] { return broker.log().find(cmd_topic) != std::string::npos; },
+                         std::chrono::seconds(30)))
       << service.err() << broker.log();
 
   // Baseline once the service has settled: the highest of a few samples over 3 s, taken when
   // two consecutive 1 s windows differ by less than 256 KiB.
   long baseline = 0;
-  ASSERT_TRUE(wait_for(
+  ASSERT_TRUE(wait_until(
       [&] {
         long peak = 0;
         long first = rss_kib(service.pid());
@@ -78,8 +78,8 @@ TEST(OversizedMqtt, ResidentMemoryStaysBoundedAfterOversizedCommands) {
 
   const fs::path big = dir.path() / "payload-20m.bin";
   const fs::path medium = dir.path() / "payload-8m.bin";
-  write_text(big, std::string(20 * 1024 * 1024, '\x5a'));
-  write_text(medium, std::string(8 * 1024 * 1024, '\x5a'));
+  write_text_file(big, std::string(20 * 1024 * 1024, '\x5a'));
+  write_text_file(medium, std::string(8 * 1024 * 1024, '\x5a'));
   auto publish = [&](const fs::path& payload) {
     run_program({"mosquitto_pub", "-h", "127.0.0.1", "-p", std::to_string(broker.port()), "-q", "1",
                  "-t", cmd_topic, "-f", payload.string()},
@@ -97,7 +97,7 @@ TEST(OversizedMqtt, ResidentMemoryStaysBoundedAfterOversizedCommands) {
   // RSS once it stops moving (two samples 300 ms apart within 64 KiB).
   auto settled_rss = [&] {
     long last = rss_kib(service.pid());
-    wait_for(
+    wait_until(
         [&] {
           std::this_thread::sleep_for(std::chrono::milliseconds(300));
           const long now = rss_kib(service.pid());
@@ -110,7 +110,7 @@ TEST(OversizedMqtt, ResidentMemoryStaysBoundedAfterOversizedCommands) {
   };
 
   publish(big);
-  ASSERT_TRUE(wait_for([&] { return drops() == 1; }, std::chrono::seconds(30))) << service.err();
+  ASSERT_TRUE(wait_until([&] { return drops() == 1; }, std::chrono::seconds(30))) << service.err();
   const long after_first = settled_rss();
   // Known limit of Paho C 1.3.12 (docs/deployment.md): its socket receive buffer grows to the
   // largest packet received and is kept for the life of the process, so ONE payload-sized
@@ -122,9 +122,9 @@ TEST(OversizedMqtt, ResidentMemoryStaysBoundedAfterOversizedCommands) {
   // the second one left another 20 MB copy in the heap (measured 31.8 -> 72.8 MB).
   publish(big);
   publish(medium);
-  ASSERT_TRUE(wait_for([&] { return drops() == 3; }, std::chrono::seconds(30))) << service.err();
+  ASSERT_TRUE(wait_until([&] { return drops() == 3; }, std::chrono::seconds(30))) << service.err();
   long after = 0;
-  const bool bounded = wait_for(
+  const bool bounded = wait_until(
       [&] {
         after = rss_kib(service.pid());
         // The uplink gives Paho's buffer back by replacing its client at most once a minute,

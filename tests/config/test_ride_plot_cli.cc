@@ -47,7 +47,7 @@ class RidePlotCli : public ::testing::Test {
 };
 
 TEST_F(RidePlotCli, LatestRideWithItsWindowGapsAndEscapedId) {
-  const std::string before = slurp(db_);
+  const std::string before = read_text_file(db_);
   const Result r = plot({"latest", "--db", db_.string(), "--out", svg_.string()});
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_EQ(r.err, "");
@@ -57,7 +57,7 @@ TEST_F(RidePlotCli, LatestRideWithItsWindowGapsAndEscapedId) {
       << r.out;
   EXPECT_EQ(occurrences(r.out, "\n"), 1u) << "the hostile id broke the line: " << r.out;
 
-  const std::string svg = slurp(svg_);
+  const std::string svg = read_text_file(svg_);
   EXPECT_TRUE(svg.starts_with("<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<svg "));
   EXPECT_TRUE(svg.ends_with("</svg>\n"));
   EXPECT_EQ(svg.find("<script"), std::string::npos);
@@ -90,7 +90,7 @@ TEST_F(RidePlotCli, LatestRideWithItsWindowGapsAndEscapedId) {
   EXPECT_NE(svg.find(">GNSS 6.7 km, odometer 8.1 km</text>"), std::string::npos);
   EXPECT_EQ(svg.find("no GNSS track"), std::string::npos);
   // Inspection never modifies the store.
-  EXPECT_EQ(slurp(db_), before);
+  EXPECT_EQ(read_text_file(db_), before);
 }
 
 TEST_F(RidePlotCli, RideByIdToStdout) {
@@ -120,7 +120,7 @@ TEST_F(RidePlotCli, DamagedTrackIsLeftOutWithAWarningNamingTheRide) {
   ASSERT_EQ(normal.code, 0) << normal.err;
   EXPECT_EQ(normal.err,
             "fleetgw ride plot: ride 'ride-normal': track: not valid JSON; plotted without it\n");
-  std::string svg = slurp(svg_);
+  std::string svg = read_text_file(svg_);
   EXPECT_EQ(svg.find("panel-map"), std::string::npos);
   EXPECT_EQ(occurrences(svg, ">no GNSS track for this ride</text>"), 1u);
   EXPECT_TRUE(svg.ends_with("</svg>\n"));
@@ -133,7 +133,7 @@ TEST_F(RidePlotCli, DamagedTrackIsLeftOutWithAWarningNamingTheRide) {
       << latest.err;
   EXPECT_NE(latest.err.find("': track: position 1: not an array of two numbers"), std::string::npos)
       << latest.err;
-  svg = slurp(svg_);
+  svg = read_text_file(svg_);
   EXPECT_EQ(svg.find("panel-map"), std::string::npos);
   EXPECT_EQ(occurrences(svg, ">no GNSS track for this ride</text>"), 1u);
 }
@@ -183,11 +183,11 @@ TEST_F(RidePlotCli, UnwritableOutputExitsOne) {
 
 TEST_F(RidePlotCli, StoreAndAssistNamesFromTheConfiguration) {
   const fs::path cfg = dir_.path() / "fleetgw.toml";
-  write_text(cfg, "[storage]\npath = \"" + db_.string() +
-                      "\"\n[protocol.assist_names]\n0x02 = \"boost\"\n");
+  write_text_file(cfg, "[storage]\npath = \"" + db_.string() +
+                           "\"\n[protocol.assist_names]\n0x02 = \"boost\"\n");
   const Result r = plot({"ride-normal", "--config", cfg.string(), "--out", svg_.string()});
   ASSERT_EQ(r.code, 0) << r.err;
-  const std::string svg = slurp(svg_);
+  const std::string svg = read_text_file(svg_);
   EXPECT_NE(svg.find("<title>Ride ride-normal</title>"), std::string::npos);
   EXPECT_NE(svg.find(">boost</text>"), std::string::npos);  // the configured U7 name
   EXPECT_EQ(svg.find(">norm</text>"), std::string::npos);

@@ -17,20 +17,20 @@ TEST(StatusVehicle, SpeedSocAndOpenRideWhileRiding) {
   const fs::path sock = dir.path() / "status.sock";
   const fs::path scenario = dir.path() / "ride.toml";
   // Parked 20 s with the locks open, then 20 km/h: at speed 20 the ride starts after ~1 s.
-  write_text(scenario,
-             "[scenario]\nduration_s = 1200\n[bike]\nseed = 5\nsoc_pct = 71\nlocks_locked = "
-             "false\n[[ride]]\nduration_s = 20\nspeed_kmh = 0\n[[ride]]\nduration_s = 1180\n"
-             "speed_kmh = 20\n");
+  write_text_file(scenario,
+                  "[scenario]\nduration_s = 1200\n[bike]\nseed = 5\nsoc_pct = 71\nlocks_locked = "
+                  "false\n[[ride]]\nduration_s = 20\nspeed_kmh = 0\n[[ride]]\nduration_s = 1180\n"
+                  "speed_kmh = 20\n");
   const fs::path file = dir.path() / "fleetgw.toml";
-  write_text(file, "[can]\ntransport = \"sim\"\n[sim]\nscenario = \"" + scenario.string() +
-                       "\"\nspeed = 20\n[storage]\npath = \"" +
-                       (dir.path() / "fleetgw.db").string() + "\"\n[status]\nsocket = \"" +
-                       sock.string() + "\"\n");
+  write_text_file(file, "[can]\ntransport = \"sim\"\n[sim]\nscenario = \"" + scenario.string() +
+                            "\"\nspeed = 20\nlockstep = true\n[storage]\npath = \"" +
+                            (dir.path() / "fleetgw.db").string() + "\"\n[status]\nsocket = \"" +
+                            sock.string() + "\"\n");
   Child service({FLEETGW_BIN, "run", "--config", file.string(), "--duration", "60"},
                 dir.path() / "svc.out", dir.path() / "svc.err");
   json doc;
   // Until the ride has covered some distance: the document is polled, never slept for.
-  const bool riding = wait_for(
+  const bool riding = wait_until(
       [&] {
         const Result r =
             run({FLEETGW_BIN, "status", "--config", file.string(), "--format", "json"}, dir.path());

@@ -66,7 +66,7 @@ class DecodeCli : public ::testing::Test {
     text += candump_of(0x770, flipped_crc_frame(), 1763700001000000, &can_frames_);
     text += "this is not a candump line\n";
     const auto path = dir_ / "mixed.log";
-    testing::write_text(path, text);
+    testing::write_text_file(path, text);
     return path.string();
   }
   testing::Result decode(const std::vector<std::string>& args) {
@@ -141,7 +141,7 @@ TEST_F(DecodeCli, CsvSummaryIsKeyValueRows) {
 TEST_F(DecodeCli, NothingDecodedPutsTheHintInTheDocument) {
   std::size_t ignored = 0;
   const auto path = dir_ / "bad.log";
-  testing::write_text(path, candump_of(0x770, flipped_crc_frame(), 1763700000000000, &ignored));
+  testing::write_text_file(path, candump_of(0x770, flipped_crc_frame(), 1763700000000000, &ignored));
   const auto r = decode({path.string(), "--format", "json"});
   EXPECT_EQ(r.code, 1) << r.err;
   EXPECT_TRUE(r.out.empty()) << r.out;

@@ -88,7 +88,7 @@ TEST(AlarmEndToEnd, TheftYieldsExactlyOneMovementAlarmOnTheBrokerAndTelemetryFlo
   std::ostringstream c;
   c << "[vehicle]\nid = \"" << kVehicle << "\"\n[log]\nlevel = \"warn\"\n"
     << "[can]\ntransport = \"sim\"\n[sim]\nscenario = \"" << FLEETGW_SOURCE_DIR
-    << "/config/scenarios/theft.toml\"\nspeed = 10\n"
+    << "/config/scenarios/theft.toml\"\nspeed = 10\nlockstep = true\n"
     << "start_now = false\n"  // bus time on the scenario's own epoch
     << "[storage]\npath = \"" << (dir.path() / "fleetgw.db").string() << "\"\n"
     << "[mqtt]\nenabled = true\nuri = \"" << broker.uri() << "\"\ntelemetry_qos = 1\n"

@@ -33,6 +33,7 @@
 #include "fleetgw/v1/envelope.pb.h"
 #include "tests/support/mosquitto_fixture.h"
 #include "tests/support/process.h"
+#include "tests/support/sqlite_query.h"
 #include "tests/support/wait.h"
 
 namespace {
@@ -47,10 +48,7 @@ constexpr double kSpeed = 40;        // sim.speed
 constexpr double kBusSeconds = 720;  // the reference run ends after this much bus time (18 s)
 constexpr int kFaultPeriodS = 40;    // an MC over-heat is raised and cleared every 40 s of bus time
 
-std::string slurp(const fs::path& path) {
-  return fleetgw::testing::read_text_file(path);
-}
-
+using ::fleetgw::testing::read_text_file;
 // "2026-11-27 17:55:34.898 warning ...": the time of day in seconds (the log's own format).
 double time_of_day_s(const std::string& line) {
   int h = 0, m = 0;
@@ -59,10 +57,7 @@ double time_of_day_s(const std::string& line) {
   return h * 3600.0 + m * 60.0 + s;
 }
 
-bool wait_for(const std::function<bool()>& done, std::chrono::milliseconds limit) {
-  return fleetgw::testing::wait_until(done, limit, 50ms);
-}
-
+using ::fleetgw::testing::wait_until;
 // A steady ride with an MC over-heat raised and cleared every kFaultPeriodS seconds.
 std::string write_scenario(const fs::path& dir) {
   std::ostringstream s;
@@ -84,7 +79,7 @@ std::string write_config(const fs::path& dir, const fs::path& db, const std::str
   std::ostringstream c;
   c << "[vehicle]\nid = \"disk-full-bike\"\n[log]\nlevel = \"info\"\n"
     << "[can]\ntransport = \"sim\"\n[sim]\nscenario = \"" << scenario << "\"\nspeed = " << kSpeed
-    << "\n[storage]\npath = \"" << db.string() << "\"\nmax_mb = 4\n"
+    << "\nlockstep = true\n[storage]\npath = \"" << db.string() << "\"\nmax_mb = 4\n"
     << "[status]\nsocket = \"" << (dir / "status.sock").string() << "\"\n";
   if (!broker_uri.empty()) {
     c << "[mqtt]\nenabled = true\nuri = \"" << broker_uri << "\"\ntelemetry_qos = 1\n"
@@ -108,7 +103,7 @@ ChildProcess spawn(const std::vector<std::string>& args, const fs::path& output)
 int run_fleetgw(const std::vector<std::string>& args, const fs::path& scratch, std::string& out) {
   const fs::path file = scratch / "cmd.out";
   const int rc = spawn(args, file).wait();
-  out = slurp(file);
+  out = read_text_file(file);
   return rc;
 }
 
@@ -120,18 +115,9 @@ struct StoreCounts {
 
 StoreCounts read_store(const fs::path& db, std::int64_t window_us) {
   StoreCounts c;
-  sqlite3* h = nullptr;
-  if (sqlite3_open_v2(db.c_str(), &h, SQLITE_OPEN_READONLY, nullptr) != SQLITE_OK) return c;
-  auto scalar = [&](const std::string& sql) -> std::int64_t {
-    sqlite3_stmt* st = nullptr;
-    std::int64_t v = -1;
-    if (sqlite3_prepare_v2(h, sql.c_str(), -1, &st, nullptr) == SQLITE_OK &&
-        sqlite3_step(st) == SQLITE_ROW) {
-      v = sqlite3_column_int64(st, 0);
-    }
-    sqlite3_finalize(st);
-    return v;
-  };
+  fleetgw::testing::SqliteReader reader(db);
+  if (!reader.ok()) return c;
+  auto scalar = [&](const std::string& sql) { return reader.scalar(sql); };
   c.faults = scalar(
       "SELECT count(*) FROM fault_events WHERE first_seen_us - (SELECT min(start_us) FROM rides) "
       "<= " +
@@ -140,13 +126,7 @@ StoreCounts read_store(const fs::path& db, std::int64_t window_us) {
   c.bus_us =
       scalar("SELECT (SELECT max(ts_us) FROM telemetry) - (SELECT min(start_us) FROM rides)");
   c.rides = scalar("SELECT count(*) FROM rides");
-  sqlite3_stmt* st = nullptr;
-  if (sqlite3_prepare_v2(h, "PRAGMA integrity_check", -1, &st, nullptr) == SQLITE_OK &&
-      sqlite3_step(st) == SQLITE_ROW) {
-    c.integrity = reinterpret_cast<const char*>(sqlite3_column_text(st, 0));
-  }
-  sqlite3_finalize(st);
-  sqlite3_close(h);
+  c.integrity = reader.text("PRAGMA integrity_check");
   return c;
 }
 
@@ -338,11 +318,12 @@ void disk_full_round(bool uplink) {
   // The service runs until the test stops it (the scenario's hour is far longer than the test):
   // a loaded machine that slows the filling and recovery steps cannot make the run end first.
   ChildProcess service = spawn({"run", "--config", config, "--duration", "150"}, log);
-  ASSERT_TRUE(wait_for([&] { return fs::exists(base.path() / "status.sock"); }, 10s)) << slurp(log);
+  ASSERT_TRUE(wait_until([&] { return fs::exists(base.path() / "status.sock"); }, 10s))
+      << read_text_file(log);
 
   // Inspection while the service runs: read-only, works, changes nothing.
   std::string stats;
-  ASSERT_TRUE(wait_for(
+  ASSERT_TRUE(wait_until(
       [&] {
         if (run_fleetgw({"db", "stats", "--db", db.string()}, base.path(), stats) != 0) {
           return false;
@@ -358,14 +339,15 @@ void disk_full_round(bool uplink) {
   // Fill the disk and keep it full.
   DiskFiller filler(disk / "filler");
   const auto full_since = std::chrono::steady_clock::now();
-  const bool failure_logged =
-      wait_for([&] { return slurp(log).find("storage: write failed") != std::string::npos; }, 30s);
-  ASSERT_TRUE(failure_logged) << "the store never failed with the disk full\n" << slurp(log);
+  const bool failure_logged = wait_until(
+      [&] { return read_text_file(log).find("storage: write failed") != std::string::npos; }, 30s);
+  ASSERT_TRUE(failure_logged) << "the store never failed with the disk full\n"
+                              << read_text_file(log);
   const auto first_failure = std::chrono::steady_clock::now();
-  ASSERT_TRUE(wait_for([&] { return storage_failing(base.path()) == true; }, 5s))
+  ASSERT_TRUE(wait_until([&] { return storage_failing(base.path()) == true; }, 5s))
       << "status must say storage is failing within 5 s of the first failure\n"
       << status_json(base.path()).dump() << "\n"
-      << slurp(log);
+      << read_text_file(log);
   const auto attention = std::chrono::steady_clock::now();
   {
     std::string out;
@@ -380,7 +362,8 @@ void disk_full_round(bool uplink) {
   // Stay full while the store keeps retrying (status counts the failed writes).
   const std::int64_t failed_at_attention = failed_writes(base.path());
   ASSERT_GT(failed_at_attention, 0);
-  EXPECT_TRUE(wait_for([&] { return failed_writes(base.path()) >= failed_at_attention + 3; }, 10s))
+  EXPECT_TRUE(
+      wait_until([&] { return failed_writes(base.path()) >= failed_at_attention + 3; }, 10s))
       << "the store retries while the disk is full";
 
   std::string command_id;
@@ -394,7 +377,7 @@ void disk_full_round(bool uplink) {
                broker->uri(), "--timeout-s", "10"},
               tool_out);
     const int tool_rc = tool.wait();
-    const std::string text = slurp(tool_out);
+    const std::string text = read_text_file(tool_out);
     ASSERT_TRUE(tool_rc == 0 || tool_rc == 1) << "a definite result, not silence\n" << text;
     const auto brace = text.find('{');
     ASSERT_NE(brace, std::string::npos) << text;
@@ -407,9 +390,9 @@ void disk_full_round(bool uplink) {
     EXPECT_EQ(answer.value("command_sha256", "").size(), 64u) << text;
     // What the broker carried for that id: one result, the same one. Wait a little past the
     // first so that a second (duplicate) result would be seen.
-    ASSERT_TRUE(wait_for([&] { return !backend->for_id(id).empty(); }, 5s));
+    ASSERT_TRUE(wait_until([&] { return !backend->for_id(id).empty(); }, 5s));
     const auto seen_one = std::chrono::steady_clock::now();
-    wait_for([&] { return backend->for_id(id).size() > 1; }, 2s);
+    wait_until([&] { return backend->for_id(id).size() > 1; }, 2s);
     const auto on_broker = backend->for_id(id);
     ASSERT_EQ(on_broker.size(), 1u) << "exactly one result for " << id;
     EXPECT_FALSE(on_broker[0].stored());
@@ -422,32 +405,34 @@ void disk_full_round(bool uplink) {
               << " ms after the first)\n";
     command_id = id;
   }
-  ASSERT_TRUE(service.running()) << "the service exited on a full disk\n" << slurp(log);
+  ASSERT_TRUE(service.running()) << "the service exited on a full disk\n" << read_text_file(log);
 
   // Space returns.
   filler.remove();
   const auto freed = std::chrono::steady_clock::now();
-  EXPECT_TRUE(wait_for([&] { return storage_failing(base.path()) == false; }, 5s))
+  EXPECT_TRUE(wait_until([&] { return storage_failing(base.path()) == false; }, 5s))
       << "status must be back to OK within 5 s of space returning";
   const auto status_ok = std::chrono::steady_clock::now();
-  EXPECT_TRUE(wait_for(
-      [&] { return slurp(log).find("pending records written, storage OK") != std::string::npos; },
+  EXPECT_TRUE(wait_until(
+      [&] {
+        return read_text_file(log).find("pending records written, storage OK") != std::string::npos;
+      },
       5s))
       << "recovery is automatic and logged\n"
-      << slurp(log);
+      << read_text_file(log);
   const auto recovered = std::chrono::steady_clock::now();
   ASSERT_TRUE(service.running());
   if (!command_id.empty()) {
     // Once the store accepts writes the result is journaled, not published a second time.
-    wait_for([&] { return backend->for_id(command_id).size() > 1; }, 2s);
+    wait_until([&] { return backend->for_id(command_id).size() > 1; }, 2s);
     EXPECT_EQ(backend->for_id(command_id).size(), 1u) << "recovery answers no command twice";
   }
   // Every fault of the compared window must have been raised before the run is stopped.
-  EXPECT_TRUE(wait_for(
+  EXPECT_TRUE(wait_until(
       [&] { return read_store(db, fault_window_us()).bus_us >= kBusSeconds * 1'000'000; }, 60s))
       << "the ride went past " << kBusSeconds << " s of bus time";
-  EXPECT_EQ(service.stop(), 0) << slurp(log);
-  const std::string text = slurp(log);
+  EXPECT_EQ(service.stop(), 0) << read_text_file(log);
+  const std::string text = read_text_file(log);
   // The same error is not logged on every retry: each distinct failure message at most once per
   // 10 s, plus one line per message that reports its repetitions when writing works again.
   const auto failing_s =
@@ -515,12 +500,12 @@ TEST(DbTool, RefusesATextFileAndLeavesItAlone) {
   TempDir dir("fleetgw-dbtool");
   const fs::path text = dir.path() / "ride.log";
   std::ofstream(text) << "(1700000000.000000) can0 710#55AA0C1010\n";
-  const std::string before = slurp(text);
+  const std::string before = read_text_file(text);
   std::string out;
   const int rc = run_fleetgw({"db", "stats", "--db", text.string()}, dir.path(), out);
   EXPECT_EQ(rc, 2) << out;
   EXPECT_NE(out.find("not a fleetgw store"), std::string::npos) << out;
-  EXPECT_EQ(slurp(text), before);
+  EXPECT_EQ(read_text_file(text), before);
   std::vector<std::string> names;
   for (const auto& e : fs::directory_iterator(dir.path())) {
     names.push_back(e.path().filename().string());

@@ -17,6 +17,7 @@
 #include "tests/support/gateway_config.h"
 #include "tests/support/nmea.h"
 #include "tests/support/process.h"
+#include "tests/support/sqlite_query.h"
 #include "tests/support/temp_dir.h"
 #include "tests/support/wait.h"
 
@@ -27,6 +28,7 @@ using fleetgw::testing::GatewayConfig;
 using fleetgw::testing::GatewayProcess;
 using fleetgw::testing::have_gpsfake;
 using fleetgw::testing::RoutePoint;
+using fleetgw::testing::SqliteReader;
 using fleetgw::testing::TempDir;
 using fleetgw::testing::wait_until;
 using namespace std::chrono_literals;
@@ -45,44 +47,23 @@ struct Sample {
 // Every telemetry sample in the outbox (the uplink is off: nothing is taken out).
 std::vector<Sample> telemetry(const std::filesystem::path& db_path) {
   std::vector<Sample> out;
-  sqlite3* db = nullptr;
-  if (sqlite3_open_v2(db_path.c_str(), &db, SQLITE_OPEN_READONLY, nullptr) == SQLITE_OK) {
-    sqlite3_stmt* st = nullptr;
-    if (sqlite3_prepare_v2(db,
-                           "SELECT seq, payload FROM outbox WHERE kind = 'telemetry' ORDER BY seq",
-                           -1, &st, nullptr) == SQLITE_OK) {
-      while (sqlite3_step(st) == SQLITE_ROW) {
+  SqliteReader(db_path).each(
+      "SELECT seq, payload FROM outbox WHERE kind = 'telemetry' ORDER BY seq",
+      [&](sqlite3_stmt* st) {
         Sample s{sqlite3_column_int64(st, 0), {}};
         const void* blob = sqlite3_column_blob(st, 1);
         if (blob != nullptr && s.msg.ParseFromArray(blob, sqlite3_column_bytes(st, 1))) {
           out.push_back(std::move(s));
         }
-      }
-    }
-    sqlite3_finalize(st);
-  }
-  sqlite3_close(db);
+      });
   return out;
 }
 
 // Fault events of the GNSS bit, in order ("raised", "cleared", ...).
 std::vector<std::string> gps_fault_events(const std::filesystem::path& db_path) {
-  std::vector<std::string> out;
-  sqlite3* db = nullptr;
-  if (sqlite3_open_v2(db_path.c_str(), &db, SQLITE_OPEN_READONLY, nullptr) == SQLITE_OK) {
-    sqlite3_stmt* st = nullptr;
-    const std::string sql =
-        "SELECT event FROM fault_events WHERE node = " + std::to_string(kIotNode) +
-        " AND bit = " + std::to_string(kGpsBit) + " ORDER BY id";
-    if (sqlite3_prepare_v2(db, sql.c_str(), -1, &st, nullptr) == SQLITE_OK) {
-      while (sqlite3_step(st) == SQLITE_ROW) {
-        out.emplace_back(reinterpret_cast<const char*>(sqlite3_column_text(st, 0)));
-      }
-    }
-    sqlite3_finalize(st);
-  }
-  sqlite3_close(db);
-  return out;
+  return SqliteReader(db_path).rows(
+      "SELECT event FROM fault_events WHERE node = " + std::to_string(kIotNode) +
+      " AND bit = " + std::to_string(kGpsBit) + " ORDER BY id");
 }
 
 std::filesystem::path write_config(const TempDir& dir, std::uint16_t gpsd_port) {

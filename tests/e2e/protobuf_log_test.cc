@@ -28,10 +28,7 @@ namespace fs = std::filesystem;
 using fleetgw::testing::ChildProcess;
 using fleetgw::testing::run_for_exit_code;
 
-std::string slurp(const fs::path& path) {
-  return fleetgw::testing::read_text_file(path);
-}
-
+using ::fleetgw::testing::read_text_file;
 // `fleetgw ARGS...` to the end, its output in `output`; its exit code.
 int run_fleetgw(std::vector<std::string> args, const fs::path& output) {
   args.insert(args.begin(), FLEETGW_BINARY);
@@ -64,18 +61,19 @@ TEST(ProtobufLog, InvalidUtf8FloodGivesBoundedLinesWithACount) {
   ASSERT_EQ(run_fleetgw({"keygen", (dir.path() / "operator").string()}, keygen_out), 0);
   std::string trusted;
   {
-    std::istringstream lines(slurp(keygen_out));
+    std::istringstream lines(read_text_file(keygen_out));
     for (std::string line; std::getline(lines, line);) {
       if (line.rfind("operator = \"", 0) == 0) trusted = line;
     }
   }
-  ASSERT_FALSE(trusted.empty()) << slurp(keygen_out);
+  ASSERT_FALSE(trusted.empty()) << read_text_file(keygen_out);
   std::ofstream(dir.path() / "quiet.toml") << "[scenario]\nname = \"quiet\"\nduration_s = 3600\n"
                                            << "[[ride]]\nduration_s = 3600\nspeed_kmh = 0\n";
   const fs::path config = dir.path() / "fleetgw.toml";
   std::ofstream(config) << "[vehicle]\nid = \"pblog-bike\"\n[log]\nlevel = \"info\"\n"
                         << "[can]\ntransport = \"sim\"\n[sim]\nscenario = \""
-                        << (dir.path() / "quiet.toml").string() << "\"\nspeed = 1\n"
+                        << (dir.path() / "quiet.toml").string()
+                        << "\"\nspeed = 1\nlockstep = true\n"
                         << "[storage]\npath = \"" << (dir.path() / "fleetgw.db").string()
                         << "\"\n[status]\nsocket = \"" << (dir.path() / "status.sock").string()
                         << "\"\n[mqtt]\nenabled = true\nuri = \"" << broker.uri() << "\"\n"
@@ -99,24 +97,24 @@ TEST(ProtobufLog, InvalidUtf8FloodGivesBoundedLinesWithACount) {
                      "--key", (dir.path() / "operator.pem").string(), "--key-id", "operator",
                      "--broker", broker.uri(), "--timeout-s", std::to_string(timeout_s)},
                     out);
-    return std::make_pair(rc, slurp(out));
+    return std::make_pair(rc, read_text_file(out));
   };
   auto first = send_genuine("first", 2);
   for (int attempt = 1; attempt < 10 && first.first != 0 && first.first != 1; ++attempt) {
     first = send_genuine("first", 2);
   }
-  ASSERT_TRUE(first.first == 0 || first.first == 1) << first.second << slurp(log);
+  ASSERT_TRUE(first.first == 0 || first.first == 1) << first.second << read_text_file(log);
 
   constexpr int kPayloads = 1000;
   for (int i = 0; i < kPayloads; ++i) {
     attacker.publish("fleet/v1/pblog-bike/cmd", hostile_payload(i), 1, false)->wait();
   }
   const auto sentinel = send_genuine("sentinel", 20);
-  ASSERT_TRUE(sentinel.first == 0 || sentinel.first == 1) << sentinel.second << slurp(log);
+  ASSERT_TRUE(sentinel.first == 0 || sentinel.first == 1) << sentinel.second << read_text_file(log);
   attacker.disconnect()->wait();
-  EXPECT_EQ(gateway.stop(), 0) << slurp(log);
+  EXPECT_EQ(gateway.stop(), 0) << read_text_file(log);
 
-  const std::string text = slurp(log);
+  const std::string text = read_text_file(log);
   std::size_t protobuf_lines = 0, raw_lines = 0;
   std::uint64_t counted = 0;
   std::istringstream in(text);

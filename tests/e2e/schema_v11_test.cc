@@ -21,8 +21,8 @@
 
 #include "fleetgw/v1/envelope.pb.h"
 #include "tests/support/mosquitto_fixture.h"
-#include "tests/support/sqlite_query.h"
 #include "tests/support/process.h"
+#include "tests/support/sqlite_query.h"
 #include "tests/support/temp_dir.h"
 #include "tests/support/wait.h"
 
@@ -43,7 +43,7 @@ std::string write_config(const TempDir& dir, const std::string& broker_uri) {
   std::ostringstream c;
   c << "[vehicle]\nid = \"" << kVehicle << "\"\n[log]\nlevel = \"warn\"\n"
     << "[can]\ntransport = \"sim\"\n[sim]\nscenario = \"" << FLEETGW_SOURCE_DIR
-    << "/config/scenarios/demo.toml\"\nspeed = 5\n"
+    << "/config/scenarios/demo.toml\"\nspeed = 5\nlockstep = true\n"
     << "[storage]\npath = \"" << (dir.path() / "fleetgw.db").string() << "\"\n"
     << "[node]\nmodel = \"SCHEMA11-IOT\"\n"
     << "[mqtt]\nenabled = true\nuri = \"" << broker_uri << "\"\ntelemetry_qos = 1\n"

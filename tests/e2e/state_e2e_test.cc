@@ -18,8 +18,8 @@
 
 #include "fleetgw/v1/envelope.pb.h"
 #include "tests/support/mosquitto_fixture.h"
-#include "tests/support/sqlite_query.h"
 #include "tests/support/process.h"
+#include "tests/support/sqlite_query.h"
 #include "tests/support/temp_dir.h"
 #include "tests/support/wait.h"
 
@@ -109,7 +109,7 @@ TEST(StateEndToEnd, LateSubscriberGetsTheRetainedStateMatchingBikeAndStoreAcross
   std::ostringstream c;
   c << "[vehicle]\nid = \"" << kStateVehicle << "\"\n[log]\nlevel = \"warn\"\n"
     << "[can]\ntransport = \"sim\"\n[sim]\nscenario = \"" << FLEETGW_SOURCE_DIR
-    << "/config/scenarios/parked.toml\"\nspeed = 10\nstart_now = false\n"
+    << "/config/scenarios/parked.toml\"\nspeed = 10\nlockstep = true\nstart_now = false\n"
     << "[storage]\npath = \"" << db.string() << "\"\n"
     << "[mqtt]\nenabled = true\nuri = \"" << broker.uri() << "\"\nstate_interval_ms = 500\n"
     << "reconnect_min_ms = 100\nreconnect_max_ms = 500\n"

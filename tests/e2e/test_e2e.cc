@@ -24,6 +24,7 @@
 #include "fleetgw/v1/envelope.pb.h"
 #include "tests/support/mosquitto_fixture.h"
 #include "tests/support/process.h"
+#include "tests/support/sqlite_query.h"
 #include "tests/support/temp_dir.h"
 #include "tests/support/wait.h"
 
@@ -56,12 +57,16 @@ std::string ride_scenario(const TempDir& dir, int hour) {
   return path;
 }
 
+// Lock-step by default: the tests assert bus-time behaviour, which a loaded machine must not
+// change (the simulator's wall-clock pacing is tested on its own).
 std::string write_config(const TempDir& dir, const std::string& scenario, double speed,
-                         const std::string& broker_uri) {
+                         const std::string& broker_uri, bool lockstep = true,
+                         const std::string& log_level = "warn") {
   std::ostringstream c;
-  c << "[vehicle]\nid = \"" << kVehicle << "\"\n[log]\nlevel = \"warn\"\n"
+  c << "[vehicle]\nid = \"" << kVehicle << "\"\n[log]\nlevel = \"" << log_level << "\"\n"
     << "[can]\ntransport = \"sim\"\n[sim]\nscenario = \"" << scenario << "\"\nspeed = " << speed
-    << "\n[storage]\npath = \"" << (dir.path() / "fleetgw.db").string() << "\"\n"
+    << "\nlockstep = " << (lockstep ? "true" : "false") << "\n[storage]\npath = \""
+    << (dir.path() / "fleetgw.db").string() << "\"\n"
     << "[ride]\nstationary_end_s = 120\n";  // the ride closes soon after the scenario's end
   if (!broker_uri.empty()) {
     c << "[mqtt]\nenabled = true\nuri = \"" << broker_uri << "\"\ntelemetry_qos = 1\n"
@@ -134,51 +139,12 @@ class Subscriber {
 };
 
 // Direct SQLite reads, independent of the store's own code.
-struct Db {
-  explicit Db(const std::string& path) {
-    EXPECT_EQ(sqlite3_open_v2(path.c_str(), &db, SQLITE_OPEN_READONLY, nullptr), SQLITE_OK);
-  }
-  ~Db() { sqlite3_close(db); }
-  std::vector<int64_t> column(const std::string& sql) {
-    std::vector<int64_t> out;
-    sqlite3_stmt* st = nullptr;
-    EXPECT_EQ(sqlite3_prepare_v2(db, sql.c_str(), -1, &st, nullptr), SQLITE_OK) << sql;
-    while (st && sqlite3_step(st) == SQLITE_ROW) out.push_back(sqlite3_column_int64(st, 0));
-    sqlite3_finalize(st);
-    return out;
-  }
-  std::string text(const std::string& sql) {
-    sqlite3_stmt* st = nullptr;
-    std::string out;
-    if (sqlite3_prepare_v2(db, sql.c_str(), -1, &st, nullptr) == SQLITE_OK &&
-        sqlite3_step(st) == SQLITE_ROW) {
-      out = reinterpret_cast<const char*>(sqlite3_column_text(st, 0));
-    }
-    sqlite3_finalize(st);
-    return out;
-  }
-  int64_t scalar(const std::string& sql) {
-    auto c = column(sql);
-    return c.empty() ? -1 : c[0];
-  }
-  sqlite3* db = nullptr;
-};
+using Db = fleetgw::testing::SqliteReader;
 
 // Rows in the outbox, or -1 while the database or its schema does not exist yet (no test
 // assertions: this polls a store another process is creating).
 int64_t outbox_size(const std::filesystem::path& path) {
-  sqlite3* db = nullptr;
-  int64_t rows = -1;
-  if (sqlite3_open_v2(path.c_str(), &db, SQLITE_OPEN_READONLY, nullptr) == SQLITE_OK) {
-    sqlite3_stmt* st = nullptr;
-    if (sqlite3_prepare_v2(db, "SELECT count(*) FROM outbox", -1, &st, nullptr) == SQLITE_OK &&
-        sqlite3_step(st) == SQLITE_ROW) {
-      rows = sqlite3_column_int64(st, 0);
-    }
-    sqlite3_finalize(st);
-  }
-  sqlite3_close(db);
-  return rows;
+  return Db(path).scalar("SELECT count(*) FROM outbox");
 }
 
 // Simulated ride → gateway → broker → subscriber: every record arrives, sequence numbers are
@@ -281,19 +247,19 @@ TEST(CrashSafety, KilledWhileDrainingLosesNothing) {
 
 // A simulator speed beyond what the machine can do (a slow board, a sanitizer build) slows the
 // simulation down instead of starving the service: it stores records as it goes and stops at
-// --duration of wall time, as a technician asking for a 2 s run expects.
+// --duration of wall time, as a technician asking for a 2 s run expects: its own timer still
+// fires (the loop is not starved), so it stops for that reason and no other. How long the stop
+// takes on a loaded machine is no part of it (the 120 s wait only catches a hang). The
+// wall-clock pacing, not lock-step: the slip is what is tested.
 TEST(Simulator, SpeedBeyondTheMachineSlipsButStoresAndStopsOnTime) {
   TempDir dir("fleetgw-slip");
-  const auto config = write_config(dir, ride_scenario(dir, 12), 100'000.0, "");  // the maximum
-  const auto started = std::chrono::steady_clock::now();
-  GatewayProcess gateway = start_gateway(config, 2.0);
-  const auto code = gateway.wait_exit(30s);
-  const auto took = std::chrono::steady_clock::now() - started;
-  ASSERT_TRUE(code.has_value()) << "did not stop within 30 s of a 2 s run\n" << gateway.log();
+  const auto config =
+      write_config(dir, ride_scenario(dir, 12), 100'000.0, "", /*lockstep=*/false, "info");
+  GatewayProcess gateway = start_gateway(config, 2.0);  // at the maximum speed
+  const auto code = gateway.wait_exit(120s);
+  ASSERT_TRUE(code.has_value()) << "a 2 s run did not stop\n" << gateway.log();
   EXPECT_EQ(*code, 0) << gateway.log();
-  EXPECT_LT(took, 12s) << "a 2 s run took "
-                       << std::chrono::duration_cast<std::chrono::milliseconds>(took).count()
-                       << " ms";
+  EXPECT_TRUE(gateway.log_contains("stopping: duration reached")) << gateway.log();
   EXPECT_GT(outbox_size(dir.path() / "fleetgw.db"), 0) << gateway.log();
 }
 
@@ -342,7 +308,7 @@ TEST(Status, ShowsTheScenarioAndFlagsAnUnreachableBroker) {
   std::ostringstream c;
   c << "[vehicle]\nid = \"" << kVehicle << "\"\n[log]\nlevel = \"error\"\n"
     << "[can]\ntransport = \"sim\"\n[sim]\nscenario = \"" << FLEETGW_SOURCE_DIR
-    << "/config/scenarios/faults.toml\"\nspeed = 4\n[storage]\npath = \""
+    << "/config/scenarios/faults.toml\"\nspeed = 4\nlockstep = true\n[storage]\npath = \""
     << (dir.path() / "db").string() << "\"\n[status]\nsocket = \"" << socket << "\"\n"
     << "[mqtt]\nenabled = true\nuri = \"tcp://127.0.0.1:9\"\n";
   const std::string config = (dir.path() / "fleetgw.toml").string();

@@ -13,6 +13,7 @@
 #include <sstream>
 #include <thread>
 
+#include "tests/support/files.h"
 #include "tests/support/mosquitto_fixture.h"
 #include "tests/uplink/expired_pki.h"
 
@@ -24,13 +25,7 @@ using fleetgw::testing::TempDir;
 using namespace std::chrono_literals;
 namespace fs = std::filesystem;
 
-std::string slurp(const fs::path& path) {
-  std::ifstream in(path);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
-
+using ::fleetgw::testing::read_text_file;
 int fleetgw(std::vector<std::string> args, const fs::path& out) {
   args.insert(args.begin(), FLEETGW_BINARY);
   fs::remove(out);
@@ -57,7 +52,8 @@ TEST(TlsStatus, ExpiredServerCertificateIsNamedInLogAndStatus) {
   const fs::path socket = dir.path() / "status.sock";
   std::ofstream(config) << "[vehicle]\nid = \"tls-bike\"\n[log]\nlevel = \"info\"\n"
                         << "[can]\ntransport = \"sim\"\n[sim]\nscenario = \""
-                        << (dir.path() / "quiet.toml").string() << "\"\nspeed = 1\n"
+                        << (dir.path() / "quiet.toml").string()
+                        << "\"\nspeed = 1\nlockstep = true\n"
                         << "[storage]\npath = \"" << (dir.path() / "fleetgw.db").string()
                         << "\"\n[status]\nsocket = \"" << socket.string() << "\"\n"
                         << "[mqtt]\nenabled = true\nuri = \"" << uri << "\"\nca_file = \""
@@ -71,7 +67,7 @@ TEST(TlsStatus, ExpiredServerCertificateIsNamedInLogAndStatus) {
   while (std::chrono::steady_clock::now() < deadline) {
     fleetgw({"status", "--json", "--socket", socket.string()}, json_out);
     // The document, then (exit 1) the "ATTENTION: ..." line of stderr in the same file.
-    const std::string text = slurp(json_out);
+    const std::string text = read_text_file(json_out);
     const auto last = text.rfind('}');
     const auto doc = nlohmann::json::parse(
         last == std::string::npos ? text : text.substr(0, last + 1), nullptr, false);
@@ -82,12 +78,14 @@ TEST(TlsStatus, ExpiredServerCertificateIsNamedInLogAndStatus) {
     std::this_thread::sleep_for(100ms);
   }
   EXPECT_EQ(reason, "TLS: certificate verify failed (certificate has expired)")
-      << slurp(json_out) << gateway.log();
+      << read_text_file(json_out) << gateway.log();
 
   const fs::path text_out = dir.path() / "status.txt";
-  EXPECT_EQ(fleetgw({"status", "--socket", socket.string()}, text_out), 1) << "needs attention\n"
-                                                                           << slurp(text_out);
-  EXPECT_NE(slurp(text_out).find("expired"), std::string::npos) << slurp(text_out);
+  EXPECT_EQ(fleetgw({"status", "--socket", socket.string()}, text_out), 1)
+      << "needs attention\n"
+      << read_text_file(text_out);
+  EXPECT_NE(read_text_file(text_out).find("expired"), std::string::npos)
+      << read_text_file(text_out);
   EXPECT_EQ(gateway.stop(), 0);
   const std::string log = gateway.log();
   EXPECT_NE(log.find("certificate has expired"), std::string::npos) << log;

@@ -23,6 +23,7 @@
 #include "tests/support/mosquitto_fixture.h"
 #include "tests/support/nmea.h"
 #include "tests/support/process.h"
+#include "tests/support/sqlite_query.h"
 #include "tests/support/temp_dir.h"
 #include "tests/support/vehicle_watcher.h"
 #include "tests/support/wait.h"
@@ -129,32 +130,11 @@ TEST(GeofenceEndToEnd, ASlowZoneIsAppliedAlongTheRampAndLiftedOfflineFromTheStor
   EXPECT_EQ(gw.stop(), 0) << gw.log();
 }
 
-// Rows of one query as "a|b|c" lines (NULL as "-").
+// Rows of one query as "a|b|c" lines (NULL as "-"); a query that cannot run fails the test.
 std::vector<std::string> query(const std::filesystem::path& db, const std::string& sql) {
-  std::vector<std::string> rows;
-  sqlite3* h = nullptr;
-  if (sqlite3_open_v2(db.c_str(), &h, SQLITE_OPEN_READONLY, nullptr) != SQLITE_OK) {
-    sqlite3_close(h);
-    ADD_FAILURE() << "cannot open " << db;
-    return rows;
-  }
-  sqlite3_stmt* st = nullptr;
-  if (sqlite3_prepare_v2(h, sql.c_str(), -1, &st, nullptr) != SQLITE_OK) {
-    ADD_FAILURE() << sql << ": " << sqlite3_errmsg(h);
-    sqlite3_close(h);
-    return rows;
-  }
-  while (sqlite3_step(st) == SQLITE_ROW) {
-    std::string row;
-    for (int i = 0; i < sqlite3_column_count(st); ++i) {
-      if (i > 0) row += "|";
-      const auto* t = sqlite3_column_text(st, i);
-      row += t ? reinterpret_cast<const char*>(t) : "-";
-    }
-    rows.push_back(row);
-  }
-  sqlite3_finalize(st);
-  sqlite3_close(h);
+  fleetgw::testing::SqliteReader reader(db);
+  auto rows = reader.rows(sql);
+  if (!reader.error().empty()) ADD_FAILURE() << reader.error();
   return rows;
 }
 

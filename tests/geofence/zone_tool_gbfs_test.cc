@@ -10,6 +10,7 @@
 
 #include "gateway/command/ed25519.h"
 #include "gateway/geofence/zone_tool.h"
+#include "tests/support/files.h"
 #include "tests/support/temp_dir.h"
 
 namespace fleetgw::geofence {
@@ -17,13 +18,7 @@ namespace {
 
 const Micros kGbfsIssued = std::chrono::seconds(1'790'000'000);
 
-std::string read_all(const std::filesystem::path& p) {
-  std::ifstream in(p);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
-
+using ::fleetgw::testing::read_text_file;
 class ZonesToolGbfs : public ::testing::Test {
  protected:
   ::fleetgw::testing::TempDir dir;
@@ -51,7 +46,7 @@ TEST_F(ZonesToolGbfs, TheCitysFileIsSignedAsPublishedAndExportedBack) {
   std::ostringstream out, err;
   ASSERT_EQ(run_zones_export({dir / "city.pb", trusted(), "", "", 60}, out, err), 0) << err.str();
   auto back = nlohmann::json::parse(out.str());
-  auto original = nlohmann::json::parse(read_all(city));
+  auto original = nlohmann::json::parse(read_text_file(city));
   EXPECT_EQ(back["last_updated"], "2026-09-21T14:13:20Z");  // the bundle's issued_at
   back.erase("last_updated");
   original.erase("last_updated");
@@ -60,7 +55,7 @@ TEST_F(ZonesToolGbfs, TheCitysFileIsSignedAsPublishedAndExportedBack) {
   std::ostringstream o2, e2;
   ASSERT_EQ(run_zones_export({dir / "city.pb", {}, "", dir / "out.json", 0}, o2, e2), 0);
   EXPECT_NE(e2.str().find("signature not checked"), std::string::npos) << e2.str();
-  EXPECT_EQ(nlohmann::json::parse(read_all(dir / "out.json"))["data"], original["data"]);
+  EXPECT_EQ(nlohmann::json::parse(read_text_file(dir / "out.json"))["data"], original["data"]);
   // Another fleet's keys: a gateway would refuse it, so it is not exported.
   std::ostringstream o3, e3;
   EXPECT_EQ(
@@ -78,7 +73,7 @@ TEST_F(ZonesToolGbfs, TheCitysFileIsSignedAsPublishedAndExportedBack) {
 }
 
 TEST_F(ZonesToolGbfs, ARuleTheBikeCannotEnforceIsRefusedNamingItAndNothingIsWritten) {
-  auto doc = nlohmann::json::parse(read_all(city));
+  auto doc = nlohmann::json::parse(read_text_file(city));
   doc["data"]["geofencing_zones"]["features"][6]["properties"]["rules"][0]["station_parking"] =
       true;
   doc["data"]["geofencing_zones"]["features"][2]["properties"]["colour"] = "blue";

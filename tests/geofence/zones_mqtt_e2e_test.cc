@@ -48,10 +48,7 @@ using namespace std::chrono_literals;
 constexpr double kLat0 = 52.5200;
 constexpr double kLon0 = 13.4050;
 
-std::string read_file(const std::filesystem::path& p) {
-  return fleetgw::testing::read_text_file(p);
-}
-
+using ::fleetgw::testing::read_text_file;
 // Publishes retained messages, as an operator's `mosquitto_pub -r` would.
 void publish_retained(const std::string& uri, const std::string& topic,
                       const std::string& payload) {
@@ -68,7 +65,7 @@ nlohmann::json status_of(const TempDir& dir, const std::filesystem::path& config
   std::filesystem::remove(out);
   fleetgw::testing::run_for_exit_code(
       {FLEETGW_BINARY, "status", "--config", config.string(), "--json"}, out, err);
-  auto doc = nlohmann::json::parse(read_file(out), nullptr, false);
+  auto doc = nlohmann::json::parse(read_text_file(out), nullptr, false);
   return doc.is_object() ? doc : nlohmann::json();
 }
 
@@ -119,7 +116,7 @@ TEST(ZonesOverMqtt, BundlesAreJudgedStoredAndKeptAndEveryRefusalIsNamed) {
         {FLEETGW_BINARY, "zones", "sign", (dir.path() / "zones-3.geojson").string(), "--version",
          "3", "--key", ops.key_file().string(), "--vehicle", for_vehicle, "--out", out.string()},
         dir.path() / "sign.out");
-    return read_file(out);
+    return read_text_file(out);
   };
   const std::string v3_own = signed_for(vehicle);
   const std::string v3_other = signed_for("zone-mqtt-9");
@@ -148,7 +145,7 @@ TEST(ZonesOverMqtt, BundlesAreJudgedStoredAndKeptAndEveryRefusalIsNamed) {
     ASSERT_TRUE(wait_until([&] { return geofence_field(status_of(dir, config), "version") == 2; },
                            30s, 100ms))
         << gw.log();
-    EXPECT_EQ(read_file(bundle_file), v2) << "the bundle in force is stored as received";
+    EXPECT_EQ(read_text_file(bundle_file), v2) << "the bundle in force is stored as received";
     const auto s = status_of(dir, config);
     EXPECT_EQ(geofence_field(s, "bundles_accepted"), 1);
     EXPECT_EQ(geofence_field(s, "topics"),
@@ -200,7 +197,7 @@ TEST(ZonesOverMqtt, BundlesAreJudgedStoredAndKeptAndEveryRefusalIsNamed) {
     EXPECT_EQ(geofence_field(s, "version"), 2) << c.reason;
     EXPECT_EQ(geofence_field(s, "bundles_refused"), n - 1);
     EXPECT_TRUE(gw.log_contains("(" + c.reason + ")")) << gw.log();
-    EXPECT_EQ(read_file(bundle_file), v2) << c.reason;
+    EXPECT_EQ(read_text_file(bundle_file), v2) << c.reason;
   }
   EXPECT_TRUE(gw.log_contains("payload of 100000 bytes exceeds 65536")) << gw.log();
   EXPECT_TRUE(gw.log_contains("version 2 stays in force")) << gw.log();
@@ -211,7 +208,7 @@ TEST(ZonesOverMqtt, BundlesAreJudgedStoredAndKeptAndEveryRefusalIsNamed) {
   // The human rendering names it too.
   const auto text_out = dir.path() / "status.txt";
   fleetgw::testing::run_for_exit_code({FLEETGW_BINARY, "status", "--config", config}, text_out);
-  const std::string text = read_file(text_out);
+  const std::string text = read_text_file(text_out);
   EXPECT_NE(text.find("geofence version 2 in force: 1 zones"), std::string::npos) << text;
   EXPECT_NE(text.find("last refused on fleet/v1/zones"), std::string::npos) << text;
 
@@ -231,7 +228,7 @@ TEST(ZonesOverMqtt, BundlesAreJudgedStoredAndKeptAndEveryRefusalIsNamed) {
     EXPECT_EQ(geofence_field(s, "last_refusal_topic"), own_topic);
     EXPECT_EQ(geofence_field(s, "version"), 2);
     EXPECT_TRUE(gw.log_contains(detail)) << gw.log();
-    EXPECT_EQ(read_file(bundle_file), v2);
+    EXPECT_EQ(read_text_file(bundle_file), v2);
   }
 
   // Still serving: a newer bundle signed for this vehicle, on its own topic, is accepted and
@@ -241,7 +238,7 @@ TEST(ZonesOverMqtt, BundlesAreJudgedStoredAndKeptAndEveryRefusalIsNamed) {
   ASSERT_TRUE(wait_until([&] { return geofence_field(status_of(dir, config), "version") == 3; },
                          30s, 100ms))
       << gw.log();
-  EXPECT_EQ(read_file(bundle_file), v3_own);
+  EXPECT_EQ(read_text_file(bundle_file), v3_own);
   EXPECT_TRUE(gw.log_contains("for vehicle '" + vehicle + "'")) << gw.log();
   EXPECT_EQ(gw.stop(), 0) << gw.log();
 }

@@ -3,14 +3,11 @@
 // utilities (configs from TOML text, temp files, child processes).
 #pragma once
 
+#include "tests/support/files.h"
+#include "tests/support/process.h"
 #include "tests/support/temp_dir.h"
 
-#include <fcntl.h>
 #include <gtest/gtest.h>
-#include <signal.h>
-#include <spawn.h>
-#include <sys/wait.h>
-#include <unistd.h>
 
 #include <chrono>
 #include <cstdlib>
@@ -208,86 +205,7 @@ inline std::vector<std::string> interleaving_violations(const std::vector<BusFra
 // The suites' one temporary directory (tests/support).
 using TempDir = ::fleetgw::testing::TempDir;
 
-inline std::string read_file(const std::filesystem::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  std::ostringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
-
-inline std::vector<std::string> lines_of(const std::string& text) {
-  std::vector<std::string> out;
-  std::istringstream in(text);
-  for (std::string line; std::getline(in, line);) out.push_back(line);
-  return out;
-}
-
-// A child process with stdout/stderr redirected to files.
-class Child {
- public:
-  Child(std::vector<std::string> argv, const std::filesystem::path& out,
-        const std::filesystem::path& err) {
-    posix_spawn_file_actions_t fa;
-    posix_spawn_file_actions_init(&fa);
-    posix_spawn_file_actions_addopen(&fa, 1, out.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    posix_spawn_file_actions_addopen(&fa, 2, err.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    std::vector<char*> args;
-    for (auto& a : argv) args.push_back(a.data());
-    args.push_back(nullptr);
-    const int rc = posix_spawn(&pid_, args[0], &fa, nullptr, args.data(), environ);
-    posix_spawn_file_actions_destroy(&fa);
-    if (rc != 0) throw std::runtime_error("posix_spawn " + argv[0] + " failed");
-  }
-  ~Child() {
-    if (pid_ > 0) {
-      kill(pid_, SIGKILL);
-      wait();
-    }
-  }
-  Child(const Child&) = delete;
-  Child& operator=(const Child&) = delete;
-
-  // Exit status (or 128 + signal); waits at most `timeout`, then kills the child.
-  int wait(std::chrono::seconds timeout = std::chrono::seconds(60)) {
-    if (pid_ <= 0) return status_;
-    const auto deadline = std::chrono::steady_clock::now() + timeout;
-    int st = 0;
-    for (;;) {
-      const pid_t r = waitpid(pid_, &st, WNOHANG);
-      if (r == pid_) break;
-      if (std::chrono::steady_clock::now() > deadline) {
-        kill(pid_, SIGKILL);
-        waitpid(pid_, &st, 0);
-        break;
-      }
-      usleep(10'000);
-    }
-    pid_ = -1;
-    status_ = WIFEXITED(st) ? WEXITSTATUS(st) : 128 + WTERMSIG(st);
-    return status_;
-  }
-
- private:
-  pid_t pid_ = -1;
-  int status_ = -1;
-};
-
-// Runs a command to completion; returns {exit status, stdout, stderr}.
-struct ChildResult {
-  int status = -1;
-  std::string out, err;
-};
-inline ChildResult run_child(std::vector<std::string> argv, const TempDir& dir) {
-  const auto out = dir / "child.out";
-  const auto err = dir / "child.err";
-  ChildResult r;
-  {
-    Child c(std::move(argv), out, err);
-    r.status = c.wait();
-  }
-  r.out = read_file(out);
-  r.err = read_file(err);
-  return r;
-}
+using ::fleetgw::testing::lines_of;
+using ::fleetgw::testing::read_text_file;
 
 }  // namespace fleetgw::runtime::testing

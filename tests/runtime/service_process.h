@@ -29,18 +29,6 @@ namespace fleetgw::testing {
 
 using SteadyClock = std::chrono::steady_clock;
 
-// `fleetgw run --config <file>` (tests/support/process.h), its output in `log`; stopped with
-// SIGTERM (and reaped) on destruction, so the service shuts down as it does in the field.
-class ServiceProcess : public ChildProcess {
- public:
-  ServiceProcess(const std::filesystem::path& binary, const std::filesystem::path& config,
-                 const std::filesystem::path& log)
-      : ChildProcess({binary.string(), "run", "--config", config.string()}, log) {}
-  ~ServiceProcess() { stop(); }
-  ServiceProcess(const ServiceProcess&) = delete;
-  ServiceProcess& operator=(const ServiceProcess&) = delete;
-};
-
 // Signs lock commands and waits for the CommandResult bound to each command id.
 class CommandOperator {
  public:
@@ -140,40 +128,5 @@ class CommandOperator {
   std::condition_variable cv_;
   std::deque<mqtt::const_message_ptr> inbox_;
 };
-
-// A config for `fleetgw run` on the simulator with the uplink to `broker_uri`, trusting
-// `key_id` = `public_key_b64`. The *_extra strings are TOML lines added to their sections.
-struct ServiceConfigText {
-  std::filesystem::path scenario;
-  double speed = 1.0;
-  std::filesystem::path db;
-  std::string broker_uri;
-  std::string vehicle;
-  std::string key_id;
-  std::string public_key_b64;
-  std::string storage_extra;
-  std::string mqtt_extra;
-  std::string text() const {
-    return "[log]\nlevel = \"info\"\n[vehicle]\nid = \"" + vehicle +
-           "\"\n[can]\ntransport = \"sim\"\n[sim]\nscenario = \"" + scenario.string() +
-           "\"\nspeed = " + std::to_string(speed) + "\nstart_now = true\n[storage]\npath = \"" +
-           db.string() + "\"\n" + storage_extra + "[mqtt]\nenabled = true\nuri = \"" + broker_uri +
-           "\"\n" + mqtt_extra + "[command.trusted_keys]\n" + key_id + " = \"" + public_key_b64 +
-           "\"\n";
-  }
-};
-
-// Waits (polling) until `file` contains `text`; false after `limit`.
-inline bool wait_for_text(const std::filesystem::path& file, std::string_view text,
-                          std::chrono::milliseconds limit) {
-  const auto end = SteadyClock::now() + limit;
-  while (SteadyClock::now() < end) {
-    std::ifstream in(file);
-    const std::string all((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-    if (all.find(text) != std::string::npos) return true;
-    std::this_thread::sleep_for(std::chrono::milliseconds(20));
-  }
-  return false;
-}
 
 }  // namespace fleetgw::testing

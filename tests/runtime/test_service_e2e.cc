@@ -32,16 +32,17 @@ std::string service_config(const TempDir& dir, const std::string& scenario, doub
                            const std::string& extra = "") {
   std::filesystem::create_directories(dir / "db");  // the service never creates it
   return "[can]\ntransport = \"sim\"\n[sim]\nscenario = \"" + scenario_path(scenario).string() +
-         "\"\nspeed = " + std::to_string(speed) + "\n[storage]\npath = \"" +
+         "\"\nspeed = " + std::to_string(speed) + "\nlockstep = true\n[storage]\npath = \"" +
          (dir / "db" / "fleetgw.db").string() + "\"\n" + extra;
 }
 
 TEST(ServiceE2E, RideScenarioEndsUpAsRideAndTelemetryInTheStore) {
   TempDir dir;
   // 1900 s of ride at 400x: ~5 s of wall time. A ride ends after 120 s standing still. The
-  // gateway's polls are round trips through the simulated bus: a millisecond of wall-clock
-  // delay on a loaded machine is 0.4 s of bus time here (1.5 s at 1500x, where a sanitizer
-  // build on a busy CI machine lost a quarter of the samples, parked mode on or off).
+  // gateway's polls are round trips through the simulated bus: on the wall-clock pacing a
+  // millisecond of delay on a loaded machine was 0.4 s of bus time here (a sanitizer build on
+  // a busy CI machine lost a quarter of the samples at 1500x); lock-step (service_config)
+  // slows the ride down instead.
   const auto cfg =
       make_config(service_config(dir, "ride", 400, "[ride]\nstationary_end_s = 120\n"));
   ServiceOptions opts;

@@ -163,11 +163,12 @@ TEST(Transports, UdpTunnelCarriesFramesBetweenSimProcessAndService) {
 
   // The simulator as a separate process: 30 s of the ride at 10x. It starts a little after the
   // service so the service's socket is bound when the first frames arrive.
-  Child sim({"/bin/sh", "-c",
-             "sleep 0.3; exec " + std::string(FLEETGW_BIN) +
-                 " sim --bus udp:" + std::to_string(sim_port) + ":" + std::to_string(gw_port) +
-                 " --scenario " + scenario_path("ride").string() + " --duration 30 --speed 10"},
-            dir / "sim.out", dir / "sim.err");
+  fleetgw::testing::CapturedChild sim(
+      {"/bin/sh", "-c",
+       "sleep 0.3; exec " + std::string(FLEETGW_BIN) +
+           " sim --bus udp:" + std::to_string(sim_port) + ":" + std::to_string(gw_port) +
+           " --scenario " + scenario_path("ride").string() + " --duration 30 --speed 10"},
+      dir / "sim.out", dir / "sim.err");
 
   Collector collector;
   // Everything the checks below need, each (CAN ID, function) pair noted once as it arrives.
@@ -191,7 +192,7 @@ TEST(Transports, UdpTunnelCarriesFramesBetweenSimProcessAndService) {
   opts.on_core = [&](GatewayCore& core) { core.add_listener(collector); };
   ServiceReport report;
   EXPECT_EQ(run_service(cfg, opts, &report), 0);
-  EXPECT_EQ(sim.wait(std::chrono::seconds(20)), 0) << read_file(dir / "sim.err");
+  EXPECT_EQ(sim.wait(std::chrono::seconds(60)).value_or(-1), 0) << sim.err();
 
   // Sim -> gateway: broadcasts of the MC, the BMS and the locks were decoded.
   EXPECT_GT(report.messages, 500u);
@@ -210,7 +211,7 @@ TEST(Transports, UdpTunnelCarriesFramesBetweenSimProcessAndService) {
   }
   // And the sim says how many external CAN frames it heard: at least the 10 segments of the
   // model info plus the read requests.
-  const std::string sim_log = read_file(dir / "sim.err") + read_file(dir / "sim.out");
+  const std::string sim_log = sim.err() + sim.out();
   // (No std::regex: g++ 12 reports a false -Wmaybe-uninitialized inside <regex> under ASan.)
   const auto heard_at = sim_log.find(" frames heard");
   ASSERT_NE(heard_at, std::string::npos) << sim_log;
@@ -286,10 +287,12 @@ TEST(BadInput, DecodeReportsMalformedLinesWithNumbersAndDecodesTheRest) {
   }
   for (const auto& [line_no, text] : bad) ASSERT_EQ(dirty[line_no - 1], text);
 
-  const auto c = run_child({FLEETGW_BIN, "decode", (dir / "clean.log").string()}, dir);
-  ASSERT_EQ(c.status, 0) << c.err;
-  const auto d = run_child({FLEETGW_BIN, "decode", (dir / "dirty.log").string()}, dir);
-  ASSERT_EQ(d.status, 0) << d.err;
+  const auto c = fleetgw::testing::run_captured(
+      {FLEETGW_BIN, "decode", (dir / "clean.log").string()}, dir.path());
+  ASSERT_EQ(c.code, 0) << c.err;
+  const auto d = fleetgw::testing::run_captured(
+      {FLEETGW_BIN, "decode", (dir / "dirty.log").string()}, dir.path());
+  ASSERT_EQ(d.code, 0) << d.err;
 
   // The rest is decoded exactly as without the bad lines.
   const auto out_lines = lines_of(d.out);

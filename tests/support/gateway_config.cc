@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cstdio>
 #include <fstream>
+#include <sstream>
 #include <stdexcept>
 
 namespace fleetgw::testing {
@@ -65,9 +66,14 @@ GatewayConfig& GatewayConfig::add_line(const std::string& section_name,
   return *this;
 }
 
-GatewayConfig& GatewayConfig::sim(const std::filesystem::path& scenario, int speed) {
+GatewayConfig& GatewayConfig::sim(const std::filesystem::path& scenario, double speed) {
   set_string("sim", "scenario", scenario.string());
-  return set("sim", "speed", std::to_string(speed));
+  std::ostringstream number;  // shortest form: 20, 0.5
+  number << speed;
+  set("sim", "speed", number.str());
+  // Tests assert bus-time behaviour: on a loaded machine the ride slows down instead of the
+  // bus falling behind the gateway (docs/simulator.md, "Lock-step").
+  return set("sim", "lockstep", "true");
 }
 
 GatewayConfig& GatewayConfig::gnss(std::uint16_t gpsd_port) {
@@ -104,6 +110,18 @@ std::filesystem::path GatewayConfig::write(const std::filesystem::path& file) co
   out.close();
   if (!out) throw std::runtime_error("cannot write the gateway config " + file.string());
   return file;
+}
+
+GatewayConfig service_config(const std::string& vehicle_id, const std::filesystem::path& dir,
+                             const std::filesystem::path& scenario, double speed,
+                             const std::string& broker_uri, const std::string& key_id,
+                             const std::string& public_key_b64) {
+  GatewayConfig c(vehicle_id, dir / "fleetgw.db");
+  c.sim(scenario, speed).set("sim", "start_now", "true");
+  c.set_string("status", "socket", (dir / "status.sock").string());
+  c.mqtt(broker_uri);
+  c.add_line("command.trusted_keys", key_id + " = " + toml_string(public_key_b64));
+  return c;
 }
 
 }  // namespace fleetgw::testing

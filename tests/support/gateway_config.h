@@ -34,8 +34,9 @@ class GatewayConfig {
                             const std::string& value);
   GatewayConfig& add_line(const std::string& section, const std::string& toml_line);
 
-  // [sim] scenario = <scenario>, speed = <speed> (the simulated bike's time factor).
-  GatewayConfig& sim(const std::filesystem::path& scenario, int speed);
+  // [sim] scenario = <scenario>, speed = <speed> (the simulated bike's time factor, a ceiling),
+  // lockstep = true (bus time never runs ahead of the gateway on a loaded machine).
+  GatewayConfig& sim(const std::filesystem::path& scenario, double speed);
   // [gnss] enabled = true, gpsd = "127.0.0.1:<port>", reconnect_max_ms = 1000 (a test's gpsd
   // comes and goes: the gateway must find it again within a second).
   GatewayConfig& gnss(std::uint16_t gpsd_port);
@@ -62,6 +63,15 @@ class GatewayConfig {
 
   std::vector<Section> sections_;
 };
+
+// The usual `fleetgw run` of the service tests: the simulated bike (`scenario` at `speed`,
+// lock-step, start_now = true), the uplink to `broker_uri`, a status socket at
+// <dir>/status.sock, the store at <dir>/fleetgw.db and the operator's key `key_id` =
+// `public_key_b64` trusted for commands. A test adds or overrides keys with set().
+GatewayConfig service_config(const std::string& vehicle_id, const std::filesystem::path& dir,
+                             const std::filesystem::path& scenario, double speed,
+                             const std::string& broker_uri, const std::string& key_id,
+                             const std::string& public_key_b64);
 
 // `value` as a TOML basic string, quotes included.
 std::string toml_string(const std::string& value);

@@ -35,6 +35,7 @@ TEST(GatewayConfigBuilder, TheGatewaysLoaderReadsEveryKeyTheBuilderSets) {
   EXPECT_EQ(cfg.status.socket, "");
   EXPECT_EQ(cfg.sim.scenario, (dir / "ride.toml").string());
   EXPECT_EQ(cfg.sim.speed, 20.0);
+  EXPECT_TRUE(cfg.sim.lockstep);
   EXPECT_FALSE(cfg.sim.start_now);
   EXPECT_TRUE(cfg.gnss.enabled);
   EXPECT_EQ(cfg.gnss.gpsd, "127.0.0.1:2948");

@@ -9,6 +9,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <atomic>
 #include <cerrno>
 #include <fstream>
 #include <sstream>
@@ -59,13 +60,6 @@ int code_of(int status) {
 }
 
 }  // namespace
-
-std::string read_text_file(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::ostringstream out;
-  out << in.rdbuf();
-  return out.str();
-}
 
 ChildProcess::ChildProcess(std::vector<std::string> argv, fs::path log_file,
                            const std::optional<fs::path>& stderr_file)
@@ -184,6 +178,20 @@ std::uint16_t free_loopback_port() {
   ::getsockname(fd, reinterpret_cast<sockaddr*>(&addr), &len);
   ::close(fd);
   return ntohs(addr.sin_port);
+}
+
+std::string CapturedChild::err() const {
+  return read_text_file(err_);
+}
+
+CapturedRun run_captured(const std::vector<std::string>& argv, const fs::path& dir,
+                         std::chrono::milliseconds timeout) {
+  // Numbered per process: several runs of one test keep their own output.
+  static std::atomic<int> counter{0};
+  const auto n = std::to_string(++counter);
+  CapturedChild c(argv, dir / ("out." + n), dir / ("err." + n));
+  const auto code = c.wait(timeout);
+  return {code.value_or(-1), c.out(), c.err()};
 }
 
 }  // namespace fleetgw::testing

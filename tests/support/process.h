@@ -24,6 +24,8 @@
 #include <string_view>
 #include <vector>
 
+#include "tests/support/files.h"
+
 namespace fleetgw::testing {
 
 class ChildProcess {
@@ -69,6 +71,18 @@ class GatewayProcess : public ChildProcess {
                  const std::vector<std::string>& extra_args = {});
 };
 
+// `<binary> run --config <config>`, its output in `log`; stopped with SIGTERM (and reaped) on
+// destruction, so the service shuts down as it does in the field (GatewayProcess is killed).
+class ServiceProcess : public ChildProcess {
+ public:
+  ServiceProcess(const std::filesystem::path& binary, const std::filesystem::path& config,
+                 const std::filesystem::path& log)
+      : ChildProcess({binary.string(), "run", "--config", config.string()}, log) {}
+  ~ServiceProcess() { stop(); }
+  ServiceProcess(const ServiceProcess&) = delete;
+  ServiceProcess& operator=(const ServiceProcess&) = delete;
+};
+
 // Runs a program (no shell) and waits; throws std::runtime_error with its output on failure.
 void run_program(const std::vector<std::string>& argv, const std::filesystem::path& output_file);
 
@@ -81,7 +95,32 @@ int run_for_exit_code(const std::vector<std::string>& argv,
 // A free TCP port on 127.0.0.1 (bound and released; the usual tiny race applies).
 std::uint16_t free_loopback_port();
 
-// The whole content of a file ("" when it cannot be read).
-std::string read_text_file(const std::filesystem::path& path);
+// A program run to completion with its stdout and stderr in their own files.
+struct CapturedRun {
+  int code = -1;  // exit code (128 + signal); -1 when it did not end within the timeout
+  std::string out;
+  std::string err;
+};
+
+// A child process with stdout and stderr in their own files (killed and reaped on
+// destruction).
+class CapturedChild : public ChildProcess {
+ public:
+  CapturedChild(const std::vector<std::string>& argv, const std::filesystem::path& out,
+                const std::filesystem::path& err)
+      : ChildProcess(argv, out, err), err_(err) {}
+  // Exit code once the child has exited within `timeout` (128 + signal for a signal), or nullopt.
+  std::optional<int> wait(std::chrono::milliseconds timeout) { return wait_exit(timeout); }
+  std::string out() const { return log(); }
+  std::string err() const;
+
+ private:
+  std::filesystem::path err_;
+};
+
+// Runs `argv` to completion, its output in numbered files in `dir`; after `timeout` (a safety
+// net for a hang, not a timing goal) it is killed and `code` is -1.
+CapturedRun run_captured(const std::vector<std::string>& argv, const std::filesystem::path& dir,
+                         std::chrono::milliseconds timeout = std::chrono::seconds(60));
 
 }  // namespace fleetgw::testing
