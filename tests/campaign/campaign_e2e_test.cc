@@ -118,6 +118,21 @@ TEST(CampaignEndToEnd, ATimeWindowRunsOfflineAndItsSamplesArriveOnceAfterTheReco
   const std::string vehicle = "campaign-e2e-1";
   ZoneOperator ops(dir, FLEETGW_BINARY);  // its `ops` key signs the campaigns
 
+  // The gateway first: however long a loaded machine takes to start it, the window below is
+  // chosen once it is connected, so only the signing and the retained delivery (not the
+  // start-up) stand between choosing the window and stopping the broker before it opens.
+  GatewayConfig c(vehicle, dir / "fleetgw.db");
+  c.sim(std::string(FLEETGW_SOURCE_DIR) + "/config/scenarios/ride.toml", 1)
+      .set_string("status", "socket", (dir / "status.sock").string());
+  c.mqtt(broker.uri())
+      .set("mqtt", "reconnect_min_ms", "100")
+      .set("mqtt", "reconnect_max_ms", "500");
+  c.add_line("command.trusted_keys", ops.key_line());
+  const auto config = dir / "fleetgw.toml";
+  c.write(config);
+  GatewayProcess gw(FLEETGW_BINARY, config, {"--duration", "600"});
+  ASSERT_TRUE(wait_until([&] { return gw.log_contains("uplink: connected"); }, 60s)) << gw.log();
+
   // The window: 10 s of the bike's day, from 20 s from now (whole seconds of UTC).
   const std::int64_t now = wall_us();
   const std::int64_t start = (now / 1'000'000 + 20) * 1'000'000;
@@ -148,16 +163,6 @@ TEST(CampaignEndToEnd, ATimeWindowRunsOfflineAndItsSamplesArriveOnceAfterTheReco
                                         "\"]\nfirmware = [{ node = \"bms\", "
                                         "versions = [\"NOPE-9\"] }]\n"));
 
-  GatewayConfig c(vehicle, dir / "fleetgw.db");
-  c.sim(std::string(FLEETGW_SOURCE_DIR) + "/config/scenarios/ride.toml", 1)
-      .set_string("status", "socket", (dir / "status.sock").string());
-  c.mqtt(broker.uri())
-      .set("mqtt", "reconnect_min_ms", "100")
-      .set("mqtt", "reconnect_max_ms", "500");
-  c.add_line("command.trusted_keys", ops.key_line());
-  const auto config = dir / "fleetgw.toml";
-  c.write(config);
-  GatewayProcess gw(FLEETGW_BINARY, config, {"--duration", "600"});
   ASSERT_TRUE(wait_until([&] { return gw.log_contains("campaign: 'window' accepted"); }, 30s))
       << gw.log();
   ASSERT_TRUE(wait_until([&] { return gw.log_contains("campaign: 'other-fw' accepted"); }, 10s))

@@ -143,7 +143,8 @@ TEST(RideTrackEndToEnd, ARideAlongAnNmeaRouteHasItsTrackInTheRowAndInGeojson) {
   // in about 26 s (two sentences per fix, one every 40 ms). The whole route is inside the ride
   // when an open ride's checkpoint (every 1.5 s of wall time) has reached the route's end.
   ASSERT_TRUE(wait_until(
-      [&] { return query_text(db, "SELECT state FROM rides ORDER BY id LIMIT 1") == "open"; }, 30s))
+      [&] { return query_text(db, "SELECT state FROM rides ORDER BY id LIMIT 1") == "open"; },
+      120s))
       << gw.log();
   FakeGps gps(dir, port, fleetgw::testing::nmea_route(route.points),
               FakeGps::Options{.cycle_s = 0.04, .once = true, .slow = false});
@@ -152,10 +153,12 @@ TEST(RideTrackEndToEnd, ARideAlongAnNmeaRouteHasItsTrackInTheRowAndInGeojson) {
         const RoutePoint end{ride("end_lat_deg"), ride("end_lon_deg")};
         return !std::isnan(end.lat_deg) && distance_m(end, route.points.back()) < 2.0;
       },
-      50s))
+      180s))
       << "the ride's end never reached the route's end (ended before it?)\n"
       << gw.log() << fleetgw::testing::read_text_file(dir.path() / "gpsfake.log");
-  ASSERT_EQ(gw.wait_exit(60s), 0) << gw.log();
+  // The limits only end a hung run: the simulated bike runs in lock-step, so a loaded machine
+  // makes its 1140 s of bus time take longer than the 57 s of an idle one.
+  ASSERT_EQ(gw.wait_exit(240s), 0) << gw.log();
 
   ASSERT_EQ(query_text(db, "SELECT count(*) FROM rides"), "1") << gw.log();
   ASSERT_EQ(query_text(db, "SELECT state FROM rides"), "closed");

@@ -122,10 +122,12 @@ TEST(SimRouteEndToEnd, TheSimulatedBikesRouteReachesTheRideThroughARealGpsd) {
 
   ASSERT_TRUE(wait_until(
       [&] { return query_text(db, "SELECT state FROM rides ORDER BY id LIMIT 1") == "closed"; },
-      90s))
+      300s))
       << "no closed ride\n"
       << gw.log() << gpsd.log();
-  ASSERT_EQ(gw.wait_exit(60s), 0) << gw.log();
+  // The limits only end a hung run: the simulated bike runs in lock-step, so a loaded machine
+  // makes its bus time take longer than on an idle one.
+  ASSERT_EQ(gw.wait_exit(120s), 0) << gw.log();
 
   ASSERT_EQ(query_text(db, "SELECT count(*) FROM rides"), "1") << gw.log();
   const RoutePoint start{ride("start_lat_deg"), ride("start_lon_deg")};

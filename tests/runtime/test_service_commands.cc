@@ -9,6 +9,7 @@
 #include "service_process.h"
 #include "tests/support/gateway_config.h"
 #include "tests/support/mosquitto_fixture.h"
+#include "tests/support/wait.h"
 
 namespace fleetgw::runtime::testing {
 namespace {
