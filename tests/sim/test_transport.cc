@@ -90,7 +90,9 @@ void deliver_and_answer(bool lockstep) {
         last_ts = ts;
         probe.push(f, ts);
         if (!asked && ts >= s.start + seconds(10)) {
-          asked = transport.virtual_now();
+          // The bus time the gateway has reached: the frame's (on the wall-clock pacing of a
+          // loaded machine virtual_now() runs ahead of the frames delivered).
+          asked = ts;
           for (const auto& can : motinova::segment(testing::ScriptedGateway::read(0x762, 0x54))) {
             EXPECT_TRUE(transport.send(can));
           }
@@ -215,7 +217,7 @@ TEST(SimTransport, BatchWindowCoalescesWakeUpsAndFlushDeliversWhatIsDue) {
   EXPECT_LE(turns_before_flush, windows + 2) << "one wake-up per 100 ms window, not per message";
   EXPECT_GE(turns_before_flush, 3);
   // flush() delivered what was due by then: nothing older than the window is left behind.
-  EXPECT_GT(last_ts, last_before_flush);
+  EXPECT_GE(last_ts, last_before_flush);
   EXPECT_LE(last_ts, flushed_at);
 }
 
@@ -223,9 +225,10 @@ TEST(SimTransport, LowLatencyDeliversEachBikeEventAtOnce) {
   asio::io_context io;
   const Scenario s = bundled("ride");
   SimTransport transport(io, s, /*acceleration=*/10.0);
-  transport.set_batch_window(std::chrono::milliseconds(100));
+  transport.set_batch_window(std::chrono::seconds(1));
   transport.set_low_latency(true);
   TurnCounter deliveries(io);
+  const auto started = std::chrono::steady_clock::now();
   transport.start(
       [&](const motinova::CanFrame&, Micros ts) {
         deliveries.on_frame();
@@ -233,9 +236,11 @@ TEST(SimTransport, LowLatencyDeliversEachBikeEventAtOnce) {
       },
       nullptr);
   run_with_limit(io, transport);
-  // Batched, 4 s of bus at x10 would be 4-5 wake-ups; per event it is one every few ms of bus
-  // time (several per 100 ms of bus time even when a loaded machine wakes the loop late).
-  EXPECT_GT(deliveries.turns, 15) << "events are not held back for the window";
+  // Batched, the bike's traffic would wake the loop at most once per 1 s window (however slow
+  // the machine made the run); per event it wakes it whenever an event is due.
+  const double windows =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+  EXPECT_GT(deliveries.turns, windows + 2) << "events are held back for the window";
 }
 
 // Stands in for the UDP/SocketCAN transport in run_sim.
