@@ -9,11 +9,13 @@
 
 namespace fleetgw::storage {
 
-Checkpointer::Checkpointer(const std::string& path, std::shared_ptr<spdlog::logger> log)
+Checkpointer::Checkpointer(const std::string& path, std::shared_ptr<spdlog::logger> log,
+                           Env& env)
     : db_(path, SQLITE_OPEN_READWRITE | SQLITE_OPEN_NOMUTEX),
       log_(log),
-      errors_(std::move(log)),
-      worker_([this](std::stop_token stop) { run(std::move(stop)); }) {}
+      errors_(std::move(log), std::chrono::seconds(10), env),
+      worker_(env.start_thread("fleetgw-ckpt",
+                               [this](std::stop_token stop) { run(std::move(stop)); })) {}
 
 Checkpointer::~Checkpointer() {
   worker_.request_stop();  // wakes wait() below through the stop token

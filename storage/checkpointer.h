@@ -2,7 +2,7 @@
 // checkpoint (5-28 ms measured) never block the thread that writes (the gateway's event loop).
 //
 // Contract:
-// - Owns one std::jthread and that thread's OWN SQLite connection to the database file
+// - Owns one thread, started through the Env it is given (env/env.h), and that thread's OWN SQLite connection to the database file
 //   (SQLITE_OPEN_READWRITE | SQLITE_OPEN_NOMUTEX, busy_timeout set; it never writes rows).
 //   The constructor opens the connection and throws SqliteError when it cannot.
 // - request() asks for one checkpoint and returns at once: it never waits for a checkpoint in
@@ -31,6 +31,7 @@
 #include <string>
 #include <thread>
 
+#include "env/env.h"
 #include "storage/health.h"
 #include "storage/rate_limited_log.h"
 #include "storage/sqlite.h"
@@ -43,7 +44,8 @@ namespace fleetgw::storage {
 
 class Checkpointer {
  public:
-  Checkpointer(const std::string& path, std::shared_ptr<spdlog::logger> log);
+  Checkpointer(const std::string& path, std::shared_ptr<spdlog::logger> log,
+               Env& env = Env::system());
   Checkpointer(const Checkpointer&) = delete;
   Checkpointer& operator=(const Checkpointer&) = delete;
   ~Checkpointer();

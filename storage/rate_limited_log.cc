@@ -7,14 +7,8 @@
 namespace fleetgw::storage {
 
 RateLimitedLog::RateLimitedLog(std::shared_ptr<spdlog::logger> logger,
-                               std::chrono::steady_clock::duration window, Clock clock)
-    : log_(logger ? std::move(logger) : spdlog::default_logger()),
-      window_(window),
-      clock_(std::move(clock)) {}
-
-std::chrono::steady_clock::time_point RateLimitedLog::now() const {
-  return clock_ ? clock_() : std::chrono::steady_clock::now();
-}
+                               std::chrono::steady_clock::duration window, Env& env)
+    : log_(logger ? std::move(logger) : spdlog::default_logger()), window_(window), env_(&env) {}
 
 std::uint64_t RateLimitedLog::suppressed() const {
   std::uint64_t n = 0;
@@ -23,7 +17,7 @@ std::uint64_t RateLimitedLog::suppressed() const {
 }
 
 bool RateLimitedLog::report(std::string_view message) {
-  const auto t = now();
+  const auto t = env_->steady_now();
   active_ = true;
   auto it = std::find_if(tracked_.begin(), tracked_.end(),
                          [&](const Tracked& x) { return x.message == message; });

@@ -11,7 +11,8 @@
 // - resolved(text) ends a stretch of errors: if anything was reported since the last
 //   resolved(), one line at info level says so (with the counts of suppressed repetitions).
 //   The windows are kept: a message that comes back within its window is counted, not logged.
-// - Single-threaded; the clock is injected (default steady_clock) so tests need no sleeps.
+// - Single-threaded; windows are measured on the Env's steady clock (env/env.h), so tests drive
+//   them with a ManualEnv and need no sleeps.
 #pragma once
 
 #include <chrono>
@@ -23,6 +24,8 @@
 #include <string_view>
 #include <vector>
 
+#include "env/env.h"
+
 namespace spdlog {
 class logger;
 }
@@ -31,12 +34,11 @@ namespace fleetgw::storage {
 
 class RateLimitedLog {
  public:
-  using Clock = std::function<std::chrono::steady_clock::time_point()>;
   static constexpr std::size_t kMaxTracked = 16;
 
   explicit RateLimitedLog(std::shared_ptr<spdlog::logger> logger,
                           std::chrono::steady_clock::duration window = std::chrono::seconds(10),
-                          Clock clock = {});
+                          Env& env = Env::system());
 
   // Returns true when the line was written (false: counted only).
   bool report(std::string_view message);
@@ -50,11 +52,9 @@ class RateLimitedLog {
     std::chrono::steady_clock::time_point last_logged;
     std::uint64_t suppressed = 0;
   };
-  std::chrono::steady_clock::time_point now() const;
-
   std::shared_ptr<spdlog::logger> log_;
   std::chrono::steady_clock::duration window_;
-  Clock clock_;
+  Env* env_;
   std::vector<Tracked> tracked_;  // at most kMaxTracked; small, so a linear search
   bool active_ = false;
 };

@@ -168,7 +168,7 @@ void Store::Impl::record_success() {
   if (health.failing) {
     // A disk that is nearly full may flip between failing and working at every retry: the
     // recovery is logged at most once per 10 s (the failures are counted meanwhile).
-    const auto now = std::chrono::steady_clock::now();
+    const auto now = options.env->steady_now();
     if (!last_recovery_logged || now - *last_recovery_logged >= std::chrono::seconds(10)) {
       error_log.resolved("storage: writing to '" + options.path + "' works again (" +
                          std::to_string(health.failed_writes) + " failed attempts so far)");
@@ -181,7 +181,7 @@ void Store::Impl::record_success() {
 
 void Store::Impl::record_failure(const StoreError& error, std::string_view what) {
   if (!health.failing) {
-    health.failing_since_us = options.wall_clock_us ? options.wall_clock_us() : system_now_us();
+    health.failing_since_us = options.env->wall_now().count();
   }
   health.failing = true;
   ++health.failed_writes;

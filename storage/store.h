@@ -8,7 +8,8 @@
 //   sqlite3 CLI, technician exports through another process) may read concurrently (WAL).
 // - Opening: the file is created if absent. A file that is not SQLite (bad header, garbage),
 //   that SQLite reports as corrupt, or that fails PRAGMA quick_check is never overwritten: it
-//   is renamed, with its -wal/-shm, to "<path>.corrupt-<UTC timestamp>", an error is logged and
+//   is renamed, with its -wal/-shm, to "<path>.corrupt-<UTC timestamp>" (StoreOptions::env's
+//   wall clock), an error is logged and
 //   a fresh database is started (moved_aside_path() tells the gateway, which should report it).
 //   A database whose schema version is newer than this binary stops start-up with
 //   SchemaTooNewError (path and both versions). Migrations (storage/schema.h) run at open.
@@ -77,6 +78,7 @@
 #include <utility>
 #include <vector>
 
+#include "env/env.h"
 #include "storage/health.h"
 #include "storage/records.h"
 
@@ -102,8 +104,10 @@ struct StoreOptions {
   // reports SQLITE_FULL exactly as a full disk does (tests use it to simulate one).
   std::uint64_t max_page_count = 0;
   std::shared_ptr<spdlog::logger> logger{};  // default: spdlog's default logger
-  // Wall clock (us since epoch) used only to name a moved-aside corrupt file. Default: system.
-  std::function<std::int64_t()> wall_clock_us{};
+  // The environment (env/env.h): the wall clock that names a moved-aside corrupt file and
+  // stamps failing_since_us, the steady clock of the log rate limits, the checkpointer's
+  // thread, the renames of a move-aside and the free-space check. Never null.
+  Env* env = &Env::system();
   // The payload of an eviction report queued by an eviction pass (`seq`: the report's own
   // outbox sequence number). The gateway sets its fleetgw.v1.EvictionReport encoder
   // (gateway/domain/payloads.h), so the report is stored as the wire bytes it is published as;

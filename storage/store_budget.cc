@@ -310,7 +310,7 @@ std::uint64_t Store::Impl::evict_for_space(std::int64_t now_us, int attempt) {
       auto& summary = disk_full_evictions;
       summary.rows += evicted;
       ++summary.passes;
-      const auto wall = std::chrono::steady_clock::now();
+      const auto wall = options.env->steady_now();
       if (!summary.last_logged) {
         log->warn("storage: disk full on '{}': evicted {} {} rows ({} unsent) to make room",
                   options.path, evicted, evictable.table, outbox_rows);

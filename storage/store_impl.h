@@ -75,9 +75,8 @@ BudgetPlan plan_budget(std::uint64_t configured, std::uint64_t effective, std::u
 // The budget clamped to what the file system holding `db_path` can give the store: its free
 // space plus what the store's files already occupy, minus a 5 % margin. nullopt when statvfs
 // fails (the budget is then left as configured).
-std::optional<std::uint64_t> disk_capacity_for(const std::string& db_path);
+std::optional<std::uint64_t> disk_capacity_for(Env& env, const std::string& db_path);
 
-std::int64_t system_now_us();
 StoreError to_store_error(const std::exception& e);
 
 struct Store::Impl {

@@ -3,7 +3,6 @@
 #include <fcntl.h>
 #include <spdlog/spdlog.h>
 #include <sys/file.h>
-#include <sys/statvfs.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -122,25 +121,18 @@ LockFile::~LockFile() {
   if (fd_ >= 0) ::close(fd_);  // releases the flock
 }
 
-std::int64_t system_now_us() {
-  return std::chrono::duration_cast<std::chrono::microseconds>(
-             std::chrono::system_clock::now().time_since_epoch())
-      .count();
-}
-
-std::optional<std::uint64_t> disk_capacity_for(const std::string& db_path) {
+std::optional<std::uint64_t> disk_capacity_for(Env& env, const std::string& db_path) {
   const fs::path p(db_path);
   const fs::path dir = p.has_parent_path() ? p.parent_path() : fs::path(".");
-  struct statvfs vfs {};
-  if (::statvfs(dir.c_str(), &vfs) != 0) return std::nullopt;
+  std::uint64_t available = 0;
+  if (env.free_space(dir, available)) return std::nullopt;
   std::uint64_t ours = 0;
   for (std::string_view suffix : {"", "-wal", "-shm"}) {
     std::error_code ec;
     const auto size = fs::file_size(db_path + std::string(suffix), ec);
     if (!ec) ours += size;
   }
-  const std::uint64_t capacity =
-      static_cast<std::uint64_t>(vfs.f_bavail) * static_cast<std::uint64_t>(vfs.f_frsize) + ours;
+  const std::uint64_t capacity = available + ours;
   return capacity - capacity / 20;
 }
 
@@ -156,7 +148,7 @@ Store::Impl::Impl(StoreOptions opts)
       log(options.logger ? options.logger : spdlog::default_logger()),
       lock(lock_unless_read_only(options)),
       db(options.read_only ? open_read_only() : open_database()),
-      error_log(log) {
+      error_log(log, std::chrono::seconds(10), *options.env) {
   if (options.read_only) {
     budget = plan_budget(options.max_bytes, options.max_bytes, 4096, 0);
     health.configured_budget_bytes = budget.configured;
@@ -182,7 +174,7 @@ Store::Impl::Impl(StoreOptions opts)
   load_next_seq();
   load_store_id(true);
   plan_disk_budget();
-  if (!is_in_memory(options.path)) checkpointer.emplace(options.path, log);
+  if (!is_in_memory(options.path)) checkpointer.emplace(options.path, log, *options.env);
 }
 
 Database Store::Impl::open_database() {
@@ -259,13 +251,13 @@ Database Store::Impl::open_read_only() {
 }
 
 void Store::Impl::move_aside(const std::string& problem) {
-  const std::int64_t now = options.wall_clock_us ? options.wall_clock_us() : system_now_us();
+  const std::int64_t now = options.env->wall_now().count();
   std::string dest = options.path + ".corrupt-" + utc_stamp(now);
   std::error_code ec;
   for (int n = 1; fs::exists(dest, ec); ++n) {
     dest = options.path + ".corrupt-" + utc_stamp(now) + "-" + std::to_string(n);
   }
-  fs::rename(options.path, dest, ec);
+  ec = options.env->rename_file(options.path, dest);
   if (ec) {
     throw std::system_error(ec, "storage: database '" + options.path + "' is corrupt (" + problem +
                                     ") and could not be moved aside to '" + dest + "'");
@@ -275,7 +267,7 @@ void Store::Impl::move_aside(const std::string& problem) {
   for (std::string_view suffix : {"-wal", "-shm", "-journal"}) {
     std::string side = options.path + std::string(suffix);
     if (fs::exists(side, ec)) {
-      fs::rename(side, dest + std::string(suffix), ec);
+      ec = options.env->rename_file(side, dest + std::string(suffix));
       if (ec) throw std::system_error(ec, "storage: cannot move '" + side + "' aside");
     }
   }
@@ -306,7 +298,7 @@ void Store::Impl::plan_disk_budget() {
   page_size = static_cast<std::uint64_t>(db.query_int64("PRAGMA page_size").value_or(4096));
   std::uint64_t effective = options.max_bytes;
   if (effective > 0) {
-    if (auto capacity = disk_capacity_for(options.path); capacity && *capacity < effective) {
+    if (auto capacity = disk_capacity_for(*options.env, options.path); capacity && *capacity < effective) {
       log->warn(
           "storage: storage.max_mb is {} MB but the file system holding '{}' can give the store "
           "only {:.1f} MB; disk budget clamped to {:.1f} MB",

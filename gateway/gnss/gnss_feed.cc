@@ -4,11 +4,11 @@
 
 namespace fleetgw::gnss {
 
-GnssFeed::GnssFeed(asio::io_context& io, GnssFeedOptions options, WallClock wall_clock,
+GnssFeed::GnssFeed(asio::io_context& io, GnssFeedOptions options, Env& env,
                    std::function<void()> on_event)
     : io_(io),
       options_(std::move(options)),
-      wall_clock_(std::move(wall_clock)),
+      env_(env),
       on_event_(std::move(on_event)),
       client_(options_.host, options_.port),
       state_(options_.state),
@@ -41,7 +41,7 @@ void GnssFeed::try_connect() {
     last_error_ = error;
     state_.on_source_lost(wall_now());
     changed_ = true;
-    reconnect_at_ = Clock::now() + backoff_;
+    reconnect_at_ = env_.steady_now() + backoff_;
     backoff_ = std::min(backoff_ * 2, options_.reconnect_max);
     return;
   }
@@ -92,7 +92,7 @@ void GnssFeed::lost(const std::string& why) {
   client_.close();
   state_.on_source_lost(wall_now());
   changed_ = true;
-  reconnect_at_ = Clock::now() + backoff_;
+  reconnect_at_ = env_.steady_now() + backoff_;
 }
 
 std::optional<GnssFeed::Clock::time_point> GnssFeed::next_deadline() const {
@@ -100,14 +100,14 @@ std::optional<GnssFeed::Clock::time_point> GnssFeed::next_deadline() const {
   if (reconnect_at_) return reconnect_at_;
   const Micros now = wall_now();
   if (const auto stale_at = state_.next_change(now)) {
-    return Clock::now() + std::chrono::duration_cast<Clock::duration>(*stale_at - now);
+    return env_.steady_now() + std::chrono::duration_cast<Clock::duration>(*stale_at - now);
   }
   return std::nullopt;
 }
 
 void GnssFeed::on_timer() {
   if (stopped_) return;
-  if (reconnect_at_ && Clock::now() >= *reconnect_at_) try_connect();
+  if (reconnect_at_ && env_.steady_now() >= *reconnect_at_) try_connect();
   // A fix that went stale while nothing arrived: the owner re-reads the state.
   changed_ = true;
 }

@@ -10,8 +10,9 @@
 //    e.g. request a settle); changed() is then true until take_changed() is called.
 //  * next_deadline() is the wall time of the next reconnect attempt or of the current fix going
 //    stale; the owner calls on_timer() when its timer reaches it.
-//  * Times are the wall clock (system clock, microseconds since the Unix epoch): positions are
-//    judged by when they were received, whatever the bus's (possibly virtual) timeline.
+//  * Time comes from the Env it is given (env/env.h), never from a clock of its own: positions
+//    are judged on env.wall_now() (when they were received, whatever the bus's possibly virtual
+//    timeline); reconnect back-off and next_deadline() are on env.steady_now().
 #pragma once
 
 #include <asio/io_context.hpp>
@@ -22,6 +23,7 @@
 #include <optional>
 #include <string>
 
+#include "env/env.h"
 #include "gateway/gnss/gnss_state.h"
 #include "gateway/gnss/gpsd_client.h"
 
@@ -38,9 +40,8 @@ struct GnssFeedOptions {
 class GnssFeed {
  public:
   using Clock = std::chrono::steady_clock;
-  using WallClock = std::function<Micros()>;
-
-  GnssFeed(asio::io_context& io, GnssFeedOptions options, WallClock wall_clock,
+  // `env` must outlive the feed.
+  GnssFeed(asio::io_context& io, GnssFeedOptions options, Env& env,
            std::function<void()> on_event);
   ~GnssFeed();
   GnssFeed(const GnssFeed&) = delete;
@@ -55,7 +56,7 @@ class GnssFeed {
   bool changed() const { return changed_; }
   void take_changed() { changed_ = false; }
   const GnssState& state() const { return state_; }
-  Micros wall_now() const { return wall_clock_(); }
+  Micros wall_now() const { return env_.wall_now(); }
   bool connected() const { return client_.connected(); }
   std::string endpoint() const { return client_.endpoint(); }
 
@@ -67,7 +68,7 @@ class GnssFeed {
 
   asio::io_context& io_;
   GnssFeedOptions options_;
-  WallClock wall_clock_;
+  Env& env_;
   std::function<void()> on_event_;
   GpsdClient client_;
   GnssState state_;

@@ -83,7 +83,7 @@ Pipeline::Pipeline(asio::io_context& io, const config::Config& config, BusTransp
                         });
   if (bus_.sim) bus_.sim->set_batch_window(kSimBatchWindow);
   start_ = bus_.replay ? Micros(0) : bus_now();
-  recorder_.emplace(config, store_, start_);
+  recorder_.emplace(config, store_, start_, env_);
   recorder_->set_flush_on_tick(false);  // settle() flushes: one transaction per burst of frames
 
   // Remote lock commands: verified, journaled in the store, executed through the node.
@@ -92,7 +92,7 @@ Pipeline::Pipeline(asio::io_context& io, const config::Config& config, BusTransp
       .store = store_,
       .trackers = &recorder_->trackers(),
       .clock_synchronised = command::default_clock_synchronised,
-      .wall_clock = system_now,
+      .wall_clock = [this] { return env_.wall_now(); },
       // A stored result is published in the next settle, not at a timer.
       .result_stored =
           [this] {
@@ -186,7 +186,7 @@ Pipeline::Pipeline(asio::io_context& io, const config::Config& config, BusTransp
     o.port = colon == std::string::npos ? "2947" : config.gnss.gpsd.substr(colon + 1);
     o.state.max_age = std::chrono::milliseconds(config.gnss.max_age_ms);
     o.reconnect_max = std::chrono::milliseconds(config.gnss.reconnect_max_ms);
-    gnss_ = std::make_unique<gnss::GnssFeed>(io_, std::move(o), system_now,
+    gnss_ = std::make_unique<gnss::GnssFeed>(io_, std::move(o), env_,
                                              [this] { request_settle(); });
     gnss_->start();
   }

@@ -10,12 +10,6 @@
 namespace fleetgw::runtime {
 namespace {
 
-std::int64_t system_now_us() {
-  return std::chrono::duration_cast<std::chrono::microseconds>(
-             std::chrono::system_clock::now().time_since_epoch())
-      .count();
-}
-
 // Moves every element of `src` to the end of `dst`. Into an empty `dst` the two buffers swap:
 // the records are not moved one by one, and `src` (the sink, refilled at once) gets back the
 // capacity `dst` kept from the last batch instead of growing from nothing again.
@@ -133,13 +127,13 @@ storage::StoreOptions make_store_options(const config::Config& c) {
 }
 
 Recorder::Recorder(const config::Config& config, storage::Store& store, Micros now,
-                   WallClock wall_clock)
+                   Env& env)
     : store_(store),
       trackers_(make_domain_config(config), sink_),
-      wall_clock_(std::move(wall_clock)),
+      env_(&env),
       flush_interval_(std::chrono::milliseconds(config.storage.flush_ms)),
-      error_log_(nullptr, std::chrono::seconds(10), wall_clock_),
-      drop_log_(nullptr, std::chrono::seconds(10), wall_clock_) {
+      error_log_(nullptr, std::chrono::seconds(10), env),
+      drop_log_(nullptr, std::chrono::seconds(10), env) {
   const auto open = store_.open_rides();
   if (!open.empty()) {
     spdlog::info("resuming {} open ride(s) from the previous run", open.size());
@@ -165,7 +159,7 @@ Recorder::~Recorder() {
 }
 
 std::chrono::steady_clock::time_point Recorder::wall() const {
-  return wall_clock_ ? wall_clock_() : std::chrono::steady_clock::now();
+  return env_->steady_now();
 }
 
 void Recorder::note_pending() {
@@ -248,7 +242,7 @@ FlushOutcome Recorder::flush(Micros now) {
   }
 
   ++failures_;
-  if (!last_flush_failed_) failing_since_us_ = system_now_us();
+  if (!last_flush_failed_) failing_since_us_ = env_->wall_now().count();
   last_flush_failed_ = true;
   last_error_ = store_.health().last_error;
   if (result.error->code == storage::StoreError::Code::kInvalid) {

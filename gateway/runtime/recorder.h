@@ -39,6 +39,7 @@
 #include "gateway/domain/domain_sink.h"
 #include "gateway/domain/domain_trackers.h"
 #include "gateway/runtime/backoff.h"
+#include "env/env.h"
 #include "gateway/runtime/gateway_core.h"
 #include "storage/health.h"
 #include "storage/rate_limited_log.h"
@@ -56,14 +57,15 @@ struct FlushOutcome {
 
 class Recorder final : public MessageListener {
  public:
-  using WallClock = std::function<std::chrono::steady_clock::time_point()>;
   static constexpr std::size_t kMaxBatchRecords = 4096;
   static constexpr std::size_t kRetryMemoryBytes = 8u << 20;
   static constexpr std::chrono::milliseconds kRetryInterval{1000};
 
   // `store` must outlive the recorder.
+  // `env` must outlive the recorder: flush deadlines and retries run on its steady clock,
+  // failing_since_us on its wall clock (env/env.h).
   Recorder(const config::Config& config, storage::Store& store, Micros now,
-           WallClock wall_clock = {});
+           Env& env = Env::system());
   ~Recorder() override;
 
   void on_message(const motinova::DecodedMessage& message, Micros now) override;
@@ -112,7 +114,7 @@ class Recorder final : public MessageListener {
   domain::DomainSink sink_;
   domain::DomainTrackers trackers_;
   storage::Batch retry_;  // records whose write failed, retried first
-  WallClock wall_clock_;
+  Env* env_;
   std::chrono::steady_clock::duration flush_interval_;
   std::optional<std::chrono::steady_clock::time_point> first_pending_;
   bool flush_on_tick_ = true;

@@ -34,11 +34,12 @@ std::pair<std::string, uint16_t> endpoint(const std::string& text, const char* k
   return {text.substr(0, colon), static_cast<uint16_t>(port)};
 }
 
-BusTransport make_bus(asio::io_context& io, const config::Config& c, const SimBusOpener& open_sim) {
+BusTransport make_bus(asio::io_context& io, const config::Config& c, const SimBusOpener& open_sim,
+                      Env& env) {
   BusTransport bus;
   if (c.can.transport == "sim") {
     if (!open_sim) throw std::runtime_error("this program was built without the simulator");
-    auto t = open_sim(io, c.sim, system_now());
+    auto t = open_sim(io, c.sim, env.wall_now());
     bus.sim = t.get();
     bus.sim_speed = c.sim.speed;
     bus.transport = std::move(t);
@@ -102,12 +103,15 @@ uplink::UplinkConfig make_uplink_config(const config::Config& c) {
 int run_service(const config::Config& config, const ServiceOptions& options,
                 ServiceReport* report) {
   asio::io_context io;
+  // The one environment of the process (env/env.h): every part built below reads time, starts
+  // threads and writes files through it.
+  Env& env = Env::system();
   // First: from here a SIGTERM is a clean stop (delivered once the loop runs), never the default
   // action halfway through opening the bus, the store or a simulator's pty link.
   asio::signal_set signals(io, SIGINT, SIGTERM);
   BusTransport bus;
   try {
-    bus = make_bus(io, config, options.open_sim);
+    bus = make_bus(io, config, options.open_sim, env);
   } catch (const std::exception& e) {
     spdlog::critical("cannot open the CAN bus ({}): {}", config.can.transport, e.what());
     return 1;
@@ -120,7 +124,9 @@ int run_service(const config::Config& config, const ServiceOptions& options,
       spdlog::critical("storage.path: directory {} does not exist", db.parent_path().string());
       return 1;
     }
-    store.emplace(make_store_options(config));
+    storage::StoreOptions store_options = make_store_options(config);
+    store_options.env = &env;
+    store.emplace(std::move(store_options));
   } catch (const std::exception& e) {
     spdlog::critical("cannot open the store {}: {}", config.storage.path, e.what());
     return 1;
@@ -130,13 +136,14 @@ int run_service(const config::Config& config, const ServiceOptions& options,
                   *store->moved_aside_path());
   }
 
-  const auto wall_start = std::chrono::steady_clock::now();
+  const auto wall_start = env.steady_now();
   // systemd integration: READY once bus and store are open, watchdog pings from this loop.
   status::Notifier notifier = status::Notifier::from_environment();
   std::optional<status::LoopWatchdog> watchdog;
   std::optional<status::StatusServer> status_server;
 
   PipelineOptions po;
+  po.env = &env;
   po.duration = options.duration;
   po.bus_duration = options.bus_duration;
   po.live_view = options.live_view;
@@ -209,7 +216,7 @@ int run_service(const config::Config& config, const ServiceOptions& options,
   GatewayCore& core = pipeline->core();
   const auto& stats = core.bus_stats();
   const double wall =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
+      std::chrono::duration<double>(env.steady_now() - wall_start).count();
   const double virt = pipeline->bus_seconds();
   const auto& c = pipeline->counters();
   spdlog::info(

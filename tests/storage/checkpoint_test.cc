@@ -9,10 +9,12 @@
 #include <chrono>
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
 #include <functional>
 #include <thread>
 #include <vector>
 
+#include "env/env.h"
 #include "storage/sqlite.h"
 #include "storage/store.h"
 #include "storage_test_util.h"
@@ -154,6 +156,62 @@ TEST(Checkpointer, ReadOnlyStoreHasNone) {
   Store reader(StoreOptions{.path = path, .read_only = true});
   EXPECT_FALSE(reader.checkpoint_if_due());
   EXPECT_EQ(reader.checkpoint_counters().requested, 0u);
+}
+
+// The real machine, except that it counts and names the threads it starts and can refuse
+// renames: what a test needs to see that the store goes through its Env.
+class CountingEnv final : public Env {
+ public:
+  Micros wall_now() const override { return Env::system().wall_now(); }
+  SteadyTime steady_now() const override { return Env::system().steady_now(); }
+  std::jthread start_thread(std::string_view name,
+                            std::function<void(std::stop_token)> fn) override {
+    names.emplace_back(name);
+    return Env::start_thread(name, std::move(fn));
+  }
+  std::error_code rename_file(const fs::path& from, const fs::path& to) override {
+    if (refuse_renames) return std::make_error_code(std::errc::read_only_file_system);
+    return Env::rename_file(from, to);
+  }
+  std::vector<std::string> names;  // written at construction only, before any thread runs
+  bool refuse_renames = false;
+};
+
+TEST(Checkpointer, ItsThreadIsStartedThroughTheStoresEnv) {
+  TempDir dir;
+  const std::string path = dir.file("env.db");
+  CountingEnv env;
+  {
+    Store store(StoreOptions{.path = path, .wal_autocheckpoint_pages = kWalPages, .env = &env});
+    ASSERT_EQ(env.names, std::vector<std::string>{"fleetgw-ckpt"});
+    std::int64_t t = 1;
+    while (!store.checkpoint_if_due()) ASSERT_TRUE(store.write(telemetry_batch(t, 40)).ok());
+    // The thread the Env started is the one that checkpoints.
+    ASSERT_TRUE(wait_until([&] { return store.checkpoint_counters().completed > 0; }));
+  }
+  // A read-only store starts no thread at all.
+  Store reader(StoreOptions{.path = path, .read_only = true, .env = &env});
+  EXPECT_EQ(env.names.size(), 1u);
+}
+
+TEST(Checkpointer, ACorruptFileIsMovedAsideThroughTheEnvAndItsFailureNamesThePaths) {
+  TempDir dir;
+  const std::string path = dir.file("bad.db");
+  {
+    std::ofstream out(path, std::ios::binary);
+    out << std::string(8192, 'z');
+  }
+  CountingEnv env;
+  env.refuse_renames = true;
+  try {
+    Store store(StoreOptions{.path = path, .env = &env});
+    FAIL() << "a store whose corrupt file cannot be moved aside must not start";
+  } catch (const std::system_error& e) {
+    EXPECT_NE(std::string(e.what()).find("could not be moved aside"), std::string::npos)
+        << e.what();
+    EXPECT_NE(std::string(e.what()).find(path), std::string::npos) << e.what();
+  }
+  EXPECT_TRUE(fs::exists(path)) << "the bad file stays where it was";
 }
 
 }  // namespace

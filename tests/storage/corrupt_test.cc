@@ -6,6 +6,7 @@
 #include <fstream>
 #include <iterator>
 
+#include "env/env.h"
 #include "storage/sqlite.h"
 #include "storage/store.h"
 #include "storage_test_util.h"
@@ -23,9 +24,12 @@ void write_all(const std::string& path, const std::string& data) {
 // 2023-11-14T22:13:20Z
 constexpr std::int64_t kFixedClockUs = 1'700'000'000'000'000;
 
-StoreOptions fixed_clock_options(const std::string& path) {
-  return StoreOptions{.path = path, .wall_clock_us = [] { return kFixedClockUs; }};
-}
+// The corrupt file is named from the store's Env (a ManualEnv standing still at kFixedClockUs):
+// the names asserted below would carry today's date if the store read the real clock.
+struct FixedClock {
+  ManualEnv env{std::chrono::microseconds(kFixedClockUs)};
+  StoreOptions options(const std::string& path) { return StoreOptions{.path = path, .env = &env}; }
+};
 
 void expect_fresh_and_usable(Store& store) {
   EXPECT_EQ(store.integrity_check(), "ok");
@@ -41,7 +45,8 @@ TEST(Corrupt, GarbageFileIsMovedAsideNotOverwritten) {
   const std::string garbage(8192, '\x5a');
   write_all(path, garbage);
   write_all(path + "-wal", "stale wal");
-  Store store(fixed_clock_options(path));
+  FixedClock clock;
+  Store store(clock.options(path));
   const std::string aside = path + ".corrupt-20231114T221320Z";
   ASSERT_EQ(store.moved_aside_path(), aside);
   EXPECT_EQ(read_all(aside), garbage) << "the bad file is kept byte for byte";
@@ -53,7 +58,8 @@ TEST(Corrupt, ShortFileIsMovedAside) {
   TempDir dir;
   const std::string path = dir.file("bike.db");
   write_all(path, "SQLite");
-  Store store(fixed_clock_options(path));
+  FixedClock clock;
+  Store store(clock.options(path));
   EXPECT_TRUE(store.moved_aside_path().has_value());
   expect_fresh_and_usable(store);
 }
@@ -76,7 +82,8 @@ TEST(Corrupt, DamagedPagesFailQuickCheckAndAreMovedAside) {
     bytes[off] = static_cast<char>(off * 31);
   write_all(path, bytes);
 
-  Store store(fixed_clock_options(path));
+  FixedClock clock;
+  Store store(clock.options(path));
   ASSERT_TRUE(store.moved_aside_path().has_value());
   EXPECT_EQ(read_all(*store.moved_aside_path()), bytes);
   expect_fresh_and_usable(store);
@@ -86,12 +93,16 @@ TEST(Corrupt, SameSecondDoesNotClobberEarlierCopy) {
   TempDir dir;
   const std::string path = dir.file("bike.db");
   write_all(path, std::string(4096, 'a'));
-  { Store store(fixed_clock_options(path)); }
+  {
+    FixedClock clock;
+    Store store(clock.options(path));
+  }
   std::filesystem::remove(path);
   std::filesystem::remove(path + "-wal");
   std::filesystem::remove(path + "-shm");
   write_all(path, std::string(4096, 'b'));
-  Store store(fixed_clock_options(path));
+  FixedClock clock;
+  Store store(clock.options(path));
   const std::string first = path + ".corrupt-20231114T221320Z";
   EXPECT_EQ(store.moved_aside_path(), first + "-1");
   EXPECT_EQ(read_all(first), std::string(4096, 'a'));

@@ -165,9 +165,9 @@ TEST(DiskFull, EvictsTelemetryAndRetriesSoEveryWriteSucceeds) {
 TEST(DiskFull, NothingEvictableFailsWithoutThrowingAndRecoversWhenSpaceReturns) {
   TempDir dir;
   const std::string path = dir.file("full2.db");
-  std::int64_t wall = 1'700'000'000'000'000;
-  Store store(
-      StoreOptions{.path = path, .max_page_count = 64, .wall_clock_us = [&] { return wall; }});
+  ManualEnv env;  // failing_since_us comes from its wall clock, not the machine's
+  std::int64_t wall = env.wall_now().count();
+  Store store(StoreOptions{.path = path, .max_page_count = 64, .env = &env});
   int k = 0;
   StoreError last{};
   for (; k < 5000; ++k) {
@@ -191,6 +191,7 @@ TEST(DiskFull, NothingEvictableFailsWithoutThrowingAndRecoversWhenSpaceReturns) 
   EXPECT_EQ(faults_before, static_cast<std::uint64_t>(k)) << "the failed batch left nothing";
 
   // Still full: more failures are counted, the stretch keeps its start.
+  env.advance(std::chrono::seconds(5));
   wall += 5'000'000;
   Batch again;
   again.faults.push_back({fault_at(k, k), Bytes(200, 7)});
@@ -243,17 +244,17 @@ TEST(RateLimitedLog, AlternatingMessagesAreEachLimitedWithACount) {
   auto logger = std::make_shared<spdlog::logger>(
       "rl-test", std::make_shared<spdlog::sinks::ostream_sink_st>(out));
   logger->set_pattern("%v");
-  auto t = std::chrono::steady_clock::time_point{};
-  RateLimitedLog log(logger, std::chrono::seconds(10), [&] { return t; });
+  ManualEnv env;  // the windows run on its steady clock: 100 reports take no real time
+  RateLimitedLog log(logger, std::chrono::seconds(10), env);
   int written = 0;
   for (int i = 0; i < 100; ++i) {
     written += log.report("write failed") ? 1 : 0;
     written += log.report("ack failed") ? 1 : 0;
-    t += std::chrono::milliseconds(20);  // 4 s in all: inside one window
+    env.advance(std::chrono::milliseconds(20));  // 4 s in all: inside one window
   }
   EXPECT_EQ(written, 2) << out.str();
   EXPECT_EQ(log.suppressed(), 198u);
-  t += std::chrono::seconds(10);
+  env.advance(std::chrono::seconds(10));
   EXPECT_TRUE(log.report("write failed"));
   EXPECT_NE(out.str().find("write failed (repeated 100 times in the last"), std::string::npos)
       << out.str();
@@ -264,7 +265,7 @@ TEST(RateLimitedLog, AlternatingMessagesAreEachLimitedWithACount) {
   EXPECT_EQ(log.suppressed(), 0u);
   // A failure right after the recovery (a disk flipping between full and working) is counted:
   // the window of its message runs on.
-  t += std::chrono::seconds(1);
+  env.advance(std::chrono::seconds(1));
   EXPECT_FALSE(log.report("write failed"));
   EXPECT_EQ(log.suppressed(), 1u);
   std::size_t lines = 0;

@@ -34,9 +34,9 @@ TEST(Recorder, CommitsByWallClockNotByBusTime) {
   storage::Store store(storage::StoreOptions{.path = dir.file("rec.db")});
   config::Config config;
   config.storage.flush_ms = 200;
-  Clock::time_point wall{};  // frozen: a replay far faster than real time
+  ManualEnv env;  // frozen: a replay far faster than real time
   const auto t0 = Micros(1'700'000'000'000'000);
-  Recorder recorder(config, store, t0, [&] { return wall; });
+  Recorder recorder(config, store, t0, env);
 
   // One bus-hour of parked-bike traffic (a BMS status every second) in "no" wall time.
   for (int s = 0; s < 3600; ++s) {
@@ -52,10 +52,10 @@ TEST(Recorder, CommitsByWallClockNotByBusTime) {
   EXPECT_FALSE(recorder.urgent());
   const auto deadline = recorder.flush_deadline();
   ASSERT_TRUE(deadline.has_value());
-  EXPECT_LE(*deadline, wall + std::chrono::milliseconds(200));
+  EXPECT_LE(*deadline, env.steady_now() + std::chrono::milliseconds(200));
 
   // 200 ms of wall time later the next tick writes everything in one transaction.
-  wall += std::chrono::milliseconds(200);
+  env.advance(std::chrono::milliseconds(200));
   recorder.tick(t0 + Micros(3600'000'000));
   EXPECT_EQ(recorder.batches_written(), during + 1);
   EXPECT_EQ(recorder.pending_records(), 0u);
@@ -92,15 +92,16 @@ TEST(Recorder, FullDiskBoundsRetryMemoryDropsTelemetryAndReports) {
     pages = fresh.stats().page_count;
   }
   // A "disk" with 4 pages to spare beyond the empty schema; fault events (never evicted) fill it.
-  storage::Store store(storage::StoreOptions{.path = path, .max_page_count = pages + 4});
+  ManualEnv env;  // one Env for the store and the recorder, as `fleetgw run` has
+  storage::Store store(
+      storage::StoreOptions{.path = path, .max_page_count = pages + 4, .env = &env});
   config::Config config;
-  Clock::time_point wall{};
   const auto t0 = Micros(1'700'000'000'000'000);
-  Recorder recorder(config, store, t0, [&] { return wall; });
+  Recorder recorder(config, store, t0, env);
   recorder.set_retry_memory_bytes(16 * 1024);
   for (int s = 0; s < 4 * 3600; ++s) {  // 4 bus-hours at 10x: 1440 s of wall time
     const Micros now = t0 + Micros(std::int64_t{s} * 1'000'000);
-    wall += std::chrono::milliseconds(100);
+    env.advance(std::chrono::milliseconds(100));
     recorder.on_message(bms_status(40.0 + (s % 7) * 0.1, 80), now);
     // An MC fault raised and cleared every 20 s.
     recorder.on_message(mc_fault_word((s / 10) % 2 == 0 ? 0x1u : 0x0u), now);
@@ -110,7 +111,9 @@ TEST(Recorder, FullDiskBoundsRetryMemoryDropsTelemetryAndReports) {
   EXPECT_TRUE(h.failing);
   EXPECT_EQ(h.last_error, "disk full (SQLITE_FULL)");
   EXPECT_GT(h.failed_writes, 100u);
-  EXPECT_GT(h.failing_since_us, 0);
+  // Stamped on the Env's wall clock (a real clock read would be years after it).
+  EXPECT_GT(h.failing_since_us, ManualEnv().wall_now().count());
+  EXPECT_LE(h.failing_since_us, env.wall_now().count());
   EXPECT_GT(h.dropped_records, 0u) << "retry memory is bounded: the oldest telemetry went";
   EXPECT_LT(h.pending_records, 2000u) << "what is held stays near the bound";
   // Retries follow the wall clock (once a second), not every tick (14,400 ticks).
