@@ -141,7 +141,7 @@ Pipeline::Pipeline(asio::io_context& io, const config::Config& config, BusTransp
       // bound stays (topics + 1) x the largest accepted payload.
       uplink_config.max_queued_zone_bundles =
           std::max(uplink_config.max_queued_zone_bundles, uplink_config.zone_topics.size() + 1);
-      uplink_ = std::make_unique<uplink::Uplink>(std::move(uplink_config), outbox_);
+      uplink_ = std::make_unique<uplink::Uplink>(std::move(uplink_config), outbox_, env_);
     } catch (const std::exception& e) {
       throw PipelineError(std::string("invalid [mqtt] configuration: ") + e.what());
     }

@@ -68,9 +68,10 @@ std::string connack_v5_reason(int reason) {
 
 }  // namespace
 
-Uplink::Impl::Impl(UplinkConfig c, OutboxSource& o)
+Uplink::Impl::Impl(UplinkConfig c, OutboxSource& o, Env& e)
     : config((c.validate(), std::move(c))),
       outbox(o),
+      env(e),
       topics(config.topic_prefix, config.vehicle_id),
       backoff(config.reconnect_min, config.reconnect_max,
               config.jitter_seed != 0 ? config.jitter_seed : std::random_device{}()),
@@ -230,7 +231,8 @@ void Uplink::Impl::on_connect_failed(Micros now, int rc, const std::string& mess
       std::min<milliseconds>(duration_cast<milliseconds>(config.connect_timeout), kProbeTimeout);
   const std::uint64_t attempt = connect_attempt;
   std::string paho_message = message;
-  diagnosis = std::jthread([this, t = *target, timeout, attempt, paho_message] {
+  diagnosis = env.start_thread("fleetgw-diagnose", [this, t = *target, timeout, attempt,
+                                                    paho_message](std::stop_token) {
     std::string reason = diagnose_connect(t, timeout);
     if (reason.empty()) {
       reason = "connect failed (" + paho_message + ") although the broker " +
@@ -313,7 +315,7 @@ void Uplink::Impl::on_connection_lost(Micros now, const std::string& cause) {
 
 void Uplink::Impl::poll(Micros now) {
   last_now = now;
-  last_poll_steady = std::chrono::steady_clock::now();
+  last_poll_steady = env.steady_now();
   for (auto& ev : events.take()) {
     std::visit([&](auto& e) { handle(now, e); }, ev);
   }
@@ -445,8 +447,8 @@ Micros Uplink::Impl::next_due(Micros now) const {
 }
 
 // ---------------------------------------------------------------------------------------------
-Uplink::Uplink(UplinkConfig config, OutboxSource& outbox)
-    : impl_(std::make_unique<Impl>(std::move(config), outbox)) {}
+Uplink::Uplink(UplinkConfig config, OutboxSource& outbox, Env& env)
+    : impl_(std::make_unique<Impl>(std::move(config), outbox, env)) {}
 
 Uplink::~Uplink() {
   try {
@@ -475,7 +477,7 @@ void Uplink::set_status_decorator(std::function<void(v1::Status&)> decorate) {
 void Uplink::start(Micros now) {
   if (impl_->state != UplinkState::kStopped) return;
   impl_->last_now = now;
-  impl_->last_poll_steady = std::chrono::steady_clock::now();
+  impl_->last_poll_steady = impl_->env.steady_now();
   impl_->connect(now);
 }
 

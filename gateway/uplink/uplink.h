@@ -12,7 +12,9 @@
 //    Apart from the wake-up hook and wait_for_events(), methods must not be called concurrently.
 //  * Time: no clock is read for decisions; every entry point takes `now` (microseconds since the
 //    Unix epoch) and back-off, telemetry batching and status refresh run on that timeline.
-//    next_deadline() converts the next due time to steady_clock for timers.
+//    next_deadline() converts the next due time to the steady clock of the Env the uplink is
+//    given (env/env.h), anchored at the last poll; the connect diagnosis thread is started
+//    through that Env too.
 //  * Delivery: records leave in outbox order (priority, then sequence). A record is acked to the
 //    outbox only when the publish carrying it completed successfully (PUBACK for QoS 1; written
 //    to the socket for QoS 0 live telemetry). At most max_in_flight publishes are unacknowledged.
@@ -80,6 +82,7 @@
 #include <string_view>
 #include <vector>
 
+#include "env/env.h"
 #include "fleetgw/v1/status.pb.h"
 #include "gateway/uplink/outbox_source.h"
 #include "gateway/uplink/topics.h"
@@ -177,8 +180,8 @@ struct ZoneBundleMessage {
 class Uplink {
  public:
   // Validates the configuration (std::invalid_argument) and creates the MQTT client. Does not
-  // connect. `outbox` must outlive the Uplink.
-  Uplink(UplinkConfig config, OutboxSource& outbox);
+  // connect. `outbox` and `env` must outlive the Uplink.
+  Uplink(UplinkConfig config, OutboxSource& outbox, Env& env = Env::system());
   // Calls stop() with a short timeout if still running (an orderly offline status), then
   // releases the client.
   ~Uplink();

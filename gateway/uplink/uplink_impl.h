@@ -45,7 +45,7 @@ struct Uplink::Impl {
     const std::string* topic = nullptr;  // a member of `topics` (for refusal messages)
   };
 
-  Impl(UplinkConfig c, OutboxSource& o);
+  Impl(UplinkConfig c, OutboxSource& o, Env& e);
   std::unique_ptr<mqtt::async_client> make_client();
   void recycle_client(Micros now);
 
@@ -110,6 +110,7 @@ struct Uplink::Impl {
 
   UplinkConfig config;
   OutboxSource& outbox;
+  Env& env;
   Topics topics;
   Backoff backoff;
   // ---- MQTT 5 (docs/uplink.md, "MQTT 5") ----

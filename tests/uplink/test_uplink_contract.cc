@@ -12,6 +12,7 @@
 #include <sstream>
 #include <string>
 
+#include "env/env.h"
 #include "fleetgw/v1/command.pb.h"
 #include "fleetgw/v1/envelope.pb.h"
 #include "gateway/uplink/memory_outbox.h"
@@ -137,6 +138,38 @@ TEST(UplinkContract, NextDeadlineNamesReconnectAndBatchDueTimes) {
   EXPECT_GT(in, 500ms);  // back-off of [1 s, 2 s] from the failure
   EXPECT_LE(in, 2s);
   EXPECT_EQ(std::chrono::microseconds(up.stats().next_connect_at_us) - wall_now() > 500ms, true);
+}
+
+// The uplink takes `now` at every entry point and anchors next_deadline() on its Env's steady
+// clock: with a ManualEnv standing still, the deadline is exactly the back-off after the frozen
+// `now` (an uplink that read the machine's steady clock would be off by the machine's uptime).
+TEST(UplinkContract, NextDeadlineIsOnTheInjectedEnvsSteadyClock) {
+  MemoryOutbox box;
+  const auto port = testing::free_loopback_port();
+  auto cfg = plain_config("tcp://127.0.0.1:" + std::to_string(port), "bike-env");
+  cfg.reconnect_min = 2s;
+  cfg.reconnect_max = 4s;
+  ManualEnv env;
+  const auto now = env.wall_now();
+  Uplink up(cfg, box, env);
+  up.start(now);
+  const auto until = std::chrono::steady_clock::now() + 10s;  // a real bound for a real broker
+  while (up.state() != UplinkState::kWaitingToReconnect &&
+         std::chrono::steady_clock::now() < until) {
+    up.wait_for_events(5ms);
+    up.poll(now);
+  }
+  ASSERT_EQ(up.state(), UplinkState::kWaitingToReconnect);
+  const auto due = up.next_deadline();
+  ASSERT_TRUE(due.has_value());
+  const auto backoff = std::chrono::microseconds(up.stats().next_connect_at_us) - now;
+  EXPECT_GT(backoff, 500ms);
+  EXPECT_LE(backoff, 2s);
+  EXPECT_EQ(*due - env.steady_now(), backoff);
+  // Time moves on the Env alone: the same due time, seen from later, is that much nearer.
+  env.advance(300ms);
+  up.poll(now + 300ms);
+  EXPECT_EQ(up.next_deadline(), due);
 }
 
 TEST(UplinkContract, NothingListeningIsReportedAsConnectionRefused) {
