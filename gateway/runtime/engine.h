@@ -24,6 +24,7 @@
 #include <asio/steady_timer.hpp>
 #include <atomic>
 #include <cstdint>
+#include <deque>
 #include <functional>
 #include <memory>
 #include <optional>
@@ -72,7 +73,8 @@ class Engine {
   EngineTime now() const { return env_.steady_now(); }
   Env& env() const { return env_; }
   const EngineCounters& counters() const { return counters_; }
-  // The retry state of `stage` (nullptr: not added).
+  // The retry state of `stage` (nullptr: not added). The pointer stays valid for the engine's
+  // life, also while more stages are added (the pipeline keeps the recorder's).
   const Backoff* backoff(const Stage& stage) const;
 
  private:
@@ -90,7 +92,10 @@ class Engine {
   asio::io_context& io_;
   Env& env_;
   asio::steady_timer timer_;
-  std::vector<Entry> entries_;
+  // A deque: add() never moves the entries, so a backoff() pointer handed out earlier stays
+  // valid (a vector's growth freed it: ASan caught the pipeline reading the recorder's retry
+  // state after the uplink's stage was added).
+  std::deque<Entry> entries_;
   std::function<void()> after_settle_;
   std::optional<EngineTime> armed_for_;
   std::atomic<bool> wake_posted_{false};

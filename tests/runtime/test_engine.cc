@@ -6,6 +6,7 @@
 
 #include <asio/io_context.hpp>
 #include <chrono>
+#include <memory>
 #include <string>
 #include <thread>
 #include <vector>
@@ -135,6 +136,32 @@ TEST(Engine, RetriesAFailedStageWithItsBackoffNeverEarlier) {
   EXPECT_EQ(engine.backoff(store)->failures(), 0) << "a success resets the back-off";
   EXPECT_FALSE(engine.backoff(store)->retry_at());
   EXPECT_EQ(engine.counters().failures, 2u);
+}
+
+// The pipeline keeps the recorder's retry state from backoff() and adds the uplink's stage after
+// it: the pointer must keep showing the live state however many stages come later (it once
+// pointed into a vector that the next add() reallocated).
+TEST(Engine, ABackoffHandedOutStaysTheStagesLiveStateAsMoreStagesAreAdded) {
+  asio::io_context io;
+  ManualEnv env;
+  Engine engine(io, env);
+  std::vector<std::string> log;
+  ScriptStage store("store", log);
+  store.fail = true;
+  engine.add(store, {}, Backoff::Options{.initial = 1s, .max = 4s});
+  const Backoff* kept = engine.backoff(store);
+  ASSERT_NE(kept, nullptr);
+  std::vector<std::unique_ptr<ScriptStage>> more;
+  for (int i = 0; i < 64; ++i) {
+    more.push_back(std::make_unique<ScriptStage>("s" + std::to_string(i), log));
+    engine.add(*more.back());
+  }
+  EXPECT_EQ(kept, engine.backoff(store)) << "the entry moved when stages were added";
+  engine.request_settle();
+  io.poll();
+  EXPECT_EQ(store.runs, 1);
+  EXPECT_TRUE(kept->waiting(env.steady_now())) << "the kept pointer misses the failure";
+  EXPECT_EQ(kept->failures(), 1);
 }
 
 TEST(Engine, TimerFiresForTheEarliestDeadlineAsATimerTurn) {
