@@ -118,14 +118,21 @@ for _ in $(seq 30); do
 done
 
 # ---- the burst ----
-sent=$(cmd_publishes)
-kill -STOP "$SERVICE_PID"
+# Freezes the service and sends it `count` commands (lights on/off alternating), one operator
+# each, their results in PREFIX-i.out; returns once the broker holds them all. OPS: the operators.
+frozen_burst() {  # prefix count
+  local sent i
+  sent=$(cmd_publishes)
+  kill -STOP "$SERVICE_PID"
+  OPS=()
+  for i in $(seq "$2"); do
+    operator "$WORK/$1-$i.out" "$([[ $((i % 2)) == 0 ]] && echo on || echo off)" &
+    OPS+=($!)
+  done
+  wait_publishes $((sent + $2))
+}
 declare -a OPS=()
-for i in $(seq "$N"); do
-  operator "$WORK/op-$i.out" "$([[ $((i % 2)) == 0 ]] && echo on || echo off)" &
-  OPS+=($!)
-done
-wait_publishes $((sent + N))
+frozen_burst op "$N"
 kill -CONT "$SERVICE_PID"
 for p in "${OPS[@]}"; do wait "$p" || true; done
 tally_results() {  # prefix count title
@@ -197,14 +204,7 @@ stop_service
 for run in $(seq "${STOP_RUNS:-3}"); do
   n=${STOP_N:-40}
   [[ -n $SERVICE_PID ]] || start_service "service-restart-$run"
-  sent=$(cmd_publishes)
-  kill -STOP "$SERVICE_PID"
-  OPS=()
-  for i in $(seq "$n"); do
-    operator "$WORK/stop$run-$i.out" "$([[ $((i % 2)) == 0 ]] && echo on || echo off)" &
-    OPS+=($!)
-  done
-  wait_publishes $((sent + n))
+  frozen_burst "stop$run" "$n"
   kill -TERM "$SERVICE_PID"
   kill -CONT "$SERVICE_PID"
   wait "$SERVICE_PID" || true
