@@ -62,10 +62,10 @@ void Engine::settle() {
       if (!r.ok()) {
         ++counters_.failures;
         const auto at = e.backoff.failed(now);
-        if (*r.error != e.last_error) {
-          spdlog::warn("{}: {} (retried in {} ms)", e.stage->name(), *r.error,
+        if (r.status.message != e.last_error) {
+          spdlog::warn("{}: {} (retried in {} ms)", e.stage->name(), r.status.message,
                        std::chrono::duration_cast<std::chrono::milliseconds>(at - now).count());
-          e.last_error = *r.error;
+          e.last_error = r.status.message;
         }
       } else if (e.backoff.failures() > 0) {
         e.backoff.succeeded();

@@ -12,7 +12,7 @@
 //    (a backing-off stage: its retry time instead). A timer turn is a settle whose first round
 //    says so (timer_turn()): stages whose deadlines live on another clock (the simulated bus)
 //    act on it.
-//  * A failed run (StageRun::error) is logged once per distinct message and retried by the
+//  * A failed run (StageRun::status not ok) is logged once per distinct message and retried by the
 //    engine with the stage's Backoff (runtime/backoff.h); the first success resets it.
 //  * wake() may be called from any thread (Paho, gpsd): it posts one settle to the loop, and
 //    coalesces with a wake-up already posted.
@@ -40,7 +40,7 @@ namespace fleetgw::runtime {
 struct EngineCounters {
   std::uint64_t settles = 0;        // settle() runs
   std::uint64_t timer_wakeups = 0;  // timer expiries handled
-  std::uint64_t failures = 0;       // StageRun errors
+  std::uint64_t failures = 0;       // failed StageRuns
 };
 
 class Engine {

@@ -58,7 +58,7 @@ bool Pipeline::update_vehicle_state() {
 
 StageRun Pipeline::StateStage::run(EngineTime now) {
   if (!p_.state_throttle_.due(now)) return {};
-  return {.produced = p_.update_vehicle_state() ? 1u : 0u, .error = std::nullopt};
+  return {.produced = p_.update_vehicle_state() ? 1u : 0u, .status = {}};
 }
 
 }  // namespace fleetgw::runtime

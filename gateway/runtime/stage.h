@@ -11,9 +11,9 @@
 //    another stage: what it produced (records, commands, results, frames to send) waits in the
 //    stage's own typed outputs until the engine moves it. It may be called early (nothing due:
 //    it returns at once) and must be cheap then.
-//  * Errors: a failed step is reported in StageRun::error (a Status with the stage's message);
-//    the stage keeps its data and the ENGINE decides when to retry, with its one back-off
-//    (runtime/backoff.h). Stages do not keep retry timers of their own.
+//  * Errors: a failed step is reported in StageRun::status (a Status, env/status.h: its code and
+//    the stage's message); the stage keeps its data and the ENGINE decides when to retry, with
+//    its one back-off (runtime/backoff.h). Stages do not keep retry timers of their own.
 //  * Input arriving on another thread (Paho, gpsd) only marks the stage as signalled through
 //    the engine's wake-up; the stage's state changes on the engine's thread, in run().
 //  * Stages are never re-entered: the engine does not call run() of a stage inside run() of
@@ -22,19 +22,19 @@
 
 #include <cstddef>
 #include <optional>
-#include <string>
 #include <string_view>
 
 #include "env/env.h"
+#include "env/status.h"
 
 namespace fleetgw::runtime {
 
 using EngineTime = Env::SteadyTime;
 
 struct StageRun {
-  std::size_t produced = 0;          // items now waiting in the stage's outputs (0: nothing new)
-  std::optional<std::string> error;  // the step failed; data kept; the engine backs off
-  bool ok() const { return !error.has_value(); }
+  std::size_t produced = 0;  // items now waiting in the stage's outputs (0: nothing new)
+  Status status;             // not ok: the step failed; data kept; the engine backs off
+  bool ok() const { return status.ok(); }
 };
 
 class Stage {

@@ -48,10 +48,12 @@ StageRun RecorderStage::run(EngineTime now) {
   if (urgent) ++urgent_flushes_;
   const FlushOutcome out = recorder_.flush(clock_.now());
   if (out.failed) {
-    return {.produced = 0, .error = "write failed, records kept: " + recorder_.health().last_error};
+    return {.produced = 0,
+            .status = Status::error(StatusCode::kIo, "write failed, records kept: " +
+                                                         recorder_.health().last_error)};
   }
   if (out.records > 0) stored_ = true;
-  return {.produced = 0, .error = std::nullopt};
+  return {.produced = 0, .status = {}};
 }
 
 fleetgw::v1::BusState bus_state(const can::Transport& transport, const BusClock& clock,
@@ -97,7 +99,7 @@ StageRun UplinkStage::run(EngineTime now) {
   append(commands, uplink_.take_commands());
   append(busy, uplink_.take_busy_commands());
   append(bundles, uplink_.take_zone_bundles());
-  return {.produced = commands.size() + busy.size() + bundles.size(), .error = std::nullopt};
+  return {.produced = commands.size() + busy.size() + bundles.size(), .status = {}};
 }
 
 StageRun GnssStage::run(EngineTime) {
@@ -118,7 +120,7 @@ StageRun GnssStage::run(EngineTime) {
     fault_ = now_fault;
     fault = now_fault;
   }
-  return {.produced = 1, .error = std::nullopt};
+  return {.produced = 1, .status = {}};
 }
 
 StageRun DeviceInfoStage::run(EngineTime) {
@@ -127,7 +129,7 @@ StageRun DeviceInfoStage::run(EngineTime) {
     record = storage::UplinkMessage{storage::OutboxKind::kInfo,
                                     static_cast<int>(storage::OutboxPriority::kPack),
                                     storage::Bytes(payload->begin(), payload->end())};
-    return {.produced = 1, .error = std::nullopt};
+    return {.produced = 1, .status = {}};
   }
   return {};
 }
@@ -140,7 +142,7 @@ StageRun TimerStage::run(EngineTime now) {
   } else {
     at_.reset();
   }
-  return {.produced = 1, .error = std::nullopt};
+  return {.produced = 1, .status = {}};
 }
 
 }  // namespace fleetgw::runtime

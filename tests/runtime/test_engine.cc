@@ -30,7 +30,7 @@ class ScriptStage final : public Stage {
   StageRun run(EngineTime) override {
     log_.push_back(name_);
     ++runs;
-    if (fail) return {.produced = 0, .error = std::string("disk full")};
+    if (fail) return {.produced = 0, .status = Status::error(StatusCode::kFull, "disk full")};
     if (on_run) on_run();
     std::size_t produced = 0;
     if (inbox > 0) {
@@ -39,7 +39,7 @@ class ScriptStage final : public Stage {
       inbox = 0;
     }
     if (always_produce) produced = 1;
-    return {.produced = produced, .error = std::nullopt};
+    return {.produced = produced, .status = {}};
   }
 
   int inbox = 0;
