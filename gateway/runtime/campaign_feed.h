@@ -6,6 +6,7 @@
 
 #include <chrono>
 
+#include "env/env.h"
 #include "gateway/campaign/campaign_service.h"
 #include "gateway/runtime/clock_units.h"
 #include "gateway/runtime/gateway_core.h"
@@ -16,8 +17,9 @@ namespace fleetgw::runtime {
 
 class CampaignFeed final : public MessageListener {
  public:
-  CampaignFeed(campaign::CampaignService& service, Recorder& recorder, storage::Store& store)
-      : service_(service), recorder_(recorder), store_(store) {}
+  CampaignFeed(campaign::CampaignService& service, Recorder& recorder, storage::Store& store,
+               Env& env)
+      : service_(service), recorder_(recorder), store_(store), env_(env) {}
 
   void on_message(const motinova::DecodedMessage& m, Micros t) override {
     service_.on_message(t, m);
@@ -27,7 +29,7 @@ class CampaignFeed final : public MessageListener {
     // A campaign's start and end are judged on the bike's clock, as its windows (a replay of an
     // old log runs the campaigns of its time).
     service_.tick(t, t);
-    const Micros wall = system_now();
+    const Micros wall = env_.wall_now();
     if (wall - last_depth_ >= std::chrono::seconds(5)) {
       last_depth_ = wall;
       service_.store_holds(store_.outbox_depth());
@@ -43,6 +45,7 @@ class CampaignFeed final : public MessageListener {
   campaign::CampaignService& service_;
   Recorder& recorder_;
   storage::Store& store_;
+  Env& env_;
   Micros last_depth_{0};
 };
 

@@ -69,7 +69,7 @@ Pipeline::Pipeline(asio::io_context& io, const config::Config& config, BusTransp
               .acc_off =
                   [](const node::ShutdownOutcome&) { spdlog::info("shutdown complete: ACC off"); },
           }),
-      outbox_(store),
+      outbox_(store, env_),
       device_info_(core_.node().config().identity),
       state_throttle_(
           std::chrono::milliseconds(config.mqtt.enabled ? config.mqtt.state_interval_ms : 0)),
@@ -103,7 +103,7 @@ Pipeline::Pipeline(asio::io_context& io, const config::Config& config, BusTransp
       .publish_unstored =
           [this](std::string serialized) {
             return uplink_ && uplink_->publish_direct(uplink::kind::kCommandResult,
-                                                      std::move(serialized), system_now());
+                                                      std::move(serialized), env_.wall_now());
           },
   };
   try {
@@ -186,8 +186,7 @@ Pipeline::Pipeline(asio::io_context& io, const config::Config& config, BusTransp
     o.port = colon == std::string::npos ? "2947" : config.gnss.gpsd.substr(colon + 1);
     o.state.max_age = std::chrono::milliseconds(config.gnss.max_age_ms);
     o.reconnect_max = std::chrono::milliseconds(config.gnss.reconnect_max_ms);
-    gnss_ = std::make_unique<gnss::GnssFeed>(io_, std::move(o), env_,
-                                             [this] { request_settle(); });
+    gnss_ = std::make_unique<gnss::GnssFeed>(io_, std::move(o), env_, [this] { request_settle(); });
     gnss_->start();
   }
   start_zones(config);
@@ -355,8 +354,7 @@ bool Pipeline::route_uplink() {
     moved = true;
   }
   // Records the commands produced are stored in the next round (a failing store: at its retry).
-  if (up.publish_due() ||
-      (recorder_->urgent() && !recorder_backoff_->waiting(env_.steady_now()))) {
+  if (up.publish_due() || (recorder_->urgent() && !recorder_backoff_->waiting(env_.steady_now()))) {
     moved = true;
   }
   return moved;

@@ -45,7 +45,7 @@ void Pipeline::start_campaigns(const config::Config& config) {
   campaigns_ = std::make_unique<campaign::CampaignService>(std::move(c), store_);
   campaigns_->restore(start_, start_);  // the bike's clock: a replay judges by its own
   if (campaigns_->size() > 0) spdlog::info("campaign: {} in force", campaigns_->size());
-  campaign_feed_ = std::make_unique<CampaignFeed>(*campaigns_, *recorder_, store_);
+  campaign_feed_ = std::make_unique<CampaignFeed>(*campaigns_, *recorder_, store_, env_);
   core_.add_listener(*campaign_feed_);
 }
 

@@ -149,7 +149,7 @@ void Pipeline::start_zones(const config::Config& config) {
   commands_->set_lock_guard([this](bool ride_ending, Micros) -> std::optional<std::string> {
     std::optional<gnss::Fix> fix;
     if (gnss_) fix = gnss_->state().current(gnss_->wall_now());
-    const auto verdict = zones_->parking(fix ? &*fix : nullptr, ride_ending, system_now());
+    const auto verdict = zones_->parking(fix ? &*fix : nullptr, ride_ending, env_.wall_now());
     if (verdict.event) record_zone_event(*verdict.event);
     if (!verdict.refuse) return std::nullopt;
     return fmt::format("will not end the ride inside the no-parking zone '{}'",
@@ -160,7 +160,7 @@ void Pipeline::start_zones(const config::Config& config) {
   commands_->set_unlock_guard([this](bool ride_starting, Micros) -> std::optional<std::string> {
     std::optional<gnss::Fix> fix;
     if (gnss_) fix = gnss_->state().current(gnss_->wall_now());
-    const auto verdict = zones_->starting(fix ? &*fix : nullptr, ride_starting, system_now());
+    const auto verdict = zones_->starting(fix ? &*fix : nullptr, ride_starting, env_.wall_now());
     if (verdict.event) record_zone_event(*verdict.event);
     if (!verdict.refuse) return std::nullopt;
     return fmt::format("will not start a ride inside the no-start zone '{}'",
@@ -169,14 +169,14 @@ void Pipeline::start_zones(const config::Config& config) {
   // A lock made on the bike is only noted here (the recorder is mid-message); settle() judges.
   recorder_->trackers().set_lock_observer([this](const storage::LockEventRow& ev, int new_raw) {
     if (!bike_locks_.on_lock_event(ev.kind, new_raw, ev.cause)) return;
-    BikeLock lock{.wall = system_now(), .fix = std::nullopt};
+    BikeLock lock{.wall = env_.wall_now(), .fix = std::nullopt};
     if (gnss_) lock.fix = gnss_->state().current(gnss_->wall_now());
     pending_bike_locks_.push_back(std::move(lock));
     request_settle();
   });
   std::string error;
   std::vector<geofence::ZoneEvent> events;
-  const auto verdict = zones_->restore(system_now(), error, events);
+  const auto verdict = zones_->restore(env_.wall_now(), error, events);
   for (const auto& e : events) record_zone_event(e);
   if (!error.empty()) {
     spdlog::warn("geofence: {}: no zones until a bundle arrives", error);
@@ -199,7 +199,7 @@ void Pipeline::apply_zones(Micros wall, const std::optional<gnss::Fix>& position
 }
 
 void Pipeline::on_zone_bundle(const uplink::ZoneBundleMessage& m) {
-  const Micros wall = system_now();
+  const Micros wall = env_.wall_now();
   std::optional<gnss::Fix> fix;
   if (gnss_) fix = gnss_->state().current(gnss_->wall_now());
   std::vector<geofence::ZoneEvent> events;
@@ -267,7 +267,7 @@ std::optional<GeofenceStatus> Pipeline::geofence_status() const {
 }
 
 void Pipeline::tick_zones() {
-  const Micros wall = system_now();
+  const Micros wall = env_.wall_now();
   geofence::McView mc;
   mc.assist_level = core_.live().assist;
   // The limit in force as the MC last reported it: the enforcer writes the authority's limit
@@ -307,7 +307,7 @@ void Pipeline::tick_zones() {
     } else {
       spdlog::warn("geofence: MC {} not confirmed: {}", what, reason);
     }
-    zones_->on_write_result(ok, system_now());
+    zones_->on_write_result(ok, env_.wall_now());
     request_settle();
   };
   spdlog::debug("geofence: MC {} (zone demand)", what);

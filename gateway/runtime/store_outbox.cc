@@ -93,20 +93,20 @@ void StoreOutbox::ack(std::span<const std::uint64_t> seqs) {
   if (store_.health().failed_writes != failures_before) {
     undeleted_.insert(seqs.begin(), seqs.end());
     while (undeleted_.size() > kMaxUndeleted) undeleted_.erase(undeleted_.begin());
-    next_delete_retry_ = std::chrono::steady_clock::now() + std::chrono::seconds(1);
+    next_delete_retry_ = env_.steady_now() + std::chrono::seconds(1);
   }
   retry_deletes();
 }
 
 void StoreOutbox::retry_deletes() {
-  if (undeleted_.empty() || std::chrono::steady_clock::now() < next_delete_retry_) return;
+  if (undeleted_.empty() || env_.steady_now() < next_delete_retry_) return;
   const std::vector<std::uint64_t> seqs(undeleted_.begin(), undeleted_.end());
   const auto failures_before = store_.health().failed_writes;
   store_.ack(seqs);
   if (store_.health().failed_writes == failures_before) {
     undeleted_.clear();
   } else {
-    next_delete_retry_ = std::chrono::steady_clock::now() + std::chrono::seconds(1);
+    next_delete_retry_ = env_.steady_now() + std::chrono::seconds(1);
   }
 }
 

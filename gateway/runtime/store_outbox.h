@@ -21,6 +21,7 @@
 #include <chrono>
 #include <set>
 
+#include "env/env.h"
 #include "gateway/uplink/outbox_source.h"
 #include "storage/store.h"
 
@@ -30,7 +31,9 @@ class StoreOutbox final : public uplink::OutboxSource {
  public:
   static constexpr std::size_t kMaxUndeleted = 100'000;
 
-  explicit StoreOutbox(storage::Store& store) : store_(store) {}
+  // `env`: the steady clock of the delete retry (the pipeline passes its one Env).
+  explicit StoreOutbox(storage::Store& store, Env& env = Env::system())
+      : store_(store), env_(env) {}
 
   using uplink::OutboxSource::peek;
   std::vector<uplink::OutgoingRecord> peek(std::size_t max_entries, std::size_t max_bytes,
@@ -46,6 +49,7 @@ class StoreOutbox final : public uplink::OutboxSource {
 
   storage::Store& store_;
   std::set<std::uint64_t> undeleted_;
+  Env& env_;
   std::chrono::steady_clock::time_point next_delete_retry_{};
 };
 
