@@ -12,11 +12,11 @@
 //    `settle`. Riding: anything else, from the first update that sees it (no debounce on the
 //    way out). parked() is nullopt until the first update; next_event() is when a still, locked
 //    bike becomes parked (Micros::max() otherwise), so the owner needs no periodic tick for it.
-//  * ParkedController is the pipeline's listener around it: added to the GatewayCore after the
-//    Recorder, it evaluates at every listener tick (50 ms of bus time while frames flow, 1 s on a
-//    silent bus) from the trackers and the live state, sets the poller's parked period on a
-//    change and calls `on_change` (the uplink's rates, the retained state). The trackers and
-//    the core must outlive it.
+//  * ParkedController is the StateStage's listener around it (state_stage.h): added to the
+//    GatewayCore after the Recorder, it evaluates at every listener tick (50 ms of bus time while
+//    frames flow, 1 s on a silent bus) from the trackers and the live state, sets the poller's
+//    parked period on a change and calls `on_change` (the uplink's rates, the retained state).
+//    The trackers and the core must outlive it.
 #pragma once
 
 #include <chrono>

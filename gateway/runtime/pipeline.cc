@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <asio/post.hpp>
+#include <cmath>
 #include <iostream>
 
 #include "gateway/node/messages.h"
@@ -70,11 +71,7 @@ Pipeline::Pipeline(asio::io_context& io, const config::Config& config, BusTransp
                   [](const node::ShutdownOutcome&) { spdlog::info("shutdown complete: ACC off"); },
           }),
       outbox_(store, env_),
-      device_info_(core_.node().config().identity),
-      state_throttle_(
-          std::chrono::milliseconds(config.mqtt.enabled ? config.mqtt.state_interval_ms : 0)),
-      state_position_(config.mqtt.state_min_move_m),
-      parked_config_(make_parked_config(config)) {
+      device_info_(core_.node().config().identity) {
   bus_.transport->start([this](const motinova::CanFrame& frame, Micros ts) { on_frame(frame, ts); },
                         [this](const can::BusHealth& h) {
                           spdlog::info("bus {}: {}{}{}", bus_.transport->name(),
@@ -123,10 +120,9 @@ Pipeline::Pipeline(asio::io_context& io, const config::Config& config, BusTransp
       uplink::UplinkConfig uplink_config = make_uplink_config(config);
       uplink_config.store_id = store_.store_id();
       if (config.geofence.enabled) {
-        zone_topics_ = zone_bundle_topics(config);
-        max_bundle_bytes_ = static_cast<std::size_t>(config.geofence.max_bundle_bytes);
-        uplink_config.zone_topics = zone_topics_;
-        uplink_config.max_zone_bundle_bytes = max_bundle_bytes_;
+        uplink_config.zone_topics = zone_bundle_topics(config);
+        uplink_config.max_zone_bundle_bytes =
+            static_cast<std::size_t>(config.geofence.max_bundle_bytes);
       }
       add_campaign_topics(config, uplink_config);
       // Issue 28: the root's revocation list, retained; judged by the command service.
@@ -159,8 +155,8 @@ Pipeline::Pipeline(asio::io_context& io, const config::Config& config, BusTransp
   }
   core_.add_listener(*recorder_);
   start_campaigns(config);  // a listener after the recorder
-  parked_batch_delay_ = std::chrono::milliseconds(config.parked.telemetry_batch_ms);
-  attach_parked_feed();  // after the recorder: it reads what the trackers just concluded
+  // Parked mode's listener after the recorder: it reads what the trackers just concluded.
+  start_state(config);
   // Node identities go to the backend at start (our own) and whenever one is heard or changes.
   core_.node().registry().add_observer(device_info_);
   queue_device_info();
@@ -233,7 +229,18 @@ void Pipeline::add_stages() {
   core_stage_ = std::make_unique<CoreStage>(core_, clock_, bus_.sim, engine_);
   engine_.add(*core_stage_, [this] {
     // A tick may have raised or cleared an alarm.
-    if (core_stage_->take_timer_turn()) state_throttle_.touch();
+    if (core_stage_->take_timer_turn()) state_stage_->touch();
+    // The zones' enforcer sees the MC as the bus shows it now, and whether a command runs.
+    if (zones_stage_) {
+      geofence::McView mc;
+      mc.assist_level = core_.live().assist;
+      // The limit in force as the MC last reported it: the enforcer writes the authority's
+      // limit only when it differs.
+      if (const auto limit = core_.live().speed_limit_kmh)
+        mc.speed_limit_kmh = static_cast<int>(std::lround(*limit));
+      mc.busy = commands_->busy();
+      zones_stage_->set_mc(mc);
+    }
     return false;
   });
   if (options_.live_view) {
@@ -258,14 +265,8 @@ void Pipeline::add_stages() {
     gnss_stage_ = std::make_unique<GnssStage>(*gnss_, engine_);
     engine_.add(*gnss_stage_, [this] { return route_gnss(); });
   }
-  if (zones_) {
-    zones_stage_ = std::make_unique<ZonesStage>(*this);
-    engine_.add(*zones_stage_);
-  }
-  if (uplink_) {
-    state_stage_ = std::make_unique<StateStage>(*this);
-    engine_.add(*state_stage_);
-  }
+  if (zones_stage_) engine_.add(*zones_stage_, [this] { return route_zones(); });
+  engine_.add(*state_stage_, [this] { return route_state(); });
   recorder_stage_ = std::make_unique<RecorderStage>(*recorder_, clock_, engine_);
   engine_.add(
       *recorder_stage_,
@@ -286,7 +287,7 @@ void Pipeline::on_frame(const motinova::CanFrame& frame, Micros ts) {
   if (stopping_) return;
   clock_.on_frame(ts);
   core_.on_can_frame(frame, ts);
-  state_throttle_.touch();  // the live values may have changed: a check at the next allowed time
+  state_stage_->touch();  // the live values may have changed: a check at the next allowed time
   // Model blocks heard in one burst of frames become one DeviceInfo (queued in the settle).
   if (device_info_.due()) request_settle();
   // Measured on the frames actually delivered: a paced simulator's clock can run ahead of a
@@ -306,10 +307,10 @@ void Pipeline::on_frame(const motinova::CanFrame& frame, Micros ts) {
 bool Pipeline::route_gnss() {
   bool moved = false;
   if (gnss_stage_->update) {
-    const auto u = *std::exchange(gnss_stage_->update, std::nullopt);
-    state_throttle_.touch();
+    auto u = *std::exchange(gnss_stage_->update, std::nullopt);
+    state_stage_->on_position(u.position);
     recorder_->trackers().on_position(u.position);
-    if (zones_) apply_zones(u.wall, u.position);
+    if (zones_stage_) zones_stage_->on_position(u.wall, std::move(u.position));
     moved = true;
   }
   if (gnss_stage_->fault) {
@@ -340,7 +341,7 @@ bool Pipeline::route_uplink() {
     moved = true;
   }
   // Zone bundles: judged here, on the loop, like commands (Paho only queued them).
-  for (const auto& bundle : std::exchange(up.bundles, {})) {
+  for (auto& bundle : std::exchange(up.bundles, {})) {
     if (!revocations_topic_.empty() && bundle.topic == revocations_topic_) {
       commands_->on_revocations(
           {reinterpret_cast<const std::uint8_t*>(bundle.payload.data()), bundle.payload.size()},
@@ -348,8 +349,8 @@ bool Pipeline::route_uplink() {
     } else if (campaigns_ && campaigns_->handles(bundle.topic)) {
       campaigns_->on_payload(bundle.topic, bundle.payload, bundle.oversized_bytes, bus_now(),
                              bus_now());
-    } else if (zones_) {
-      on_zone_bundle(bundle);
+    } else if (zones_stage_) {
+      zones_stage_->on_bundle(std::move(bundle));
     }
     moved = true;
   }
@@ -415,10 +416,7 @@ void Pipeline::finish() {
   if (!uplink_) return;
   // The state the clean stop leaves retained (online = false) is the current one, not the last
   // one the throttle let through.
-  if (state_throttle_.enabled()) {
-    state_throttle_.touch();
-    update_vehicle_state();
-  }
+  if (state_stage_->check_now()) route_state();
   // Commands still queued, or arriving while the outbox drains, are answered shutting_down
   // (never run: the bus is stopped), so none is left without a result. What the drain does not
   // publish stays in the outbox for the next start.

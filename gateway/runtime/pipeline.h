@@ -8,11 +8,14 @@
 // Contract:
 //  * Stages never call each other and are never re-entered. The engine runs them in this order
 //    each settle round: duration, core (a timer turn: the simulated bus flushed, then the node's
-//    bus deadlines), live view, device info, GNSS (its position to the trackers and zones, its
-//    fault bit 0x0004 to the node), zones, vehicle state, recorder (group commit), uplink (poll;
-//    the commands, busy notices and retained documents it took are routed to the command
-//    service, the campaigns and the zones, and the echoes of what the node sent delivered). The
-//    routes run after their stage; the settle repeats until nothing moves (engine.h).
+//    bus deadlines; the MC as the bus shows it to the zones), live view, device info, GNSS (its
+//    position to the trackers, the zones and the vehicle state, its fault bit 0x0004 to the
+//    node), zones (ZonesStage: zone events and alarms to the recorder, MC writes started
+//    through the command service), vehicle state (StateStage: the state and the parked/riding
+//    rates to the uplink), recorder (group commit), uplink (poll; the commands, busy notices
+//    and retained documents it took are routed to the command service, the campaigns and the
+//    zones, and the echoes of what the node sent delivered). The routes run after their stage;
+//    the settle repeats until nothing moves (engine.h).
 //  * Results, faults, alarms, rides and locks are published as soon as they are stored (an
 //    urgent recorder flush, or result_stored, makes the uplink poll in the same settle); only
 //    telemetry waits for its group commit (storage.flush_ms of wall time at the latest; outside
@@ -49,20 +52,18 @@
 #include "gateway/can/transport.h"
 #include "gateway/command/command_service.h"
 #include "gateway/config/config.h"
-#include "gateway/geofence/zone_controller.h"
-#include "gateway/geofence/zone_lock_watch.h"
 #include "gateway/gnss/gnss_feed.h"
 #include "gateway/node/transport_sender.h"
 #include "gateway/runtime/bus_clock.h"
 #include "gateway/runtime/device_info_reporter.h"
 #include "gateway/runtime/engine.h"
 #include "gateway/runtime/gateway_core.h"
-#include "gateway/runtime/parked_mode.h"
 #include "gateway/runtime/recorder.h"
 #include "gateway/runtime/stages.h"
+#include "gateway/runtime/state_stage.h"
 #include "gateway/runtime/status_provider.h"
 #include "gateway/runtime/store_outbox.h"
-#include "gateway/runtime/vehicle_state.h"
+#include "gateway/runtime/zones_stage.h"
 #include "gateway/uplink/uplink.h"
 #include "storage/store.h"
 
@@ -91,14 +92,9 @@ struct PipelineOptions {
   Env* env = nullptr;
 };
 
-// A stage could not be built from the configuration; what() names the section.
-ParkedConfig make_parked_config(const config::Config& config);
-// The zone-bundle topics of [geofence]: bundle_topic (default "<topic_prefix>/zones") and, with
-// vehicle_bundles, "<topic_prefix>/<vehicle>/zones" (pipeline_zones.cc).
-std::vector<std::string> zone_bundle_topics(const config::Config& config);
-
 class CampaignFeed;  // campaign_feed.h
 
+// A stage could not be built from the configuration; what() names the section.
 class PipelineError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
@@ -149,14 +145,12 @@ class Pipeline {
   // The revocation list version in force (issue 28; 0: none), for the status.
   std::uint64_t revocation_version() const { return commands_->revocation_version(); }
   // Parked (locked and still) or riding; nullopt before the first evaluation.
-  std::optional<bool> parked() const { return parked_ ? parked_->parked() : std::nullopt; }
+  std::optional<bool> parked() const { return state_stage_->parked(); }
   // Bus time covered by the frames delivered so far (0 before the first frame).
   double bus_seconds() const;
 
  private:
   class CommandFeed;
-  class ZonesStage;  // pipeline_zones.cc
-  class StateStage;  // pipeline_state.cc
 
   void on_frame(const motinova::CanFrame& frame, Micros ts);
   void request_settle() { engine_.request_settle(); }
@@ -170,24 +164,17 @@ class Pipeline {
   // the core after the recorder, their records queued through the recorder.
   void add_campaign_topics(const config::Config& config, uplink::UplinkConfig& uplink_config);
   void start_campaigns(const config::Config& config);
-  // Geofences (issue 14; pipeline_zones.cc): built from [geofence], fed by apply_gnss(), their
-  // MC writes started at each settle through the command service.
+  // Geofences (issue 14; pipeline_zones.cc): the ZonesStage built from [geofence] and wired to
+  // the command service's guards and the lock tracker; its route moves zone events and alarms
+  // to the recorder (and the speed authority, the campaigns, the vehicle state) and starts its
+  // MC writes through the command service.
   void start_zones(const config::Config& config);
-  void apply_zones(Micros wall, const std::optional<gnss::Fix>& position);
-  void tick_zones();
-  void record_zone_event(const geofence::ZoneEvent& e);  // log, store, queue for the uplink
-  // A message of a zone-bundle topic (Uplink::take_zone_bundles), judged, stored, enforced at
-  // once; a refusal is logged once per distinct reason and counted for the status.
-  void on_zone_bundle(const uplink::ZoneBundleMessage& m);
-  // Locks made on the bike (lock events from the bus) noted by the lock observer: reported when
-  // they happened in a no-parking zone.
-  void judge_bike_locks();
-  // Raises / clears the outside_operating_area alarm when the engine's demand changes.
-  void update_area_alarm(Micros wall, const std::optional<gnss::Fix>& position);
-  std::optional<std::chrono::steady_clock::time_point> zones_deadline() const;
-  bool update_vehicle_state();
-  void attach_parked_feed();
-  void apply_parked_rates(bool parked);
+  bool route_zones();
+  void start_zone_write(ZonesStage::McWriteRequest write);
+  // The vehicle state and parked mode (pipeline_state.cc): the StateStage, its parked listener
+  // added to the core, its route handing the state and the parked/riding rates to the uplink.
+  void start_state(const config::Config& config);
+  bool route_state();
   fleetgw::v1::BusState bus_state() const;
 
   asio::io_context& io_;
@@ -209,29 +196,7 @@ class Pipeline {
   std::unique_ptr<uplink::Uplink> uplink_;
   DeviceInfoReporter device_info_;
   std::unique_ptr<gnss::GnssFeed> gnss_;
-  // nullptr when [geofence] is disabled.
-  std::unique_ptr<geofence::ZoneController> zones_;
-  bool zone_write_running_ = false;      // an MC write of the zones is under way
-  bool outside_operating_area_ = false;  // the alarm is raised
-  Micros area_alarm_since_{0};           // when it was raised
-  std::string zone_refusal_;  // the last reason a zone write could not start (logged once)
-  std::vector<std::string> zone_topics_;  // the bundle topics subscribed to
-  std::string revocations_topic_;         // issue 28: subscribed when root keys are configured
-  std::string zone_bundle_file_;
-  std::size_t max_bundle_bytes_ = 0;
-  std::string bundle_refusal_logged_;  // the last bundle refusal logged (each distinct once)
-  std::string bundle_refusal_topic_;   // where the latest refused bundle came from
-  geofence::BikeLockWatch bike_locks_;
-  struct BikeLock {
-    Micros wall{0};
-    std::optional<gnss::Fix> fix;  // current when the lock was heard
-  };
-  std::vector<BikeLock> pending_bike_locks_;  // noted in the recorder's turn, judged in settle()
-  StateThrottle state_throttle_;  // when the retained vehicle state is rebuilt (pipeline_state.cc)
-  StatePositionFilter state_position_;  // a fix counts as a state change once it moved
-  ParkedConfig parked_config_;
-  std::unique_ptr<ParkedController> parked_;         // parked/riding (pipeline_state.cc)
-  std::chrono::milliseconds parked_batch_delay_{0};  // [parked] telemetry_batch_ms
+  std::string revocations_topic_;  // issue 28: subscribed when root keys are configured
 
   // The stages, in the order the engine runs them (add_stages()).
   std::unique_ptr<TimerStage> duration_stage_;
@@ -239,40 +204,14 @@ class Pipeline {
   std::unique_ptr<TimerStage> live_stage_;
   std::unique_ptr<DeviceInfoStage> device_info_stage_;
   std::unique_ptr<GnssStage> gnss_stage_;
-  std::unique_ptr<ZonesStage> zones_stage_;
-  std::unique_ptr<StateStage> state_stage_;
+  std::unique_ptr<ZonesStage> zones_stage_;  // nullptr when [geofence] is disabled
+  std::unique_ptr<StateStage> state_stage_;  // always (parked mode); the state needs [mqtt]
   std::unique_ptr<RecorderStage> recorder_stage_;
   std::unique_ptr<UplinkStage> uplink_stage_;
   const Backoff* recorder_backoff_ = nullptr;  // the engine's retry state of the recorder
   bool stopping_ = false;
   std::uint64_t commands_handled_ = 0;
   std::shared_ptr<int> alive_ = std::make_shared<int>(0);  // guards posted handlers
-};
-
-// Zones (pipeline_zones.cc): bike locks noted by the recorder's turn judged, MC zone writes
-// started, the operating-area alarm re-judged at its deadline.
-class Pipeline::ZonesStage final : public Stage {
- public:
-  explicit ZonesStage(Pipeline& p) : p_(p) {}
-  std::string_view name() const override { return "zones"; }
-  std::optional<EngineTime> next_deadline() const override { return p_.zones_deadline(); }
-  StageRun run(EngineTime now) override;
-
- private:
-  Pipeline& p_;
-};
-
-// The retained vehicle state (pipeline_state.cc): rebuilt when its throttle says a check is due,
-// handed to the uplink only when it changed.
-class Pipeline::StateStage final : public Stage {
- public:
-  explicit StateStage(Pipeline& p) : p_(p) {}
-  std::string_view name() const override { return "vehicle_state"; }
-  std::optional<EngineTime> next_deadline() const override { return p_.state_throttle_.deadline(); }
-  StageRun run(EngineTime now) override;
-
- private:
-  Pipeline& p_;
 };
 
 }  // namespace fleetgw::runtime
