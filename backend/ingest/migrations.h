@@ -37,4 +37,8 @@ std::string_view migration_v8_sql();
 // Migration 9's SQL (migrations_v9_batch_stamp.cc): committed_at_us defaults to the batch's stamp.
 std::string_view migration_v9_sql();
 
+// Migration 10's SQL (migrations_v10_hot_updates.cc): vehicle_state's fillfactor, so a batch's
+// state upserts replace each row on its own page.
+std::string_view migration_v10_sql();
+
 }  // namespace fleetgw::ingest

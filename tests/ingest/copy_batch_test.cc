@@ -170,6 +170,34 @@ TEST_F(CopyBatchTest, SingleRangesGrowInPlaceWithoutSwallowingTheNext) {
   EXPECT_TRUE(s.gaps().empty());
 }
 
+// A vehicle's state, replaced batch after batch, stays on its page (a HOT update: no index entry
+// and no page of its own per replacement, migration 10), even when the page holds as many other
+// vehicles' states as fit: the table keeps room on each page for the next version.
+TEST_F(CopyBatchTest, ReplacedStatesStayOnTheirPage) {
+  IngestStore s(cluster_->conninfo());
+  const auto state = [](int vehicle, std::int64_t at) {
+    v1::Envelope e;
+    e.set_vehicle_id("bike-" + std::to_string(vehicle));
+    e.mutable_state()->set_updated_at_us(at);
+    e.mutable_state()->set_assist_name(std::string(200, 'a'));  // a state's usual size
+    return decode(e, "state");
+  };
+  std::vector<Decoded> fleet;
+  for (int v = 0; v < 100; ++v) fleet.push_back(state(v, 1'000));
+  s.write_batch(pointers(fleet));
+  const auto page_of = [&](int vehicle) {
+    return text("SELECT (ctid::text::point)[0] FROM vehicle_state WHERE vehicle_id = 'bike-" +
+                std::to_string(vehicle) + "'");
+  };
+  ASSERT_EQ(page_of(0), "0");
+  for (std::int64_t at = 2'000; at <= 4'000; at += 1'000) {
+    const std::vector<Decoded> next = {state(0, at)};
+    s.write_batch(pointers(next));
+    EXPECT_EQ(page_of(0), "0") << "the state of " << at << " moved to another page";
+  }
+  EXPECT_EQ(text("SELECT updated_at_us FROM vehicle_state WHERE vehicle_id = 'bike-0'"), "4000");
+}
+
 // committed_at_us is the batch's one stamp in every table it writes (the column's default reads
 // the setting the batch makes: migration 9), and a writer that sets nothing (an analyst's
 // INSERT) still gets the database's clock, never NULL.
