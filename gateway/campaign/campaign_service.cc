@@ -191,8 +191,11 @@ nlohmann::json CampaignService::status(Micros bus_now) const {
             {"detail", last_refusal_->detail},
             {"id", last_refusal_->id}};
   }
-  return {{"in_force", engine_.size()}, {"offered", offered_},  {"accepted", accepted_},
-          {"refused", refused_},        {"last_refusal", last}, {"campaigns", campaigns}};
+  // bus_now_us: the bike's clock the windows are judged on, which a simulated or slipping bus
+  // keeps apart from the wall clock (why a window has or has not opened yet).
+  return {{"in_force", engine_.size()},   {"offered", offered_},  {"accepted", accepted_},
+          {"refused", refused_},          {"last_refusal", last}, {"campaigns", campaigns},
+          {"bus_now_us", bus_now.count()}};
 }
 
 }  // namespace fleetgw::campaign

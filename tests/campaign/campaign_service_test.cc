@@ -64,6 +64,7 @@ TEST(CampaignService, AnAcceptedCampaignIsStoredAndRunsAfterARestartOffline) {
   EXPECT_EQ(messages[0].priority, static_cast<int>(storage::OutboxPriority::kCampaign) + 5);
   const auto status = service.status(kDay0 + 40 * kSecond);
   EXPECT_EQ(status["in_force"], 1);
+  EXPECT_EQ(status["bus_now_us"], (kDay0 + 40 * kSecond).count());  // the clock it was judged on
   EXPECT_EQ(status["campaigns"][0]["state"], "running");
   EXPECT_EQ(status["campaigns"][0]["max_bytes_per_hour"], 3600u * 27u);
 
