@@ -19,29 +19,14 @@ namespace {
 using fleetgw::PgConnection;
 using fleetgw::ingest::Decoded;
 using fleetgw::ingest::IngestStore;
-using fleetgw::testing::PostgresCluster;
+using fleetgw::testing::decoded;
+using fleetgw::testing::PgDatabaseTest;
 namespace v1 = fleetgw::v1;
 
 const std::string kHostileText = "tab\there \"quoted\" back\\slash \\N new\nline\r {a,b}";
 
-class CopyBatchTest : public ::testing::Test {
+class CopyBatchTest : public PgDatabaseTest {
  protected:
-  static void SetUpTestSuite() {
-    if (fleetgw::testing::postgres_bin_dir().empty()) return;
-    cluster_ = std::make_unique<PostgresCluster>();
-  }
-  static void TearDownTestSuite() { cluster_.reset(); }
-  void SetUp() override {
-    if (!cluster_) GTEST_SKIP() << "PostgreSQL server binaries not installed";
-    PgConnection c(cluster_->conninfo());
-    c.exec("DROP SCHEMA public CASCADE; CREATE SCHEMA public", "reset");
-  }
-
-  static Decoded decode(const v1::Envelope& e, const std::string& leaf) {
-    auto r = fleetgw::ingest::decode_message(
-        "fleet/v1", "fleet/v1/" + e.vehicle_id() + "/" + leaf, e.SerializeAsString());
-    return std::get<Decoded>(r);
-  }
   static Decoded fault(std::uint64_t seq, const std::string& name, bool with_code) {
     v1::Envelope e;
     e.set_vehicle_id("b1");
@@ -50,28 +35,20 @@ class CopyBatchTest : public ::testing::Test {
     e.mutable_fault()->set_node("mc");
     e.mutable_fault()->set_name(name);
     if (with_code) e.mutable_fault()->set_code(7);
-    return decode(e, "fault");
-  }
-  static std::string text(const std::string& sql) {
-    PgConnection c(cluster_->conninfo());
-    const auto r = c.exec(sql, "query");
-    return r.is_null(0, 0) ? "<null>" : std::string(r.text(0, 0));
+    return decoded(e, "fault");
   }
   static std::vector<const Decoded*> pointers(const std::vector<Decoded>& v) {
     std::vector<const Decoded*> out;
     for (const Decoded& d : v) out.push_back(&d);
     return out;
   }
-
-  static std::unique_ptr<PostgresCluster> cluster_;
 };
-std::unique_ptr<PostgresCluster> CopyBatchTest::cluster_;
 
 // A batch holding a redelivered record makes its table's COPY fail on the key; the whole table
 // then goes through the text[] statement built from the COPY text: the new record's text and
 // NULL arrive exactly as with the COPY.
 TEST_F(CopyBatchTest, RedeliveryPathKeepsEveryByteAndNull) {
-  IngestStore s(cluster_->conninfo());
+  IngestStore s(conninfo());
   s.write(fault(1, "plain", true));
   const std::vector<Decoded> batch = {fault(1, "plain", true), fault(2, kHostileText, false)};
   const auto r = s.write_batch(pointers(batch));
@@ -86,13 +63,13 @@ TEST_F(CopyBatchTest, RedeliveryPathKeepsEveryByteAndNull) {
 // The latest-value upsert (one per vehicle and batch) from COPY text: separators, quotes and
 // backslashes in a state's text, NULL for what it does not carry.
 TEST_F(CopyBatchTest, StateUpsertFromCopyTextKeepsTextAndNull) {
-  IngestStore s(cluster_->conninfo());
+  IngestStore s(conninfo());
   const auto state = [](std::int64_t at, const std::string& assist_name) {
     v1::Envelope e;
     e.set_vehicle_id("b\t2");
     e.mutable_state()->set_updated_at_us(at);
     e.mutable_state()->set_assist_name(assist_name);
-    return decode(e, "state");
+    return decoded(e, "state");
   };
   const std::vector<Decoded> batch = {state(1'000, "old"), state(3'000, kHostileText),
                                       state(2'000, "out of order")};
@@ -108,7 +85,7 @@ TEST_F(CopyBatchTest, StateUpsertFromCopyTextKeepsTextAndNull) {
 // string field) is refused by the server: that message alone is rejected with the server's
 // reason, the rest of its batch commits.
 TEST_F(CopyBatchTest, InvalidUtf8IsRefusedForItsMessageAlone) {
-  IngestStore s(cluster_->conninfo());
+  IngestStore s(conninfo());
   std::vector<Decoded> batch = {fault(1, "ok", true), fault(2, "XXXX", true), fault(3, "ok", true)};
   std::string& copy = batch[1].rows.at(0).copy;
   copy.replace(copy.find("XXXX"), 4, std::string("\xff\xfe\0z", 4));
@@ -125,7 +102,7 @@ TEST_F(CopyBatchTest, InvalidUtf8IsRefusedForItsMessageAlone) {
 // The worst shape of a batch for the range bookkeeping: one vehicle, 3,000 one-record ranges
 // (every other sequence), then a batch of the 3,000 between them: one range, no gap.
 TEST_F(CopyBatchTest, OneVehicleWithThousandsOfTinyRangesMergesExactly) {
-  IngestStore s(cluster_->conninfo());
+  IngestStore s(conninfo());
   std::vector<Decoded> odd, even;
   for (std::uint64_t q = 1; q <= 6'000; ++q) (q % 2 == 1 ? odd : even).push_back(fault(q, "f", true));
   s.write_batch(pointers(odd));
@@ -145,7 +122,7 @@ TEST_F(CopyBatchTest, OneVehicleWithThousandsOfTinyRangesMergesExactly) {
 // range (the common case), a redelivered range inside a stored one (changes nothing), one
 // reaching the next stored range (joins both): the accounted ranges stay exact.
 TEST_F(CopyBatchTest, SingleRangesGrowInPlaceWithoutSwallowingTheNext) {
-  IngestStore s(cluster_->conninfo());
+  IngestStore s(conninfo());
   const auto write = [&](std::uint64_t first, std::uint64_t last) {
     std::vector<Decoded> v;
     for (std::uint64_t q = first; q <= last; ++q) v.push_back(fault(q, "f", true));
@@ -174,13 +151,13 @@ TEST_F(CopyBatchTest, SingleRangesGrowInPlaceWithoutSwallowingTheNext) {
 // and no page of its own per replacement, migration 10), even when the page holds as many other
 // vehicles' states as fit: the table keeps room on each page for the next version.
 TEST_F(CopyBatchTest, ReplacedStatesStayOnTheirPage) {
-  IngestStore s(cluster_->conninfo());
+  IngestStore s(conninfo());
   const auto state = [](int vehicle, std::int64_t at) {
     v1::Envelope e;
     e.set_vehicle_id("bike-" + std::to_string(vehicle));
     e.mutable_state()->set_updated_at_us(at);
     e.mutable_state()->set_assist_name(std::string(200, 'a'));  // a state's usual size
-    return decode(e, "state");
+    return decoded(e, "state");
   };
   std::vector<Decoded> fleet;
   for (int v = 0; v < 100; ++v) fleet.push_back(state(v, 1'000));
@@ -202,17 +179,17 @@ TEST_F(CopyBatchTest, ReplacedStatesStayOnTheirPage) {
 // the setting the batch makes: migration 9), and a writer that sets nothing (an analyst's
 // INSERT) still gets the database's clock, never NULL.
 TEST_F(CopyBatchTest, OneStampPerBatchAcrossTablesAndTheClockForOtherWriters) {
-  IngestStore s(cluster_->conninfo());
+  IngestStore s(conninfo());
   v1::Envelope t;
   t.set_vehicle_id("b1");
   t.set_store_id("s1");
   for (std::uint64_t q = 1; q <= 3; ++q) t.mutable_telemetry()->add_samples()->set_sequence(q);
-  const std::vector<Decoded> batch = {decode(t, "telemetry"), fault(4, "f", true)};
+  const std::vector<Decoded> batch = {decoded(t, "telemetry"), fault(4, "f", true)};
   s.write_batch(pointers(batch));
   EXPECT_EQ(text("SELECT count(DISTINCT committed_at_us) FROM (SELECT committed_at_us FROM "
                  "telemetry_samples UNION ALL SELECT committed_at_us FROM fault_events) u"),
             "1");
-  PgConnection c(cluster_->conninfo());
+  PgConnection c(conninfo());
   c.exec("INSERT INTO fault_events (vehicle_id, store_id, sequence, created_at_us, "
          "gateway_fw_version, node, bit, name, severity, kind) VALUES ('b9', 's9', 1, 0, '', "
          "'mc', 0, 'n', 's', 'k')",

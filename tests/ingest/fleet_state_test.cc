@@ -20,40 +20,26 @@ using fleetgw::PgConnection;
 using fleetgw::ingest::Decoded;
 using fleetgw::ingest::IngestStore;
 using fleetgw::ingest::Reject;
-using fleetgw::testing::PostgresCluster;
+using fleetgw::testing::decode_as;
+using fleetgw::testing::PgDatabaseTest;
 namespace v1 = fleetgw::v1;
 
-class FleetStateTest : public ::testing::Test {
+class FleetStateTest : public PgDatabaseTest {
  protected:
-  static void SetUpTestSuite() {
-    if (fleetgw::testing::postgres_bin_dir().empty()) return;
-    cluster_ = std::make_unique<PostgresCluster>();
-  }
-  static void TearDownTestSuite() { cluster_.reset(); }
   void SetUp() override {
-    if (!cluster_) GTEST_SKIP() << "PostgreSQL server binaries not installed";
-    PgConnection c(cluster_->conninfo());
-    c.exec("DROP SCHEMA public CASCADE; CREATE SCHEMA public", "reset");
-    store_ = std::make_unique<IngestStore>(cluster_->conninfo());
+    PgDatabaseTest::SetUp();
+    if (IsSkipped()) return;
+    store_ = std::make_unique<IngestStore>(conninfo());
     store_->connect();
   }
 
-  static std::variant<Decoded, Reject> decode(const v1::Envelope& e, const std::string& leaf) {
-    return fleetgw::ingest::decode_message("fleet/v1", "fleet/v1/" + e.vehicle_id() + "/" + leaf,
-                                           e.SerializeAsString());
-  }
   void write(const v1::Envelope& e, const std::string& leaf) {
-    auto r = decode(e, leaf);
+    auto r = decode_as(e, leaf);
     ASSERT_TRUE(std::holds_alternative<Decoded>(r)) << std::get<Reject>(r).detail;
     const Decoded& d = std::get<Decoded>(r);
     const Decoded* one[] = {&d};
     const auto result = store_->write_batch(one);
     ASSERT_FALSE(result.refused[0]) << result.refused[0]->detail;
-  }
-  static std::string text(const std::string& sql) {
-    PgConnection c(cluster_->conninfo());
-    const auto r = c.exec(sql, "query");
-    return r.rows() == 0 || r.is_null(0, 0) ? "<null>" : std::string(r.text(0, 0));
   }
 
   static v1::Envelope status(std::int64_t at, v1::OnlineState online, bool will) {
@@ -66,10 +52,8 @@ class FleetStateTest : public ::testing::Test {
     return e;
   }
 
-  static std::unique_ptr<PostgresCluster> cluster_;
   std::unique_ptr<IngestStore> store_;
 };
-std::unique_ptr<PostgresCluster> FleetStateTest::cluster_;
 
 v1::Envelope full_state() {
   v1::Envelope e;
@@ -152,20 +136,20 @@ TEST_F(FleetStateTest, VehicleStateStoresEveryFieldTheConsoleReads) {
 TEST_F(FleetStateTest, HostileStateStringsAreRefusedWithTheField) {
   v1::Envelope e = full_state();
   e.mutable_state()->mutable_locks(0)->set_node(std::string("lo\0ck", 5));
-  auto r = decode(e, "state");
+  auto r = decode_as(e, "state");
   ASSERT_TRUE(std::holds_alternative<Reject>(r));
   EXPECT_EQ(std::get<Reject>(r).code, "nul_in_text");
   EXPECT_NE(std::get<Reject>(r).detail.find("state.locks.node"), std::string::npos);
 
   e = full_state();
   e.mutable_state()->mutable_faults(0)->set_name(std::string(2000, 'x'));
-  r = decode(e, "state");
+  r = decode_as(e, "state");
   ASSERT_TRUE(std::holds_alternative<Reject>(r));
   EXPECT_EQ(std::get<Reject>(r).code, "text_too_long");
 
   e = full_state();
   for (int i = 0; i < 300; ++i) e.mutable_state()->add_locks()->set_node("x");
-  r = decode(e, "state");
+  r = decode_as(e, "state");
   ASSERT_TRUE(std::holds_alternative<Reject>(r));
   EXPECT_EQ(std::get<Reject>(r).code, "too_many_entries");
 }
@@ -177,7 +161,7 @@ TEST_F(FleetStateTest, StatusHistoryKeepsEachConnectionChangeOnce) {
   write(will, "status");
   write(will, "status");  // a redelivered last will: no second row
   write(status(9'000, v1::ONLINE_STATE_ONLINE, false), "status");
-  PgConnection c(cluster_->conninfo());
+  PgConnection c(conninfo());
   const auto r = c.exec(
       "SELECT online, last_will::text, created_at_us FROM status_history WHERE vehicle_id = "
       "'bike-1' ORDER BY id",
@@ -217,19 +201,9 @@ TEST_F(FleetStateTest, RecordTextWithCopySeparatorsIsStoredAsSent) {
 // A version-3 database with a vehicle's state and status gains the new columns (NULL in the
 // old row) and a status history started from the current status.
 TEST_F(FleetStateTest, MigrationFourKeepsStateAndStartsHistory) {
-  PgConnection c(cluster_->conninfo());
-  c.exec("DROP SCHEMA public CASCADE; CREATE SCHEMA public", "reset");
-  c.exec(
-      "CREATE TABLE schema_migrations (version integer PRIMARY KEY, name text NOT NULL, "
-      "applied_at timestamptz NOT NULL DEFAULT now())",
-      "schema_migrations");
-  for (const auto& m : fleetgw::ingest::migrations()) {
-    if (m.version > 3) break;
-    c.exec(m.sql, "old migration");
-    c.exec("INSERT INTO schema_migrations (version, name) VALUES (" + std::to_string(m.version) +
-               ", 'old')",
-           "row");
-  }
+  PgConnection c(conninfo());
+  c.exec("DROP SCHEMA public CASCADE; CREATE SCHEMA public", "reset");  // SetUp's store made v4+
+  migrate_up_to(3);
   c.exec(
       "INSERT INTO vehicle_state (vehicle_id, updated_at_us, online, mode) VALUES ('old-bike', 5, "
       "true, 'VEHICLE_MODE_PARKED'); INSERT INTO status (vehicle_id, created_at_us, online, "
@@ -237,7 +211,7 @@ TEST_F(FleetStateTest, MigrationFourKeepsStateAndStartsHistory) {
       "'ONLINE_STATE_ONLINE', 'CONNECTION_STATE_CONNECTED', 'BUS_STATE_ACTIVE', '1.0', false, "
       "'{}')",
       "old rows");
-  IngestStore s(cluster_->conninfo());
+  IngestStore s(conninfo());
   EXPECT_EQ(s.connect(), static_cast<int>(fleetgw::ingest::migrations().size()) - 3);
   EXPECT_EQ(text("SELECT updated_at_us FROM vehicle_state WHERE vehicle_id = 'old-bike'"), "5");
   EXPECT_EQ(text("SELECT locks FROM vehicle_state WHERE vehicle_id = 'old-bike'"), "<null>");

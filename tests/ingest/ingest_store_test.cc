@@ -23,23 +23,12 @@ namespace {
 using fleetgw::PgConnection;
 using fleetgw::ingest::Decoded;
 using fleetgw::ingest::IngestStore;
-using fleetgw::testing::PostgresCluster;
+using fleetgw::testing::decoded;
+using fleetgw::testing::PgDatabaseTest;
 namespace v1 = fleetgw::v1;
 
-class IngestStoreTest : public ::testing::Test {
+class IngestStoreTest : public PgDatabaseTest {
  protected:
-  static void SetUpTestSuite() {
-    if (fleetgw::testing::postgres_bin_dir().empty()) return;
-    cluster_ = std::make_unique<PostgresCluster>();
-  }
-  static void TearDownTestSuite() { cluster_.reset(); }
-  void SetUp() override {
-    if (!cluster_) GTEST_SKIP() << "PostgreSQL server binaries not installed";
-    PgConnection c(cluster_->conninfo());
-    // Each test starts from an empty database: drop everything the migrations made.
-    c.exec("DROP SCHEMA public CASCADE; CREATE SCHEMA public", "reset");
-  }
-
   static Decoded record(const std::string& vehicle, const std::string& store, std::uint64_t seq) {
     v1::Envelope e;
     e.set_vehicle_id(vehicle);
@@ -47,26 +36,16 @@ class IngestStoreTest : public ::testing::Test {
     e.set_sequence(seq);
     e.mutable_fault()->set_node("mc");
     e.mutable_fault()->set_name("overheat");
-    auto r = fleetgw::ingest::decode_message("fleet/v1", "fleet/v1/" + vehicle + "/fault",
-                                             e.SerializeAsString());
-    return std::get<Decoded>(r);
+    return decoded(e, "fault");
   }
-
-  static std::int64_t count(const std::string& sql) {
-    PgConnection c(cluster_->conninfo());
-    return c.exec(sql, "count").int64(0, 0);
-  }
-
-  static std::unique_ptr<PostgresCluster> cluster_;
 };
-std::unique_ptr<PostgresCluster> IngestStoreTest::cluster_;
 
 TEST_F(IngestStoreTest, MigrationsApplyOnceAndAreRecorded) {
-  IngestStore a(cluster_->conninfo(), 100);
+  IngestStore a(conninfo(), 100);
   EXPECT_EQ(a.connect(), static_cast<int>(fleetgw::ingest::migrations().size()));
-  IngestStore b(cluster_->conninfo(), 100);
+  IngestStore b(conninfo(), 100);
   EXPECT_EQ(b.connect(), 0);
-  EXPECT_EQ(count("SELECT count(*) FROM schema_migrations"),
+  EXPECT_EQ(int64("SELECT count(*) FROM schema_migrations"),
             static_cast<std::int64_t>(fleetgw::ingest::migrations().size()));
 }
 
@@ -74,35 +53,28 @@ TEST_F(IngestStoreTest, MigrationsApplyOnceAndAreRecorded) {
 // keeping its rows; the status table gains the refusal columns (NULL in the old row).
 TEST_F(IngestStoreTest, MigrationTwoAppliesOnceOnAVersionOneDatabase) {
   {
-    PgConnection c(cluster_->conninfo());
-    c.exec(
-        "CREATE TABLE schema_migrations (version integer PRIMARY KEY, name text NOT NULL, "
-        "applied_at timestamptz NOT NULL DEFAULT now())",
-        "schema_migrations");
-    const auto& v1sql = fleetgw::ingest::migrations()[0];
-    ASSERT_EQ(v1sql.version, 1);
-    c.exec(v1sql.sql, "v1");
-    c.exec("INSERT INTO schema_migrations (version, name) VALUES (1, 'v1')", "v1 row");
+    migrate_up_to(1);
+    PgConnection c(conninfo());
     c.exec(
         "INSERT INTO status (vehicle_id, created_at_us, online, connection, bus_state, "
         "firmware_version, last_will, attention) VALUES ('b0', 1, 'ONLINE_STATE_ONLINE', 'c', "
         "'b', '1.3', false, '{}')",
         "old status");
   }
-  IngestStore a(cluster_->conninfo(), 100);
+  IngestStore a(conninfo(), 100);
   EXPECT_EQ(a.connect(), static_cast<int>(fleetgw::ingest::migrations().size()) - 1);
-  IngestStore b(cluster_->conninfo(), 100);
+  IngestStore b(conninfo(), 100);
   EXPECT_EQ(b.connect(), 0);
-  EXPECT_EQ(count("SELECT max(version) FROM schema_migrations"),
+  EXPECT_EQ(int64("SELECT max(version) FROM schema_migrations"),
             fleetgw::ingest::migrations().back().version);
-  EXPECT_EQ(count("SELECT count(*) FROM status WHERE vehicle_id = 'b0' AND publish_refusals IS "
+  EXPECT_EQ(int64("SELECT count(*) FROM status WHERE vehicle_id = 'b0' AND publish_refusals IS "
                   "NULL"),
             1);
-  EXPECT_EQ(count("SELECT count(*) FROM zone_events"), 0);
+  EXPECT_EQ(int64("SELECT count(*) FROM zone_events"), 0);
 }
 
 TEST_F(IngestStoreTest, ZoneEventIsStoredOnceDespiteRedelivery) {
-  IngestStore s(cluster_->conninfo(), 100);
+  IngestStore s(conninfo(), 100);
   v1::Envelope e;
   e.set_vehicle_id("b1");
   e.set_store_id("s1");
@@ -117,15 +89,12 @@ TEST_F(IngestStoreTest, ZoneEventIsStoredOnceDespiteRedelivery) {
   z->mutable_position()->set_lat_e7(483'000'001);
   z->mutable_position()->set_lon_e7(-2'000'002);
   z->set_bundle_version(9);
-  const auto msg = [&] {
-    return std::get<Decoded>(
-        fleetgw::ingest::decode_message("fleet/v1", "fleet/v1/b1/zone", e.SerializeAsString()));
-  };
+  const auto msg = [&] { return decoded(e, "zone"); };
   EXPECT_EQ(s.write(msg()).inserted, 1);
   const auto again = s.write(msg());
   EXPECT_EQ(again.inserted, 0);
   EXPECT_EQ(again.duplicates, 1);
-  PgConnection c(cluster_->conninfo());
+  PgConnection c(conninfo());
   const auto r = c.exec(
       "SELECT zone_id, zone_name, kind, transition, at_us, lat_e7, lon_e7, bundle_version "
       "FROM zone_events",
@@ -160,30 +129,26 @@ TEST_F(IngestStoreTest, ZoneEventIsStoredOnceDespiteRedelivery) {
 }
 
 TEST_F(IngestStoreTest, AlarmAndStatusOfSchemaOnePointFourLand) {
-  IngestStore s(cluster_->conninfo(), 100);
+  IngestStore s(conninfo(), 100);
   v1::Envelope alarm;
   alarm.set_vehicle_id("b1");
   alarm.set_store_id("s1");
   alarm.set_sequence(1);
   alarm.mutable_alarm()->set_kind(v1::ALARM_KIND_OUTSIDE_OPERATING_AREA);
-  s.write(std::get<Decoded>(
-      fleetgw::ingest::decode_message("fleet/v1", "fleet/v1/b1/alarm", alarm.SerializeAsString())));
+  s.write(decoded(alarm, "alarm"));
   v1::Envelope status;
   status.set_vehicle_id("b1");
   status.mutable_status()->set_publish_refusals(2);
   status.mutable_status()->set_last_publish_refusal("not authorized");
   status.mutable_status()->set_last_publish_refusal_code(135);
   status.mutable_status()->set_last_publish_refusal_at_us(77);
-  const auto write_status = [&] {
-    s.write(std::get<Decoded>(fleetgw::ingest::decode_message("fleet/v1", "fleet/v1/b1/status",
-                                                              status.SerializeAsString())));
-  };
+  const auto write_status = [&] { s.write(decoded(status, "status")); };
   write_status();
   status.mutable_status()->set_publish_refusals(5);  // the upsert replaces the count
   write_status();
-  EXPECT_EQ(count("SELECT count(*) FROM alarms WHERE kind = 'ALARM_KIND_OUTSIDE_OPERATING_AREA'"),
+  EXPECT_EQ(int64("SELECT count(*) FROM alarms WHERE kind = 'ALARM_KIND_OUTSIDE_OPERATING_AREA'"),
             1);
-  PgConnection c(cluster_->conninfo());
+  PgConnection c(conninfo());
   const auto r = c.exec(
       "SELECT publish_refusals, last_publish_refusal, last_publish_refusal_code, "
       "last_publish_refusal_at_us FROM status",
@@ -196,25 +161,25 @@ TEST_F(IngestStoreTest, AlarmAndStatusOfSchemaOnePointFourLand) {
 }
 
 TEST_F(IngestStoreTest, NewerDatabaseIsRefused) {
-  IngestStore a(cluster_->conninfo(), 100);
+  IngestStore a(conninfo(), 100);
   a.connect();
-  PgConnection(cluster_->conninfo())
+  PgConnection(conninfo())
       .exec("INSERT INTO schema_migrations (version, name) VALUES (999, 'future')", "future");
-  IngestStore b(cluster_->conninfo(), 100);
+  IngestStore b(conninfo(), 100);
   EXPECT_THROW(b.connect(), fleetgw::PgError);
 }
 
 TEST_F(IngestStoreTest, RedeliveryIsIgnoredAndCounted) {
-  IngestStore s(cluster_->conninfo(), 100);
+  IngestStore s(conninfo(), 100);
   EXPECT_EQ(s.write(record("b1", "s1", 1)).inserted, 1);
   const auto again = s.write(record("b1", "s1", 1));
   EXPECT_EQ(again.inserted, 0);
   EXPECT_EQ(again.duplicates, 1);
-  EXPECT_EQ(count("SELECT count(*) FROM fault_events"), 1);
+  EXPECT_EQ(int64("SELECT count(*) FROM fault_events"), 1);
 }
 
 TEST_F(IngestStoreTest, GapsAreHolesNotExplainedByEvictions) {
-  IngestStore s(cluster_->conninfo(), 2);  // 2 rows per statement: several statements
+  IngestStore s(conninfo(), 2);  // 2 rows per statement: several statements
   for (std::uint64_t seq : {1, 2, 3, 7, 8, 12}) s.write(record("b1", "s1", seq));
   auto gaps = s.gaps();
   ASSERT_EQ(gaps.size(), 2u);
@@ -222,7 +187,7 @@ TEST_F(IngestStoreTest, GapsAreHolesNotExplainedByEvictions) {
   EXPECT_EQ(gaps[0].last_missing, 6);
   EXPECT_EQ(gaps[1].first_missing, 9);
   EXPECT_EQ(gaps[1].last_missing, 11);
-  EXPECT_EQ(count("SELECT count(*) FROM sequence_ranges"), 3);
+  EXPECT_EQ(int64("SELECT count(*) FROM sequence_ranges"), 3);
 
   // The gateway evicted 4..6 and says so in record 13: that hole is explained.
   v1::Envelope e;
@@ -232,19 +197,18 @@ TEST_F(IngestStoreTest, GapsAreHolesNotExplainedByEvictions) {
   e.mutable_eviction()->set_first_sequence(4);
   e.mutable_eviction()->set_last_sequence(6);
   e.mutable_eviction()->set_evicted_records(3);
-  s.write(std::get<Decoded>(
-      fleetgw::ingest::decode_message("fleet/v1", "fleet/v1/b1/eviction", e.SerializeAsString())));
+  s.write(decoded(e, "eviction"));
   gaps = s.gaps();
   ASSERT_EQ(gaps.size(), 1u);
   EXPECT_EQ(gaps[0].first_missing, 9);
   // The late records arrive: no gap, one range.
   for (std::uint64_t seq : {11, 9, 10}) s.write(record("b1", "s1", seq));
   EXPECT_TRUE(s.gaps().empty());
-  EXPECT_EQ(count("SELECT count(*) FROM sequence_ranges"), 1);
+  EXPECT_EQ(int64("SELECT count(*) FROM sequence_ranges"), 1);
 }
 
 TEST_F(IngestStoreTest, LeadingHoleIsAGap) {
-  IngestStore s(cluster_->conninfo(), 100);
+  IngestStore s(conninfo(), 100);
   s.write(record("b1", "s1", 3));
   const auto gaps = s.gaps();
   ASSERT_EQ(gaps.size(), 1u);
@@ -253,17 +217,17 @@ TEST_F(IngestStoreTest, LeadingHoleIsAGap) {
 }
 
 TEST_F(IngestStoreTest, WipedStoreDoesNotCollideWithItsEarlierRows) {
-  IngestStore s(cluster_->conninfo(), 100);
+  IngestStore s(conninfo(), 100);
   for (std::uint64_t seq : {1, 2}) s.write(record("b1", "old-store", seq));
   for (std::uint64_t seq : {1, 2}) EXPECT_EQ(s.write(record("b1", "new-store", seq)).inserted, 1);
-  EXPECT_EQ(count("SELECT count(*) FROM fault_events WHERE vehicle_id = 'b1'"), 4);
+  EXPECT_EQ(int64("SELECT count(*) FROM fault_events WHERE vehicle_id = 'b1'"), 4);
   EXPECT_TRUE(s.gaps().empty());
 }
 
 TEST_F(IngestStoreTest, RejectIsStoredWithItsReason) {
-  IngestStore s(cluster_->conninfo(), 100);
+  IngestStore s(conninfo(), 100);
   s.write_reject("fleet/v1/b1/ride\x1b[31m", {"not_an_envelope", "3 bytes"}, 3);
-  PgConnection c(cluster_->conninfo());
+  PgConnection c(conninfo());
   const auto r = c.exec("SELECT topic, reason FROM rejected_messages", "rejects");
   ASSERT_EQ(r.rows(), 1);
   EXPECT_EQ(r.text(0, 0), "fleet/v1/b1/ride\\x1b[31m");
@@ -274,14 +238,13 @@ TEST_F(IngestStoreTest, RejectIsStoredWithItsReason) {
 // the vehicle's state: later real ones replace it. An older state after a real one is still
 // out of order, and counted as such (not as a duplicate).
 TEST_F(IngestStoreTest, StateFromTheFutureIsReplacedByLaterRealOnes) {
-  IngestStore s(cluster_->conninfo());
+  IngestStore s(conninfo());
   const auto state = [](std::int64_t at_us, std::uint32_t soc) {
     v1::Envelope e;
     e.set_vehicle_id("b1");
     e.mutable_state()->set_updated_at_us(at_us);
     e.mutable_state()->set_soc_pct(soc);
-    return std::get<Decoded>(
-        fleetgw::ingest::decode_message("fleet/v1", "fleet/v1/b1/state", e.SerializeAsString()));
+    return decoded(e, "state");
   };
   const std::int64_t now = std::chrono::duration_cast<std::chrono::microseconds>(
                                std::chrono::system_clock::now().time_since_epoch())
@@ -289,22 +252,22 @@ TEST_F(IngestStoreTest, StateFromTheFutureIsReplacedByLaterRealOnes) {
   constexpr std::int64_t kYearUs = 365LL * 24 * 3600 * 1'000'000;
   s.write(state(now + 10 * kYearUs, 10));
   EXPECT_EQ(s.write(state(now, 50)).stale_states, 0);
-  EXPECT_EQ(count("SELECT soc_pct FROM vehicle_state WHERE vehicle_id = 'b1'"), 50);
+  EXPECT_EQ(int64("SELECT soc_pct FROM vehicle_state WHERE vehicle_id = 'b1'"), 50);
   const auto late = s.write(state(now - 1'000'000, 20));
   EXPECT_EQ(late.stale_states, 1);
   EXPECT_EQ(late.duplicates, 0);
-  EXPECT_EQ(count("SELECT soc_pct FROM vehicle_state WHERE vehicle_id = 'b1'"), 50);
+  EXPECT_EQ(int64("SELECT soc_pct FROM vehicle_state WHERE vehicle_id = 'b1'"), 50);
 }
 
 // Issue 24: the docs allow sequences up to 2^63-1; the range bookkeeping must not overflow.
 TEST_F(IngestStoreTest, SequenceAtTheTopOfBigintIsAccounted) {
-  IngestStore s(cluster_->conninfo());
+  IngestStore s(conninfo());
   constexpr auto kMax = static_cast<std::uint64_t>(std::numeric_limits<std::int64_t>::max());
   EXPECT_EQ(s.write(record("b1", "s1", kMax)).inserted, 1);
   EXPECT_EQ(s.write(record("b1", "s1", kMax - 1)).inserted, 1);
   EXPECT_EQ(s.write(record("b1", "s1", kMax)).duplicates, 1);
-  EXPECT_EQ(count("SELECT count(*) FROM sequence_ranges"), 1);
-  EXPECT_EQ(count("SELECT count(*) FROM sequence_ranges WHERE last_seq = 9223372036854775807 "
+  EXPECT_EQ(int64("SELECT count(*) FROM sequence_ranges"), 1);
+  EXPECT_EQ(int64("SELECT count(*) FROM sequence_ranges WHERE last_seq = 9223372036854775807 "
                   "AND first_seq = 9223372036854775806"),
             1);
   const auto gaps = s.gaps();
@@ -315,15 +278,14 @@ TEST_F(IngestStoreTest, SequenceAtTheTopOfBigintIsAccounted) {
 
 // Issue 24: a status attention text is stored exactly as sent (a newline, quotes, backslashes).
 TEST_F(IngestStoreTest, AttentionTextIsStoredAsSent) {
-  IngestStore s(cluster_->conninfo());
+  IngestStore s(conninfo());
   v1::Envelope e;
   e.set_vehicle_id("b1");
   const std::vector<std::string> texts = {"outbox full\nsince 10:00", "say \"hi\" \\o/",
                                           "tab\there, {braces}", ""};
   for (const std::string& t : texts) e.mutable_status()->add_attention(t);
-  s.write(std::get<Decoded>(
-      fleetgw::ingest::decode_message("fleet/v1", "fleet/v1/b1/status", e.SerializeAsString())));
-  PgConnection c(cluster_->conninfo());
+  s.write(decoded(e, "status"));
+  PgConnection c(conninfo());
   const auto r = c.exec("SELECT unnest(attention) FROM status WHERE vehicle_id = 'b1'", "att");
   ASSERT_EQ(r.rows(), static_cast<int>(texts.size()));
   for (int i = 0; i < r.rows(); ++i) EXPECT_EQ(r.text(i, 0), texts[i]);
@@ -332,14 +294,13 @@ TEST_F(IngestStoreTest, AttentionTextIsStoredAsSent) {
 // One batch: records (one already stored: a duplicate), two states of one vehicle out of order;
 // the counters name each apart.
 TEST_F(IngestStoreTest, BatchCountsDuplicatesAndOutOfOrderStatesApart) {
-  IngestStore s(cluster_->conninfo());
+  IngestStore s(conninfo());
   s.write(record("b1", "s1", 1));
   const auto state = [](std::int64_t at_us) {
     v1::Envelope e;
     e.set_vehicle_id("b2");
     e.mutable_state()->set_updated_at_us(at_us);
-    return std::get<Decoded>(
-        fleetgw::ingest::decode_message("fleet/v1", "fleet/v1/b2/state", e.SerializeAsString()));
+    return decoded(e, "state");
   };
   const Decoded a = record("b1", "s1", 1), b = record("b1", "s1", 2), c = record("b1", "s1", 3),
                 newer = state(2'000), older = state(1'000);
@@ -348,8 +309,8 @@ TEST_F(IngestStoreTest, BatchCountsDuplicatesAndOutOfOrderStatesApart) {
   EXPECT_EQ(r.stats.duplicates, 1);
   EXPECT_EQ(r.stats.stale_states, 1);
   EXPECT_EQ(r.stats.inserted, 3);  // two records and one state
-  EXPECT_EQ(count("SELECT updated_at_us FROM vehicle_state WHERE vehicle_id = 'b2'"), 2'000);
-  EXPECT_EQ(count("SELECT count(*) FROM sequence_ranges"), 1);
+  EXPECT_EQ(int64("SELECT updated_at_us FROM vehicle_state WHERE vehicle_id = 'b2'"), 2'000);
+  EXPECT_EQ(int64("SELECT count(*) FROM sequence_ranges"), 1);
   EXPECT_TRUE(s.gaps().empty());
 }
 
@@ -357,7 +318,7 @@ TEST_F(IngestStoreTest, BatchCountsDuplicatesAndOutOfOrderStatesApart) {
 // store, a range leaving a hole and one bridging two stored ranges, in the same batches: the
 // accounted ranges and the gap report stay exact (the merge of kMergeRanges, ingest_store.cc).
 TEST_F(IngestStoreTest, MixedRangesOfABatchMergeExactly) {
-  IngestStore s(cluster_->conninfo());
+  IngestStore s(conninfo());
   const auto write =
       [&](const std::vector<std::tuple<std::string, std::uint64_t, std::uint64_t>>& runs) {
         std::vector<Decoded> records;
@@ -369,7 +330,7 @@ TEST_F(IngestStoreTest, MixedRangesOfABatchMergeExactly) {
         return s.write_batch(batch).stats;
       };
   const auto ranges = [&] {
-    PgConnection c(cluster_->conninfo());
+    PgConnection c(conninfo());
     const auto r = c.exec(
         "SELECT string_agg(vehicle_id || ':' || first_seq || '-' || last_seq, ' ' ORDER BY "
         "vehicle_id, first_seq) FROM sequence_ranges",
@@ -396,31 +357,31 @@ TEST_F(IngestStoreTest, MixedRangesOfABatchMergeExactly) {
   gaps = s.gaps();
   ASSERT_EQ(gaps.size(), 1u);
   EXPECT_EQ(gaps[0].vehicle_id, "b3");
-  EXPECT_EQ(count("SELECT count(*) FROM fault_events"), 36 + 3 + 9 - 1);
+  EXPECT_EQ(int64("SELECT count(*) FROM fault_events"), 36 + 3 + 9 - 1);
 }
 
 // committed_at_us is the database's clock as the batch is written, one value for all its rows
 // (written by the COPY itself: a per-row volatile default would make the server insert row by
 // row, issue 25), between a reading before the batch and one after its commit.
 TEST_F(IngestStoreTest, BatchRowsCarryOneCommitStampFromTheDatabaseClock) {
-  IngestStore s(cluster_->conninfo());
+  IngestStore s(conninfo());
   s.connect();
   std::vector<Decoded> faults;
   for (std::uint64_t seq = 1; seq <= 300; ++seq) faults.push_back(record("b1", "s1", seq));
   std::vector<const Decoded*> batch;
   for (const Decoded& d : faults) batch.push_back(&d);
-  const std::int64_t before = count("SELECT fleet_now_us()");
+  const std::int64_t before = int64("SELECT fleet_now_us()");
   s.write_batch(batch);
-  const std::int64_t after = count("SELECT fleet_now_us()");
-  EXPECT_EQ(count("SELECT count(*) FROM fault_events"), 300);
-  EXPECT_EQ(count("SELECT count(DISTINCT committed_at_us) FROM fault_events"), 1);
-  const std::int64_t stamp = count("SELECT min(committed_at_us) FROM fault_events");
+  const std::int64_t after = int64("SELECT fleet_now_us()");
+  EXPECT_EQ(int64("SELECT count(*) FROM fault_events"), 300);
+  EXPECT_EQ(int64("SELECT count(DISTINCT committed_at_us) FROM fault_events"), 1);
+  const std::int64_t stamp = int64("SELECT min(committed_at_us) FROM fault_events");
   EXPECT_GE(stamp, before);
   EXPECT_LE(stamp, after);
   // A redelivery takes the ON CONFLICT path: nothing added, the stored stamp kept.
   EXPECT_EQ(s.write_batch(batch).stats.duplicates, 300);
   EXPECT_EQ(
-      count("SELECT count(*) FROM fault_events WHERE committed_at_us = " + std::to_string(stamp)),
+      int64("SELECT count(*) FROM fault_events WHERE committed_at_us = " + std::to_string(stamp)),
       300);
 }
 
@@ -429,18 +390,8 @@ TEST_F(IngestStoreTest, BatchRowsCarryOneCommitStampFromTheDatabaseClock) {
 // kept, each day in its partition, and a day's query reads that partition only.
 TEST_F(IngestStoreTest, MigrationToPartitionedTelemetryKeepsEveryRow) {
   {
-    PgConnection c(cluster_->conninfo());
-    c.exec(
-        "CREATE TABLE schema_migrations (version integer PRIMARY KEY, name text NOT NULL, "
-        "applied_at timestamptz NOT NULL DEFAULT now())",
-        "schema_migrations");
-    for (const auto& m : fleetgw::ingest::migrations()) {
-      if (m.version > 2) break;
-      c.exec(m.sql, "old migration");
-      c.exec("INSERT INTO schema_migrations (version, name) VALUES (" + std::to_string(m.version) +
-                 ", 'old')",
-             "old row");
-    }
+    migrate_up_to(2);
+    PgConnection c(conninfo());
     // 3 days x 100 samples, plus one at 1970-01-01.
     c.exec(
         "INSERT INTO telemetry_samples (vehicle_id, store_id, sequence, created_at_us, "
@@ -454,13 +405,13 @@ TEST_F(IngestStoreTest, MigrationToPartitionedTelemetryKeepsEveryRow) {
     c.exec("INSERT INTO sequence_ranges VALUES ('b1', 's1', 1, 299), ('b1', 's1', 1000, 1000)",
            "ranges");
   }
-  IngestStore s(cluster_->conninfo());
+  IngestStore s(conninfo());
   EXPECT_EQ(s.connect(), static_cast<int>(fleetgw::ingest::migrations().size()) - 2);
-  EXPECT_EQ(count("SELECT count(*) FROM telemetry_samples"), 301);
-  EXPECT_EQ(count("SELECT sum(speed_dkmh) FROM telemetry_samples"), 299 * 300 / 2);
-  EXPECT_EQ(count("SELECT count(*) FROM telemetry_samples_default"), 1);
-  EXPECT_EQ(count("SELECT count(DISTINCT tableoid) FROM telemetry_samples"), 4);
-  EXPECT_EQ(count("SELECT count(*) FROM sequence_ranges"), 2);
+  EXPECT_EQ(int64("SELECT count(*) FROM telemetry_samples"), 301);
+  EXPECT_EQ(int64("SELECT sum(speed_dkmh) FROM telemetry_samples"), 299 * 300 / 2);
+  EXPECT_EQ(int64("SELECT count(*) FROM telemetry_samples_default"), 1);
+  EXPECT_EQ(int64("SELECT count(DISTINCT tableoid) FROM telemetry_samples"), 4);
+  EXPECT_EQ(int64("SELECT count(*) FROM sequence_ranges"), 2);
   // A redelivered old sample is still a duplicate.
   v1::Envelope e;
   e.set_vehicle_id("b1");
@@ -468,12 +419,9 @@ TEST_F(IngestStoreTest, MigrationToPartitionedTelemetryKeepsEveryRow) {
   v1::TelemetrySample* sample = e.mutable_telemetry()->add_samples();
   sample->set_sequence(5);
   sample->set_sampled_at_us(1700000000000000 + 5);
-  EXPECT_EQ(s.write(std::get<Decoded>(fleetgw::ingest::decode_message(
-                        "fleet/v1", "fleet/v1/b1/telemetry", e.SerializeAsString())))
-                .duplicates,
-            1);
+  EXPECT_EQ(s.write(decoded(e, "telemetry")).duplicates, 1);
   // Partition pruning: a one-day range reads one partition.
-  PgConnection c(cluster_->conninfo());
+  PgConnection c(conninfo());
   const auto plan = c.exec(
       "EXPLAIN SELECT count(*) FROM telemetry_samples WHERE sampled_at_us >= 1700006400000000 "
       "AND sampled_at_us < 1700092800000000",
@@ -484,11 +432,11 @@ TEST_F(IngestStoreTest, MigrationToPartitionedTelemetryKeepsEveryRow) {
   EXPECT_NE(text.find("telemetry_samples_p"), std::string::npos) << text;
   // Partitions ahead, and retention drops the old days (their rows only).
   EXPECT_EQ(s.maintain_partitions(3, 0), 0);
-  EXPECT_GE(count("SELECT count(*) FROM pg_inherits WHERE inhparent = "
+  EXPECT_GE(int64("SELECT count(*) FROM pg_inherits WHERE inhparent = "
                   "'telemetry_samples'::regclass"),
             4 + 5);
   EXPECT_EQ(s.maintain_partitions(3, 30), 3);
-  EXPECT_EQ(count("SELECT count(*) FROM telemetry_samples"), 1);
+  EXPECT_EQ(int64("SELECT count(*) FROM telemetry_samples"), 1);
 }
 
 }  // namespace

@@ -7,7 +7,10 @@
 #include <fstream>
 #include <stdexcept>
 #include <system_error>
+#include <utility>
 
+#include "backend/common/pg.h"
+#include "backend/ingest/migrations.h"
 #include "tests/support/process.h"
 
 namespace fleetgw::testing {
@@ -101,6 +104,65 @@ std::string PostgresCluster::conninfo() const {
 
 std::string PostgresCluster::log() const {
   return read_text_file(dir_.path() / "server.log");
+}
+
+std::unique_ptr<PostgresCluster> PgDatabaseTest::cluster_;
+
+void PgDatabaseTest::SetUpTestSuite() {
+  if (postgres_bin_dir().empty()) return;
+  cluster_ = std::make_unique<PostgresCluster>();
+}
+
+void PgDatabaseTest::TearDownTestSuite() {
+  cluster_.reset();
+}
+
+void PgDatabaseTest::SetUp() {
+  if (!cluster_) GTEST_SKIP() << "PostgreSQL server binaries not installed";
+  PgConnection c(cluster_->conninfo());
+  c.exec("DROP SCHEMA public CASCADE; CREATE SCHEMA public", "reset");
+}
+
+std::string PgDatabaseTest::text(const std::string& sql) {
+  PgConnection c(cluster_->conninfo());
+  const auto r = c.exec(sql, "query");
+  return r.rows() == 0 || r.is_null(0, 0) ? "<null>" : r.str(0, 0);
+}
+
+std::int64_t PgDatabaseTest::int64(const std::string& sql) {
+  PgConnection c(cluster_->conninfo());
+  return c.exec(sql, "query").int64(0, 0);
+}
+
+void PgDatabaseTest::migrate_up_to(int version) {
+  PgConnection c(cluster_->conninfo());
+  c.exec(
+      "CREATE TABLE schema_migrations (version integer PRIMARY KEY, name text NOT NULL, "
+      "applied_at timestamptz NOT NULL DEFAULT now())",
+      "schema_migrations");
+  for (const auto& m : ingest::migrations()) {
+    if (m.version > version) break;
+    c.exec(m.sql, "old migration");
+    c.exec("INSERT INTO schema_migrations (version, name) VALUES (" + std::to_string(m.version) +
+               ", 'old')",
+           "old migration's row");
+  }
+}
+
+std::variant<ingest::Decoded, ingest::Reject> decode_as(const v1::Envelope& envelope,
+                                                        std::string_view leaf) {
+  return ingest::decode_message("fleet/v1",
+                                "fleet/v1/" + envelope.vehicle_id() + "/" + std::string(leaf),
+                                envelope.SerializeAsString());
+}
+
+ingest::Decoded decoded(const v1::Envelope& envelope, std::string_view leaf) {
+  auto r = decode_as(envelope, leaf);
+  if (auto* reject = std::get_if<ingest::Reject>(&r)) {
+    throw std::runtime_error("the ingest refused the test's record: " + reject->code + ": " +
+                             reject->detail);
+  }
+  return std::get<ingest::Decoded>(std::move(r));
 }
 
 }  // namespace fleetgw::testing
