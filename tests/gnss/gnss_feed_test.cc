@@ -5,41 +5,24 @@
 #include "gateway/gnss/gnss_feed.h"
 
 #include <gtest/gtest.h>
-#include <netinet/in.h>
-#include <sys/socket.h>
-#include <unistd.h>
 
 #include <asio/io_context.hpp>
 #include <string>
 
 #include "env/env.h"
+#include "tests/support/process.h"
 
 namespace fleetgw::gnss {
 namespace {
 
 using namespace std::chrono_literals;
 
-// A local TCP port nothing listens on: bound, read back, released.
-std::string refused_port() {
-  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
-  sockaddr_in addr{};
-  addr.sin_family = AF_INET;
-  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  socklen_t len = sizeof addr;
-  if (fd < 0 || ::bind(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr) != 0 ||
-      ::getsockname(fd, reinterpret_cast<sockaddr*>(&addr), &len) != 0) {
-    ADD_FAILURE() << "no local port";
-  }
-  ::close(fd);
-  return std::to_string(ntohs(addr.sin_port));
-}
-
 TEST(GnssFeed, BackOffAndAgeingRunOnTheInjectedClock) {
   asio::io_context io;
   ManualEnv env;
   GnssFeedOptions o;
   o.host = "127.0.0.1";
-  o.port = refused_port();
+  o.port = std::to_string(fleetgw::testing::free_loopback_port());  // nothing listens: refused
   o.reconnect_min = 1000ms;
   o.reconnect_max = 4000ms;
   int events = 0;

@@ -3,30 +3,14 @@
 #include "gateway/gnss/gpsd_client.h"
 
 #include <gtest/gtest.h>
-#include <netinet/in.h>
-#include <sys/socket.h>
-#include <unistd.h>
 
 #include <fstream>
 #include <string>
 
+#include "tests/support/process.h"
+
 namespace fleetgw::gnss {
 namespace {
-
-// A local TCP port nothing listens on: bound, read back, released.
-int closed_port() {
-  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
-  sockaddr_in addr{};
-  addr.sin_family = AF_INET;
-  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  socklen_t len = sizeof addr;
-  if (fd < 0 || ::bind(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr) != 0 ||
-      ::getsockname(fd, reinterpret_cast<sockaddr*>(&addr), &len) != 0) {
-    ADD_FAILURE() << "no local port";
-  }
-  ::close(fd);
-  return ntohs(addr.sin_port);
-}
 
 bool mapped(std::string_view library) {
   std::ifstream maps("/proc/self/maps");
@@ -39,7 +23,8 @@ bool mapped(std::string_view library) {
 
 TEST(GpsdClient, LoadsLibgpsOnlyWhenItFirstConnects) {
   ASSERT_FALSE(mapped(FLEETGW_LIBGPS_SONAME)) << "linked, not loaded on demand";
-  const std::string port = std::to_string(closed_port());
+  const std::string port =
+      std::to_string(fleetgw::testing::free_loopback_port());  // nothing listens
   GpsdClient client("127.0.0.1", port);
   EXPECT_FALSE(mapped(FLEETGW_LIBGPS_SONAME)) << "constructing a client loads nothing";
   const std::string error = client.connect();
