@@ -10,7 +10,9 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <functional>
 #include <map>
+#include <memory>
 
 #include "gateway/runtime/store_outbox.h"
 #include "gateway/uplink/uplink.h"
@@ -119,26 +121,63 @@ SentCommand signed_seat(Rig& rig, const std::string& id, std::string_view action
                           kKeyId);
 }
 
-TEST(CommandMqttBurst, EveryAuthenticatedCommandTheQueueCannotTakeIsAnsweredBusy) {
-  fleetgw::testing::MosquittoBroker broker;
-  broker.start();
-  QueueGateway gw(broker.uri());
-  BurstClient backend(broker.uri(), kVehicle);
-  ASSERT_TRUE(gw.ready(backend)) << broker.log();
-  const std::uint64_t before = gw.accounted();
+// Signed seat commands, by id in the order sent.
+struct Burst {
+  std::vector<std::string> ids;
+  std::map<std::string, SentCommand> sent;
+};
 
+// What every test starts from: a real mosquitto, the gateway side connected and subscribed with
+// the seat lock heard (QueueGateway::ready), the backend's client, and how many payloads the
+// uplink had sorted by then (the probes).
+class CommandMqttBurst : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    broker_.start();
+    started_ = std::chrono::steady_clock::now();  // before the uplink's budgets start
+    gateway_ = std::make_unique<QueueGateway>(broker_.uri());
+    backend_ = std::make_unique<BurstClient>(broker_.uri(), kVehicle);
+    ASSERT_TRUE(gateway_->ready(*backend_)) << broker_.log();
+    before_ = gateway_->accounted();
+  }
+
+  // `count` signed seat commands "<prefix><i>" doing action(i), published back to back.
+  Burst publish_burst(const std::string& prefix, int count,
+                      const std::function<std::string_view(int)>& action) {
+    Burst b;
+    std::vector<std::string> payloads;
+    for (int i = 0; i < count; ++i) {
+      b.ids.push_back(prefix + std::to_string(i));
+      b.sent[b.ids.back()] = signed_seat(gateway_->rig, b.ids.back(), action(i));
+      payloads.push_back(b.sent[b.ids.back()].payload);
+    }
+    backend_->publish(payloads);
+    return b;
+  }
+  // Waits until the uplink has sorted `count` payloads since the set-up; the owner's thread
+  // takes none of them until `take` is set.
+  bool sorted(std::uint64_t count) {
+    return gateway_->step_until([&] { return gateway_->accounted() - before_ == count; }, 20s);
+  }
+  std::uint64_t sorted_so_far() const { return gateway_->accounted() - before_; }
+
+  fleetgw::testing::MosquittoBroker broker_;
+  std::chrono::steady_clock::time_point started_;
+  std::unique_ptr<QueueGateway> gateway_;
+  std::unique_ptr<BurstClient> backend_;
+  std::uint64_t before_ = 0;
+};
+
+TEST_F(CommandMqttBurst, EveryAuthenticatedCommandTheQueueCannotTakeIsAnsweredBusy) {
+  QueueGateway& gw = *gateway_;
+  BurstClient& backend = *backend_;
   // 40 signed commands on the seat lock, distinct ids: unlock, lock, unlock, ...
   constexpr int kBurst = 40;
-  std::map<std::string, SentCommand> sent;
-  std::vector<std::string> ids, payloads;
-  for (int i = 0; i < kBurst; ++i) {
-    ids.push_back("burst-" + std::to_string(i));
-    sent[ids.back()] = signed_seat(gw.rig, ids.back(), i % 2 == 0 ? "unlock" : "lock");
-    payloads.push_back(sent[ids.back()].payload);
-  }
-  backend.publish(payloads);
-  ASSERT_TRUE(gw.step_until([&] { return gw.accounted() - before == kBurst; }, 20s))
-      << gw.accounted() - before;
+  Burst burst =
+      publish_burst("burst-", kBurst, [](int i) { return i % 2 == 0 ? "unlock" : "lock"; });
+  const auto& ids = burst.ids;
+  auto& sent = burst.sent;
+  ASSERT_TRUE(sorted(kBurst)) << sorted_so_far();
   const auto s = gw.link->stats();
   EXPECT_EQ(s.commands_received, 16u) << "max_queued_commands wait for the owner";
   EXPECT_EQ(s.commands_busy, kBurst - 16u);
@@ -177,23 +216,14 @@ TEST(CommandMqttBurst, EveryAuthenticatedCommandTheQueueCannotTakeIsAnsweredBusy
 // the uplink holds, before, during and after its drain, with these two calls): every command
 // gets exactly one result -- shutting_down for the 16 queued, busy for the 24 busy notices --
 // nothing runs on the bus, and a command answered shutting_down runs when sent again.
-TEST(CommandMqttBurst, CommandsStillQueuedWhenTheGatewayStopsAreAnsweredShuttingDown) {
-  fleetgw::testing::MosquittoBroker broker;
-  broker.start();
-  QueueGateway gw(broker.uri());
-  BurstClient backend(broker.uri(), kVehicle);
-  ASSERT_TRUE(gw.ready(backend)) << broker.log();
-  const std::uint64_t before = gw.accounted();
+TEST_F(CommandMqttBurst, CommandsStillQueuedWhenTheGatewayStopsAreAnsweredShuttingDown) {
+  QueueGateway& gw = *gateway_;
+  BurstClient& backend = *backend_;
   constexpr int kBurst = 40;
-  std::map<std::string, SentCommand> sent;
-  std::vector<std::string> ids, payloads;
-  for (int i = 0; i < kBurst; ++i) {
-    ids.push_back("stop-" + std::to_string(i));
-    sent[ids.back()] = signed_seat(gw.rig, ids.back(), "unlock");
-    payloads.push_back(sent[ids.back()].payload);
-  }
-  backend.publish(payloads);
-  ASSERT_TRUE(gw.step_until([&] { return gw.accounted() - before == kBurst; }, 20s));
+  Burst burst = publish_burst("stop-", kBurst, [](int) { return "unlock"; });
+  const auto& ids = burst.ids;
+  auto& sent = burst.sent;
+  ASSERT_TRUE(sorted(kBurst)) << sorted_so_far();
 
   // The stop: what the uplink holds is answered, nothing is run.
   const Micros now = wall_now();
@@ -230,14 +260,9 @@ TEST(CommandMqttBurst, CommandsStillQueuedWhenTheGatewayStopsAreAnsweredShutting
       gw.step_until([&] { return gw.rig.lock_state(0) == sim::LockState::kUnlocked; }, 10s));
 }
 
-TEST(CommandMqttBurst, JunkNeverTakesAnAuthenticatedCommandsPlaceAndEveryDropIsCounted) {
-  fleetgw::testing::MosquittoBroker broker;
-  broker.start();
-  const auto t0 = std::chrono::steady_clock::now();
-  QueueGateway gw(broker.uri());
-  BurstClient backend(broker.uri(), kVehicle);
-  ASSERT_TRUE(gw.ready(backend)) << broker.log();
-  const std::uint64_t before = gw.accounted();
+TEST_F(CommandMqttBurst, JunkNeverTakesAnAuthenticatedCommandsPlaceAndEveryDropIsCounted) {
+  QueueGateway& gw = *gateway_;
+  BurstClient& backend = *backend_;
 
   // 100 well-formed commands under the trusted key id with zeroed signatures, then the genuine
   // one, all before the owner takes anything.
@@ -251,8 +276,7 @@ TEST(CommandMqttBurst, JunkNeverTakesAnAuthenticatedCommandsPlaceAndEveryDropIsC
   std::map<std::string, SentCommand> genuine{{"genuine", signed_seat(gw.rig, "genuine", "unlock")}};
   payloads.push_back(genuine["genuine"].payload);
   backend.publish(payloads);
-  ASSERT_TRUE(gw.step_until([&] { return gw.accounted() - before == 101; }, 20s))
-      << gw.accounted() - before;
+  ASSERT_TRUE(sorted(101)) << sorted_so_far();
   auto s = gw.link->stats();
   EXPECT_EQ(s.commands_unauthenticated, 4u) << "the unauthenticated lane's queue";
   EXPECT_EQ(s.commands_received, 5u) << "4 unauthenticated + the genuine command";
@@ -279,7 +303,7 @@ TEST(CommandMqttBurst, JunkNeverTakesAnAuthenticatedCommandsPlaceAndEveryDropIsC
   ASSERT_TRUE(gw.step_until([&] { return gw.accounted() - flood_base == 200; }, 20s));
   s = gw.link->stats();
   const double minutes =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() / 60;
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - started_).count() / 60;
   EXPECT_LE(static_cast<double>(s.commands_unauthenticated), 10 + 30 * minutes);
   EXPECT_EQ(s.commands_unauthenticated + s.commands_dropped_unauthenticated, 300u);
 
