@@ -10,7 +10,7 @@
 #include "gateway/sim/scenario.h"
 #include "gateway/uplink/uplink_config_check.h"
 
-namespace fleetgw::app {
+namespace fleetgw::cli {
 namespace fs = std::filesystem;
 namespace {
 
@@ -143,4 +143,4 @@ int run_check_config(const fs::path& file, std::ostream& out, std::ostream& err)
   return 0;
 }
 
-}  // namespace fleetgw::app
+}  // namespace fleetgw::cli

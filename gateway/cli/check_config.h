@@ -28,7 +28,7 @@
 
 #include "gateway/config/config.h"
 
-namespace fleetgw::app {
+namespace fleetgw::cli {
 
 std::vector<std::string> check_runnable(const config::Config& config);
 
@@ -40,4 +40,4 @@ int run_check_config(const std::filesystem::path& file, std::ostream& out, std::
 // Prints a ConfigError's problems and their count (the format both commands use).
 void print_config_error(const config::ConfigError& e, std::ostream& err);
 
-}  // namespace fleetgw::app
+}  // namespace fleetgw::cli

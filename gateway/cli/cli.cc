@@ -31,7 +31,7 @@
 #include "gateway/tools/store/db_command.h"
 #include "gateway/tools/store/ride_command.h"
 
-namespace fleetgw::app {
+namespace fleetgw::cli {
 namespace {
 
 // Protocol options shared by every subcommand that decodes: flags override the config file.
@@ -191,7 +191,7 @@ int run_status(status::StatusCommandOptions options, const std::string& format, 
   std::ostringstream doc;
   const int rc = status::run_status_command(options, doc, err);
   if (rc != status::kStatusUnreachable) {
-    write_csv(flatten(nlohmann::json::parse(doc.str(), nullptr, false)), out);
+    tools::write_csv(tools::flatten(nlohmann::json::parse(doc.str(), nullptr, false)), out);
   }
   return rc;
 }
@@ -292,23 +292,23 @@ int run_cli(int argc, char** argv) {
                       "pty linked at PATH, for gpsd");
 
   // db
-  auto db = add_db_command(app);
+  auto db = tools::add_db_command(app);
 
   // ride
-  auto ride = add_ride_command(app);
+  auto ride = tools::add_ride_command(app);
 
   // watch
   // Options are validated here (so `fleetgw watch --help` and typos behave like every other
   // subcommand), then the same arguments go to fleetgw-watch.
   auto* watch_cmd = app.add_subcommand("watch", "print the Envelopes a broker receives, as JSON");
-  WatchOptions watch_options;
-  add_watch_options(*watch_cmd, watch_options);
+  tools::WatchOptions watch_options;
+  tools::add_watch_options(*watch_cmd, watch_options);
 
   // ingest: validated here, run by fleetgw-ingest (libpq stays out of this binary)
   auto* ingest_cmd = app.add_subcommand(
       "ingest", "write the fleet's Envelopes from an MQTT 5 shared subscription into PostgreSQL");
   ingest::IngestOptions ingest_options;
-  add_ingest_options(*ingest_cmd, ingest_options);
+  app::add_ingest_options(*ingest_cmd, ingest_options);  // backend/app, the ingest program
 
   // fleet-sim: every argument (--help too) goes to fleetgw-fleet-sim, a backend program
   auto* fleet_sim_cmd = app.add_subcommand(
@@ -398,7 +398,7 @@ int run_cli(int argc, char** argv) {
 
   // command
   campaign::CampaignCli campaign_cli(app);  // signals, campaign sign|check (issue 29)
-  KeysCli keys_cli(app);                    // keys root|delegate|revoke|show|... (issue 28)
+  tools::KeysCli keys_cli(app);             // keys root|delegate|revoke|show|... (issue 28)
   auto* command_cmd = app.add_subcommand(
       "command",
       "sign and send a remote command (lock/unlock, speed limit, assist, lights, "
@@ -478,7 +478,7 @@ int run_cli(int argc, char** argv) {
       decode_options.protocol = decode_flags.resolve();
       decode_options.gap_timeout = motinova::Micros(int64_t{gap_ms} * 1000);
       decode_options.summary_format =
-          parse_output_format(decode_format).value_or(OutputFormat::kTable);
+          tools::parse_output_format(decode_format).value_or(tools::OutputFormat::kTable);
       return decode::run_decode(decode_options, std::cout, std::cerr);
     }
     if (run_cmd->parsed()) {
@@ -514,11 +514,11 @@ int run_cli(int argc, char** argv) {
       // stdout is the data (JSON, CSV): the store's log lines go to stderr.
       setup_logging("warn");
       db->stdout_is_terminal = ::isatty(STDOUT_FILENO) != 0;
-      return run_db_command(*db, std::cout, std::cerr);
+      return tools::run_db_command(*db, std::cout, std::cerr);
     }
     if (ride->command->parsed()) {
       setup_logging("warn");  // the store's log lines on stderr
-      return run_ride_command(*ride, std::cout, std::cerr);
+      return tools::run_ride_command(*ride, std::cout, std::cerr);
     }
     if (watch_cmd->parsed()) {
       return exec_subcommand_program("fleetgw-watch", "watch", argc, argv);
@@ -590,4 +590,4 @@ int run_cli(int argc, char** argv) {
   return 0;
 }
 
-}  // namespace fleetgw::app
+}  // namespace fleetgw::cli

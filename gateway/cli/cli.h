@@ -4,8 +4,8 @@
 // Usage errors exit 2 with CLI11's message; a subcommand's own errors are printed to stderr.
 #pragma once
 
-namespace fleetgw::app {
+namespace fleetgw::cli {
 
 int run_cli(int argc, char** argv);
 
-}  // namespace fleetgw::app
+}  // namespace fleetgw::cli

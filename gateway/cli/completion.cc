@@ -4,7 +4,7 @@
 #include <string_view>
 #include <vector>
 
-namespace fleetgw::app {
+namespace fleetgw::cli {
 namespace {
 
 // One command path of the completion tables.
@@ -196,4 +196,4 @@ void write_bash_completion(const CLI::App& app, std::ostream& out) {
   out << "  esac\n  return 1\n}\n\n" << kCompletionFunction;
 }
 
-}  // namespace fleetgw::app
+}  // namespace fleetgw::cli

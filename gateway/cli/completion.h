@@ -25,7 +25,7 @@
 
 #include <ostream>
 
-namespace fleetgw::app {
+namespace fleetgw::cli {
 
 // Adds the hidden `completion SHELL` subcommand (SHELL: bash) to `app` and returns it: when it
 // was parsed, the caller prints write_bash_completion(app, ...) once everything is registered.
@@ -33,4 +33,4 @@ CLI::App* add_completion_command(CLI::App& app);
 
 void write_bash_completion(const CLI::App& app, std::ostream& out);
 
-}  // namespace fleetgw::app
+}  // namespace fleetgw::cli

@@ -3,7 +3,7 @@
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 
-namespace fleetgw::app {
+namespace fleetgw::cli {
 
 void setup_logging(std::string_view level) {
   auto logger = spdlog::stderr_color_mt("fleetgw");
@@ -12,4 +12,4 @@ void setup_logging(std::string_view level) {
   spdlog::set_pattern("%Y-%m-%d %H:%M:%S.%e %^%l%$ %v");
 }
 
-}  // namespace fleetgw::app
+}  // namespace fleetgw::cli

@@ -4,8 +4,8 @@
 
 #include <string_view>
 
-namespace fleetgw::app {
+namespace fleetgw::cli {
 
 void setup_logging(std::string_view level);
 
-}  // namespace fleetgw::app
+}  // namespace fleetgw::cli

@@ -30,6 +30,6 @@ void bound_retained_heap() {
 int main(int argc, char** argv) {
   bound_retained_heap();
   // Hostile payloads must not write one stderr line each through protobuf (issue 11).
-  const fleetgw::app::ProtobufLogRoute protobuf_log;
-  return fleetgw::app::run_cli(argc, argv);
+  const fleetgw::cli::ProtobufLogRoute protobuf_log;
+  return fleetgw::cli::run_cli(argc, argv);
 }

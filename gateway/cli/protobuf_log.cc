@@ -11,7 +11,7 @@
 #include "gateway/common/untrusted_text.h"
 #include "storage/rate_limited_log.h"
 
-namespace fleetgw::app {
+namespace fleetgw::cli {
 namespace {
 
 namespace pb = google::protobuf;
@@ -65,4 +65,4 @@ ProtobufLogRoute::~ProtobufLogRoute() {
   r.log.reset();
 }
 
-}  // namespace fleetgw::app
+}  // namespace fleetgw::cli

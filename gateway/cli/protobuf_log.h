@@ -21,7 +21,7 @@
 
 #include <chrono>
 
-namespace fleetgw::app {
+namespace fleetgw::cli {
 
 class ProtobufLogRoute {
  public:
@@ -31,4 +31,4 @@ class ProtobufLogRoute {
   ProtobufLogRoute& operator=(const ProtobufLogRoute&) = delete;
 };
 
-}  // namespace fleetgw::app
+}  // namespace fleetgw::cli

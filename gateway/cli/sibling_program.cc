@@ -7,7 +7,7 @@
 #include <string>
 #include <vector>
 
-namespace fleetgw::app {
+namespace fleetgw::cli {
 
 int exec_subcommand_program(std::string_view program_name, std::string_view command, int argc,
                             char** argv) {
@@ -30,4 +30,4 @@ int exec_subcommand_program(std::string_view program_name, std::string_view comm
   return 127;
 }
 
-}  // namespace fleetgw::app
+}  // namespace fleetgw::cli

@@ -11,9 +11,9 @@
 
 #include <string_view>
 
-namespace fleetgw::app {
+namespace fleetgw::cli {
 
 int exec_subcommand_program(std::string_view program, std::string_view command, int argc,
                             char** argv);
 
-}  // namespace fleetgw::app
+}  // namespace fleetgw::cli

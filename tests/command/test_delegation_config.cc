@@ -17,7 +17,7 @@ std::string problems_of(const std::string& toml) {
   try {
     const auto c = config::parse_config(toml, "test.toml");
     std::string out;
-    for (const auto& p : app::check_runnable(c)) out += p + "\n";
+    for (const auto& p : cli::check_runnable(c)) out += p + "\n";
     return out;
   } catch (const config::ConfigError& e) {
     return e.what();
@@ -67,8 +67,8 @@ TEST(DelegationConfig, AnOldConfigurationWithoutThemStillLoads) {
       config::parse_config("[command.trusted_keys]\nbackend-1 = \"" + key + "\"\n", "old.toml");
   EXPECT_TRUE(c.vehicle.groups.empty());
   EXPECT_TRUE(c.command.root_keys.empty());
-  EXPECT_TRUE(app::check_runnable(c).empty() ||
-              app::check_runnable(c).front().find("root_keys") == std::string::npos);
+  EXPECT_TRUE(cli::check_runnable(c).empty() ||
+              cli::check_runnable(c).front().find("root_keys") == std::string::npos);
 }
 
 TEST(DelegationConfig, TheShippedExampleDocumentsAndParsesThem) {

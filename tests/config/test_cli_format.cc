@@ -12,7 +12,7 @@
 #include "gateway/tools/common/table_format.h"
 #include "gateway/tools/common/time_arg.h"
 
-namespace fleetgw::app::cli_format_test {
+namespace fleetgw::tools::cli_format_test {
 namespace {
 
 using nlohmann::json;
@@ -285,4 +285,4 @@ TEST(Flatten, NestedDocumentsBecomeDottedKeys) {
 }
 
 }  // namespace
-}  // namespace fleetgw::app::cli_format_test
+}  // namespace fleetgw::tools::cli_format_test

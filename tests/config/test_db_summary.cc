@@ -5,7 +5,7 @@
 
 #include "gateway/tools/store/db_summary.h"
 
-namespace fleetgw::app {
+namespace fleetgw::tools {
 namespace {
 
 using nlohmann::json;
@@ -100,4 +100,4 @@ TEST(DbSummary, NonObjectRowsCountAsAbsentValues) {
 }
 
 }  // namespace
-}  // namespace fleetgw::app
+}  // namespace fleetgw::tools

@@ -17,8 +17,8 @@
 namespace fleetgw::testing::ride_plot_unit {
 namespace {
 
-using app::PlotSample;
-using app::RidePlot;
+using tools::PlotSample;
+using tools::RidePlot;
 
 std::size_t count(std::string_view text, std::string_view what) {
   std::size_t n = 0;
@@ -60,7 +60,7 @@ RidePlot steady_ride(int seconds) {
 }
 
 TEST(RidePlotSvg, IsWellFormedWithTitleAxesAndFourPanels) {
-  const std::string svg = app::render_ride_svg(steady_ride(600));
+  const std::string svg = tools::render_ride_svg(steady_ride(600));
   EXPECT_EQ(xml_problem(svg), "");
   EXPECT_TRUE(svg.starts_with("<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<svg "));
   EXPECT_NE(svg.find("xmlns=\"http://www.w3.org/2000/svg\" width=\"900\" height=\"700\""),
@@ -86,7 +86,7 @@ TEST(RidePlotSvg, HostileRideIdIsEscapedEverywhere) {
   RidePlot p = steady_ride(60);
   p.ride_id = "<script>alert(\"x\")</script> & 'q' \x1b[2J\nnext\xff\xef\xbf\xbe";
   p.assist_names = {{1, "<b>eco&\"'"}};
-  const std::string svg = app::render_ride_svg(p);
+  const std::string svg = tools::render_ride_svg(p);
   EXPECT_EQ(xml_problem(svg), "");
   EXPECT_EQ(svg.find("<script"), std::string::npos);
   EXPECT_EQ(svg.find("<b>"), std::string::npos);
@@ -100,9 +100,9 @@ TEST(RidePlotSvg, HostileRideIdIsEscapedEverywhere) {
 }
 
 TEST(RidePlotSvg, XmlTextEscapesTheFiveCharactersAndControls) {
-  EXPECT_EQ(app::xml_text("a&b<c>d\"e'f"), "a&amp;b&lt;c&gt;d&quot;e&apos;f");
-  EXPECT_EQ(app::xml_text("x\ty\x01z"), "x\\ty\\x01z");
-  EXPECT_EQ(app::xml_text("\xff"), "\xef\xbf\xbd");
+  EXPECT_EQ(tools::xml_text("a&b<c>d\"e'f"), "a&amp;b&lt;c&gt;d&quot;e&apos;f");
+  EXPECT_EQ(tools::xml_text("x\ty\x01z"), "x\\ty\\x01z");
+  EXPECT_EQ(tools::xml_text("\xff"), "\xef\xbf\xbd");
 }
 
 TEST(RidePlotSvg, GapsAndMissingValuesBreakTheLines) {
@@ -116,9 +116,9 @@ TEST(RidePlotSvg, GapsAndMissingValuesBreakTheLines) {
     p.samples.push_back(s);
   }
   p.samples.push_back(sample(390, 15, 150, 78, 3));  // alone after a gap: a dot
-  p.gap_s = app::gap_threshold_s(p.samples);
+  p.gap_s = tools::gap_threshold_s(p.samples);
   EXPECT_DOUBLE_EQ(p.gap_s, 5.0);
-  const std::string svg = app::render_ride_svg(p);
+  const std::string svg = tools::render_ride_svg(p);
   EXPECT_EQ(xml_problem(svg), "");
   EXPECT_EQ(count(path_of(svg, "speed"), "M"), 3u) << path_of(svg, "speed");
   EXPECT_EQ(count(path_of(svg, "power"), "M"), 2u);
@@ -130,7 +130,7 @@ TEST(RidePlotSvg, GapsAndMissingValuesBreakTheLines) {
   EXPECT_EQ(count(svg, "class=\"dot dot-assist\""), 0u);
   // ... and without the gap threshold everything is one line.
   p.gap_s = 1000;
-  const std::string joined = app::render_ride_svg(p);
+  const std::string joined = tools::render_ride_svg(p);
   EXPECT_EQ(count(path_of(joined, "power"), "M"), 1u);
   EXPECT_EQ(count(path_of(joined, "speed"), "M"), 2u);  // the missing speeds still break it
 }
@@ -138,7 +138,7 @@ TEST(RidePlotSvg, GapsAndMissingValuesBreakTheLines) {
 TEST(RidePlotSvg, AssistIsDrawnAsNamedSteps) {
   RidePlot p = steady_ride(120);
   p.assist_names = {{1, "eco"}, {2, "norm"}};
-  const std::string svg = app::render_ride_svg(p);
+  const std::string svg = tools::render_ride_svg(p);
   const std::string d = path_of(svg, "assist");
   EXPECT_EQ(count(d, "M"), 1u);
   EXPECT_EQ(count(d, " V"), 1u) << d;  // one change of level: eco to norm
@@ -146,7 +146,7 @@ TEST(RidePlotSvg, AssistIsDrawnAsNamedSteps) {
   EXPECT_NE(svg.find(">eco</text>"), std::string::npos);
   EXPECT_NE(svg.find(">norm</text>"), std::string::npos);
   p.assist_names.clear();
-  const std::string unnamed = app::render_ride_svg(p);
+  const std::string unnamed = tools::render_ride_svg(p);
   EXPECT_NE(unnamed.find(">0x01</text>"), std::string::npos);
 }
 
@@ -154,7 +154,7 @@ TEST(RidePlotSvg, PanelWithoutDataSaysSo) {
   RidePlot p = steady_ride(60);
   for (auto& s : p.samples) s.power_w.reset();
   p.samples[3].soc_pct = std::nan("");  // NaN is missing, not a point
-  const std::string svg = app::render_ride_svg(p);
+  const std::string svg = tools::render_ride_svg(p);
   EXPECT_EQ(xml_problem(svg), "");
   EXPECT_EQ(count(svg, ">no data</text>"), 1u);
   EXPECT_EQ(path_of(svg, "power"), "");
@@ -162,7 +162,7 @@ TEST(RidePlotSvg, PanelWithoutDataSaysSo) {
   EXPECT_EQ(count(path_of(svg, "soc"), "M"), 2u);
   RidePlot empty;
   empty.ride_id = "empty";
-  const std::string none = app::render_ride_svg(empty);
+  const std::string none = tools::render_ride_svg(empty);
   EXPECT_EQ(xml_problem(none), "");
   EXPECT_EQ(count(none, ">no data</text>"), 4u);
 }
@@ -170,7 +170,7 @@ TEST(RidePlotSvg, PanelWithoutDataSaysSo) {
 TEST(RidePlotSvg, LongRidesAreThinnedKeepingSpikes) {
   RidePlot p = steady_ride(36'000);  // ten hours at 1 Hz
   p.samples[20'000].speed_kmh = 80;  // one spike
-  const std::string svg = app::render_ride_svg(p);
+  const std::string svg = tools::render_ride_svg(p);
   EXPECT_EQ(xml_problem(svg), "");
   const std::string d = path_of(svg, "speed");
   EXPECT_LT(count(d, ","), 4u * 801u);  // at most 4 points per pixel column
@@ -181,9 +181,9 @@ TEST(RidePlotSvg, LongRidesAreThinnedKeepingSpikes) {
 
 TEST(RidePlotSvg, GapThresholdFollowsTheSamplingInterval) {
   std::vector<PlotSample> samples;
-  EXPECT_DOUBLE_EQ(app::gap_threshold_s(samples), 5.0);
+  EXPECT_DOUBLE_EQ(tools::gap_threshold_s(samples), 5.0);
   for (int t = 0; t < 10; ++t) samples.push_back(sample(t * 10.0, 1, 1, 1, 1));
-  EXPECT_DOUBLE_EQ(app::gap_threshold_s(samples), 30.0);
+  EXPECT_DOUBLE_EQ(tools::gap_threshold_s(samples), 30.0);
 }
 
 }  // namespace

@@ -20,8 +20,8 @@
 namespace fleetgw::testing::ride_plot_map_unit {
 namespace {
 
-using app::RidePlot;
 using storage::TrackPoint;
+using tools::RidePlot;
 
 struct Xy {
   double x = 0;
@@ -70,7 +70,7 @@ RidePlot ride_with(std::vector<TrackPoint> track) {
   p.odometer_km = 8.1;
   p.gnss_distance_m = 6712;
   for (int t = 0; t <= 600; ++t) {
-    app::PlotSample s;
+    tools::PlotSample s;
     s.t_s = t;
     s.speed_kmh = 20;
     s.power_w = 200;
@@ -88,10 +88,10 @@ const std::vector<TrackPoint> kSquare = {
     {52.52, 13.405}, {52.52, 13.4345}, {52.5335, 13.4345}, {52.5335, 13.405}, {52.5227, 13.405}};
 
 TEST(RidePlotMap, SquareTrackIsNorthUpEastRightAtOneScale) {
-  const std::string svg = app::render_ride_svg(ride_with(kSquare));
+  const std::string svg = tools::render_ride_svg(ride_with(kSquare));
   ASSERT_EQ(xml_problem(svg), "");
   EXPECT_NE(svg.find("width=\"900\" height=\"" +
-                     std::to_string(app::kSvgHeight + app::kMapPanelHeight) + "\""),
+                     std::to_string(tools::kSvgHeight + tools::kMapPanelHeight) + "\""),
             std::string::npos);
   EXPECT_NE(svg.find("id=\"panel-map\""), std::string::npos);
   EXPECT_EQ(svg.find("no GNSS track"), std::string::npos);
@@ -132,12 +132,12 @@ TEST(RidePlotMap, SquareTrackIsNorthUpEastRightAtOneScale) {
   EXPECT_NE(svg.find(">start</text>"), std::string::npos);
   EXPECT_NE(svg.find(">end</text>"), std::string::npos);
   EXPECT_NE(svg.find(">GNSS 6.7 km, odometer 8.1 km</text>"), std::string::npos);
-  EXPECT_EQ(attribute(svg, "track", "stroke"), app::kTrackColour);
+  EXPECT_EQ(attribute(svg, "track", "stroke"), tools::kTrackColour);
 }
 
 TEST(RidePlotMap, TimePanelsAreTheSameWithAndWithoutATrack) {
-  const std::string with = app::render_ride_svg(ride_with(kSquare));
-  const std::string without = app::render_ride_svg(ride_with({}));
+  const std::string with = tools::render_ride_svg(ride_with(kSquare));
+  const std::string without = tools::render_ride_svg(ride_with({}));
   const auto panels = [](const std::string& svg) {
     const auto from = svg.find("<text class=\"title\"");
     return svg.substr(from, svg.find("minutes from ride start</text>") - from);
@@ -151,9 +151,9 @@ TEST(RidePlotMap, NoTrackMeansNoPanelAndANote) {
            {},
            {{52.52, 13.405}},                                                    // never moved 5 m
            {{std::nan(""), 13.4}, {95, 13.4}, {52.5, 181}, {52.52, 13.405}}}) {  // one valid
-    const std::string svg = app::render_ride_svg(ride_with(track));
+    const std::string svg = tools::render_ride_svg(ride_with(track));
     EXPECT_EQ(xml_problem(svg), "");
-    EXPECT_NE(svg.find("height=\"" + std::to_string(app::kSvgHeight) + "\""), std::string::npos);
+    EXPECT_NE(svg.find("height=\"" + std::to_string(tools::kSvgHeight) + "\""), std::string::npos);
     EXPECT_EQ(occurrences(svg, ">no GNSS track for this ride</text>"), 1u);
     EXPECT_EQ(svg.find("panel-map"), std::string::npos);
     EXPECT_EQ(svg.find("<polyline"), std::string::npos);
@@ -163,15 +163,15 @@ TEST(RidePlotMap, NoTrackMeansNoPanelAndANote) {
 
 TEST(RidePlotMap, StoredTrackIsReadWithTheStoresParser) {
   std::ostringstream err;
-  const auto points = app::plot_track("r", storage::track_text(kSquare), err);
+  const auto points = tools::plot_track("r", storage::track_text(kSquare), err);
   EXPECT_EQ(points, kSquare);
   EXPECT_EQ(err.str(), "");
-  EXPECT_TRUE(app::plot_track("r", std::nullopt, err).empty());  // NULL: no fix, no warning
+  EXPECT_TRUE(tools::plot_track("r", std::nullopt, err).empty());  // NULL: no fix, no warning
   EXPECT_EQ(err.str(), "");
 }
 
 TEST(RidePlotMap, BadStoredTrackIsLeftOutWithAWarningNamingTheRide) {
-  const std::string huge(app::kMaxTrackTextBytes + 1, ' ');
+  const std::string huge(tools::kMaxTrackTextBytes + 1, ' ');
   const std::string deep(1'000'000, '[');
   std::string flat = "[";  // just under the size limit, half a million JSON numbers
   for (int i = 0; i < 500'000; ++i) flat += "0,";
@@ -191,11 +191,11 @@ TEST(RidePlotMap, BadStoredTrackIsLeftOutWithAWarningNamingTheRide) {
     std::ostringstream err;
     RidePlot p = ride_with({});
     p.ride_id = "ride <7>\n";
-    p.track = app::plot_track(p.ride_id, text, err);
+    p.track = tools::plot_track(p.ride_id, text, err);
     EXPECT_TRUE(p.track.empty()) << problem;
     EXPECT_EQ(err.str(),
               "fleetgw ride plot: ride 'ride <7>\\n': " + problem + "; plotted without it\n");
-    const std::string svg = app::render_ride_svg(p);
+    const std::string svg = tools::render_ride_svg(p);
     EXPECT_EQ(xml_problem(svg), "");
     EXPECT_EQ(svg.find("panel-map"), std::string::npos);
     EXPECT_EQ(occurrences(svg, ">no GNSS track for this ride</text>"), 1u);
@@ -208,11 +208,11 @@ TEST(RidePlotMap, LongTracksAreCappedKeepingTheEnds) {
   for (int i = 0; i < 60'000; ++i) {
     track.push_back({48.0 + i * 1e-5, 11.5 + (i % 3) * 0.00135});
   }
-  const std::string svg = app::render_ride_svg(ride_with(track));
+  const std::string svg = tools::render_ride_svg(ride_with(track));
   EXPECT_EQ(xml_problem(svg), "");
   const auto pts = polyline(svg);
-  EXPECT_LE(pts.size(), app::kMaxMapPoints);
-  EXPECT_GT(pts.size(), app::kMaxMapPoints / 4);
+  EXPECT_LE(pts.size(), tools::kMaxMapPoints);
+  EXPECT_GT(pts.size(), tools::kMaxMapPoints / 4);
   EXPECT_LT(svg.size(), 600'000u);
   // The first and the last position are drawn: the start at the bottom, the end at the top.
   EXPECT_NEAR(number(svg, "track-start", "cy"), pts.front().y, 0.11);
@@ -221,7 +221,7 @@ TEST(RidePlotMap, LongTracksAreCappedKeepingTheEnds) {
 }
 
 TEST(RidePlotMap, TrackAcrossTheAntimeridianStaysInOnePiece) {
-  const std::string svg = app::render_ride_svg(
+  const std::string svg = tools::render_ride_svg(
       ride_with({{-17.0, 179.9995}, {-17.0, -179.9995}, {-17.0005, -179.999}}));
   EXPECT_EQ(xml_problem(svg), "");
   const auto pts = polyline(svg);
@@ -235,21 +235,21 @@ TEST(RidePlotMap, CaptionSaysUnknownForMissingOrImplausibleDistances) {
   RidePlot p = ride_with(kSquare);
   p.gnss_distance_m = std::nan("");
   p.odometer_km.reset();
-  EXPECT_NE(app::render_ride_svg(p).find(">GNSS unknown, odometer unknown</text>"),
+  EXPECT_NE(tools::render_ride_svg(p).find(">GNSS unknown, odometer unknown</text>"),
             std::string::npos);
   p.gnss_distance_m = 1e300;
   p.odometer_km = -3;
-  EXPECT_NE(app::render_ride_svg(p).find(">GNSS unknown, odometer unknown</text>"),
+  EXPECT_NE(tools::render_ride_svg(p).find(">GNSS unknown, odometer unknown</text>"),
             std::string::npos);
   p.gnss_distance_m = 420;
   p.odometer_km = 0.5;
-  EXPECT_NE(app::render_ride_svg(p).find(">GNSS 0.4 km, odometer 0.5 km</text>"),
+  EXPECT_NE(tools::render_ride_svg(p).find(">GNSS 0.4 km, odometer 0.5 km</text>"),
             std::string::npos);
 }
 
 TEST(RidePlotMap, StandingStillIsDrawnAtAMinimumExtent) {
   // Two positions 1 m apart (GNSS jitter): a short line, not a line across the whole frame.
-  const std::string svg = app::render_ride_svg(ride_with({{52.52, 13.405}, {52.52, 13.40501}}));
+  const std::string svg = tools::render_ride_svg(ride_with({{52.52, 13.405}, {52.52, 13.40501}}));
   EXPECT_EQ(xml_problem(svg), "");
   const auto pts = polyline(svg);
   ASSERT_EQ(pts.size(), 2u);

@@ -5,7 +5,7 @@
 
 #include "gateway/common/table_format.h"
 
-namespace fleetgw::app {
+namespace fleetgw::tools {
 
 using common::Column;
 using common::csv_field;
@@ -19,4 +19,4 @@ using common::write_csv;
 using common::write_json;
 using common::write_table;
 
-}  // namespace fleetgw::app
+}  // namespace fleetgw::tools

@@ -5,7 +5,7 @@
 #include <chrono>
 #include <limits>
 
-namespace fleetgw::app {
+namespace fleetgw::tools {
 namespace {
 
 using std::chrono::days;
@@ -160,4 +160,4 @@ std::int64_t wall_clock_us() {
       .count();
 }
 
-}  // namespace fleetgw::app
+}  // namespace fleetgw::tools

@@ -21,7 +21,7 @@
 #include <string>
 #include <string_view>
 
-namespace fleetgw::app {
+namespace fleetgw::tools {
 
 inline constexpr std::string_view kSinceForms =
     "an ISO 8601 UTC time (2026-11-27T10:00:00Z, or a date: 2026-11-27), a relative time "
@@ -34,4 +34,4 @@ std::string iso_utc(std::int64_t us);
 // The current wall clock in microseconds since the epoch (the CLI's `now`).
 std::int64_t wall_clock_us();
 
-}  // namespace fleetgw::app
+}  // namespace fleetgw::tools

@@ -87,7 +87,7 @@ nlohmann::json diagnostic_json(const v1::DiagnosticResult& d) {
                         {"can_id", hex_id(m.can_id(), 3)},
                         {"command", hex_id(m.command(), 4)},
                         {"data", hex({data, m.data().size()})},
-                        {"heard_at", m.heard_at_us() > 0 ? app::iso_utc(m.heard_at_us()) : ""},
+                        {"heard_at", m.heard_at_us() > 0 ? tools::iso_utc(m.heard_at_us()) : ""},
                         {"values", std::move(values)}});
   }
   nlohmann::json j{{"block", common::untrusted_excerpt(d.block(), 64)},
@@ -146,7 +146,7 @@ nlohmann::json to_json(const v1::CommandResult& r, std::string_view vehicle, Mic
 // What the retained status says about a vehicle that gave no answer (see the header).
 std::string liveness(const std::string& vehicle, const std::string& status_topic,
                      const std::optional<v1::Envelope>& status) {
-  using app::iso_utc;
+  using tools::iso_utc;
   if (!status)
     return "vehicle " + vehicle + " never seen (no retained status on " + status_topic + ")";
   if (!status->has_status()) {

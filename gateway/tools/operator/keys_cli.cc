@@ -6,7 +6,7 @@
 #include "gateway/config/config.h"
 #include "gateway/tools/operator/keys_tool.h"
 
-namespace fleetgw::app {
+namespace fleetgw::tools {
 
 struct KeysCli::State {
   CLI::App* root = nullptr;
@@ -141,4 +141,4 @@ std::optional<int> KeysCli::run() const {
   return std::nullopt;
 }
 
-}  // namespace fleetgw::app
+}  // namespace fleetgw::tools

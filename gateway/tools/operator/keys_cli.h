@@ -12,7 +12,7 @@
 #include <memory>
 #include <optional>
 
-namespace fleetgw::app {
+namespace fleetgw::tools {
 
 class KeysCli {
  public:
@@ -28,4 +28,4 @@ class KeysCli {
   std::unique_ptr<State> state_;
 };
 
-}  // namespace fleetgw::app
+}  // namespace fleetgw::tools

@@ -12,7 +12,7 @@
 #include "gateway/tools/operator/keys_tool.h"
 #include "gateway/uplink/mqtt_connection.h"
 
-namespace fleetgw::app {
+namespace fleetgw::tools {
 
 int run_keys_publish_revocations(const KeysPublishOptions& o, std::ostream& out,
                                  std::ostream& err) {
@@ -81,4 +81,4 @@ int run_keys_publish_revocations(const KeysPublishOptions& o, std::ostream& out,
   }
 }
 
-}  // namespace fleetgw::app
+}  // namespace fleetgw::tools

@@ -19,7 +19,7 @@
 #include "gateway/common/untrusted_text.h"
 #include "gateway/tools/common/time_arg.h"
 
-namespace fleetgw::app {
+namespace fleetgw::tools {
 namespace {
 
 namespace fs = std::filesystem;
@@ -385,4 +385,4 @@ int run_keys_show(const KeysShowOptions& o, std::ostream& out, std::ostream& err
   return kKeysFailed;
 }
 
-}  // namespace fleetgw::app
+}  // namespace fleetgw::tools

@@ -37,7 +37,7 @@
 
 #include "motinova/can.h"
 
-namespace fleetgw::app {
+namespace fleetgw::tools {
 
 using motinova::Micros;
 
@@ -99,4 +99,4 @@ int run_keys_show(const KeysShowOptions& options, std::ostream& out, std::ostrea
 int run_keys_publish_revocations(const KeysPublishOptions& options, std::ostream& out,
                                  std::ostream& err);
 
-}  // namespace fleetgw::app
+}  // namespace fleetgw::tools

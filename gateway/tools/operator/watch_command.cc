@@ -3,7 +3,7 @@
 #include <CLI/CLI.hpp>
 #include <string>
 
-namespace fleetgw::app {
+namespace fleetgw::tools {
 
 void add_watch_options(CLI::App& app, WatchOptions& o) {
   app.add_option("--broker", o.broker, "broker URI")->capture_default_str();
@@ -17,4 +17,4 @@ void add_watch_options(CLI::App& app, WatchOptions& o) {
   app.add_option("--duration", o.duration_s, "stop after this many seconds");
 }
 
-}  // namespace fleetgw::app
+}  // namespace fleetgw::tools

@@ -19,7 +19,7 @@ namespace CLI {
 class App;
 }
 
-namespace fleetgw::app {
+namespace fleetgw::tools {
 
 struct WatchOptions {
   std::string broker = "tcp://127.0.0.1:1883";
@@ -38,4 +38,4 @@ void add_watch_options(CLI::App& app, WatchOptions& options);
 
 int run_watch(const WatchOptions& options, std::ostream& out);
 
-}  // namespace fleetgw::app
+}  // namespace fleetgw::tools

@@ -7,11 +7,11 @@
 
 int main(int argc, char** argv) {
   CLI::App app{"fleetgw watch: print the Envelopes a broker receives, as JSON lines"};
-  fleetgw::app::WatchOptions options;
-  fleetgw::app::add_watch_options(app, options);
+  fleetgw::tools::WatchOptions options;
+  fleetgw::tools::add_watch_options(app, options);
   CLI11_PARSE(app, argc, argv);
   try {
-    return fleetgw::app::run_watch(options, std::cout);
+    return fleetgw::tools::run_watch(options, std::cout);
   } catch (const std::exception& e) {
     std::cerr << "fleetgw watch: " << e.what() << '\n';
     return 1;

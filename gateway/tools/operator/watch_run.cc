@@ -16,7 +16,7 @@
 #include "gateway/uplink/mqtt_connection.h"
 #include "proto/schema_reflection.h"
 
-namespace fleetgw::app {
+namespace fleetgw::tools {
 namespace {
 
 // Set from the signal handler only; a watch is a one-shot command-line tool.
@@ -100,4 +100,4 @@ int run_watch(const WatchOptions& options, std::ostream& out) {
   return 0;
 }
 
-}  // namespace fleetgw::app
+}  // namespace fleetgw::tools

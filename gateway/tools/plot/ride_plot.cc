@@ -11,7 +11,7 @@
 #include "gateway/tools/common/time_arg.h"
 #include "gateway/tools/plot/ride_plot_map.h"
 
-namespace fleetgw::app {
+namespace fleetgw::tools {
 namespace ride_svg {
 namespace {
 
@@ -421,4 +421,4 @@ std::string render_ride_svg(const RidePlot& plot) {
   return ride_svg::Builder(plot).build();
 }
 
-}  // namespace fleetgw::app
+}  // namespace fleetgw::tools

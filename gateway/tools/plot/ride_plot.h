@@ -36,7 +36,7 @@
 
 #include "storage/track_text.h"
 
-namespace fleetgw::app {
+namespace fleetgw::tools {
 
 inline constexpr int kSvgWidth = 900;
 inline constexpr int kSvgHeight = 700;
@@ -75,4 +75,4 @@ std::string xml_text(std::string_view text);
 
 double gap_threshold_s(const std::vector<PlotSample>& samples);
 
-}  // namespace fleetgw::app
+}  // namespace fleetgw::tools

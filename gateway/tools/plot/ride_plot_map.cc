@@ -8,7 +8,7 @@
 
 #include "gateway/tools/common/table_format.h"
 
-namespace fleetgw::app {
+namespace fleetgw::tools {
 namespace ride_map {
 namespace {
 
@@ -245,4 +245,4 @@ std::string no_track_note(double y) {
       kAxisLeft, ride_map::num(y));
 }
 
-}  // namespace fleetgw::app
+}  // namespace fleetgw::tools

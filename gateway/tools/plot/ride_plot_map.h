@@ -38,7 +38,7 @@
 #include "gateway/tools/plot/ride_plot.h"
 #include "storage/track_text.h"
 
-namespace fleetgw::app {
+namespace fleetgw::tools {
 
 inline constexpr std::size_t kMaxMapPoints = 20'000;
 // About 43,000 positions: ten times the ride tracker's bound (4096 vertices, ~100 kB,
@@ -56,4 +56,4 @@ std::optional<std::string> map_panel_svg(const RidePlot& plot, double top);
 
 std::string no_track_note(double y);
 
-}  // namespace fleetgw::app
+}  // namespace fleetgw::tools

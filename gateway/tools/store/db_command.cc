@@ -15,7 +15,7 @@
 #include "gateway/tools/store/store_open.h"
 #include "storage/store.h"
 
-namespace fleetgw::app {
+namespace fleetgw::tools {
 namespace {
 
 constexpr std::pair<const char*, const char*> kListings[] = {
@@ -189,4 +189,4 @@ int run_db_command(const DbCommand& db, std::ostream& out, std::ostream& err) {
   return 0;
 }
 
-}  // namespace fleetgw::app
+}  // namespace fleetgw::tools

@@ -36,7 +36,7 @@ namespace CLI {
 class App;
 }
 
-namespace fleetgw::app {
+namespace fleetgw::tools {
 
 struct DbCommand {
   CLI::App* command = nullptr;
@@ -59,4 +59,4 @@ struct DbCommand {
 std::unique_ptr<DbCommand> add_db_command(CLI::App& app);
 int run_db_command(const DbCommand& db, std::ostream& out, std::ostream& err);
 
-}  // namespace fleetgw::app
+}  // namespace fleetgw::tools

@@ -6,7 +6,7 @@
 #include "gateway/tools/common/time_arg.h"
 #include "storage/track_text.h"
 
-namespace fleetgw::app {
+namespace fleetgw::tools {
 namespace {
 
 using nlohmann::json;
@@ -81,4 +81,4 @@ std::uint64_t export_rides_geojson(storage::Store& store, std::int64_t since_us,
   return rows;
 }
 
-}  // namespace fleetgw::app
+}  // namespace fleetgw::tools

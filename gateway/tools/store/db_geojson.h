@@ -26,7 +26,7 @@
 
 #include "storage/store.h"
 
-namespace fleetgw::app {
+namespace fleetgw::tools {
 
 inline constexpr std::array<std::string_view, 1> kGeojsonTables = {"rides"};
 
@@ -34,4 +34,4 @@ inline constexpr std::array<std::string_view, 1> kGeojsonTables = {"rides"};
 std::uint64_t export_rides_geojson(storage::Store& store, std::int64_t since_us, std::ostream& out,
                                    std::ostream& err);
 
-}  // namespace fleetgw::app
+}  // namespace fleetgw::tools

@@ -6,7 +6,7 @@
 #include "gateway/tools/common/time_arg.h"
 #include "motinova/can.h"
 
-namespace fleetgw::app {
+namespace fleetgw::tools {
 namespace {
 
 using nlohmann::json;
@@ -128,4 +128,4 @@ Table listing_table(std::string_view name, const std::vector<json>& rows) {
   throw std::invalid_argument("unknown listing '" + std::string(name) + "'");
 }
 
-}  // namespace fleetgw::app
+}  // namespace fleetgw::tools

@@ -25,8 +25,8 @@
 
 #include "gateway/tools/common/table_format.h"
 
-namespace fleetgw::app {
+namespace fleetgw::tools {
 
 Table listing_table(std::string_view name, const std::vector<nlohmann::json>& rows);
 
-}  // namespace fleetgw::app
+}  // namespace fleetgw::tools

@@ -8,7 +8,7 @@
 #include "gateway/tools/common/time_arg.h"
 #include "motinova/can.h"
 
-namespace fleetgw::app {
+namespace fleetgw::tools {
 // Named, not only anonymous: unity builds put this file in one translation unit with
 // db_listings.cc, whose anonymous helpers have the same short names.
 namespace summary_cli {
@@ -266,4 +266,4 @@ Table summary_table(const DbSummary& s) {
   return t;
 }
 
-}  // namespace fleetgw::app
+}  // namespace fleetgw::tools

@@ -40,7 +40,7 @@
 
 #include "gateway/tools/common/table_format.h"
 
-namespace fleetgw::app {
+namespace fleetgw::tools {
 
 struct DbSummary {
   std::optional<std::int64_t> since_us;  // nullopt: the whole store
@@ -78,4 +78,4 @@ std::string summary_sentence(const DbSummary& s);
 nlohmann::json summary_json(const DbSummary& s);
 Table summary_table(const DbSummary& s);
 
-}  // namespace fleetgw::app
+}  // namespace fleetgw::tools

@@ -19,7 +19,7 @@
 #include "gateway/tools/store/store_open.h"
 #include "storage/store.h"
 
-namespace fleetgw::app {
+namespace fleetgw::tools {
 namespace ride_cli {
 namespace {
 
@@ -130,4 +130,4 @@ int run_ride_command(const RideCommand& ride, std::ostream& out, std::ostream& e
   return 0;
 }
 
-}  // namespace fleetgw::app
+}  // namespace fleetgw::tools

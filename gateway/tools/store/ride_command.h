@@ -32,7 +32,7 @@ class App;
 class Option;
 }  // namespace CLI
 
-namespace fleetgw::app {
+namespace fleetgw::tools {
 
 struct RideCommand {
   CLI::App* command = nullptr;
@@ -48,4 +48,4 @@ struct RideCommand {
 std::unique_ptr<RideCommand> add_ride_command(CLI::App& app);
 int run_ride_command(const RideCommand& ride, std::ostream& out, std::ostream& err);
 
-}  // namespace fleetgw::app
+}  // namespace fleetgw::tools

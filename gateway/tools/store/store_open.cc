@@ -2,7 +2,7 @@
 
 #include "storage/schema.h"
 
-namespace fleetgw::app {
+namespace fleetgw::tools {
 
 int open_store_read_only(storage::StoreOptions options, std::string_view command,
                          std::optional<storage::Store>& store, std::ostream& err) {
@@ -19,4 +19,4 @@ int open_store_read_only(storage::StoreOptions options, std::string_view command
   return 0;
 }
 
-}  // namespace fleetgw::app
+}  // namespace fleetgw::tools

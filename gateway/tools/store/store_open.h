@@ -17,9 +17,9 @@
 
 #include "storage/store.h"
 
-namespace fleetgw::app {
+namespace fleetgw::tools {
 
 int open_store_read_only(storage::StoreOptions options, std::string_view command,
                          std::optional<storage::Store>& store, std::ostream& err);
 
-}  // namespace fleetgw::app
+}  // namespace fleetgw::tools
