@@ -6,7 +6,6 @@
 #include <algorithm>
 #include <condition_variable>
 #include <deque>
-#include <fstream>
 #include <iostream>
 #include <mutex>
 
@@ -17,6 +16,7 @@
 #include "gateway/command/verifier.h"
 #include "gateway/common/untrusted_text.h"
 #include "gateway/tools/common/time_arg.h"
+#include "gateway/tools/operator/operator_inputs.h"
 #include "gateway/uplink/connect_diagnosis.h"
 #include "gateway/uplink/mqtt5.h"
 #include "gateway/uplink/mqtt_connection.h"
@@ -270,16 +270,11 @@ int run_command_tool(const CommandToolOptions& o) {
   } else {
     mc_action = o.clear_trip ? "clear_trip" : "power_off";
   }
-  if (o.broker.rfind("tcp://", 0) != 0 && o.broker.rfind("ssl://", 0) != 0) {
-    return usage("--broker: tcp://host:port or ssl://host:port");
-  }
-  if (o.broker.find('@') != std::string::npos) {
-    return usage("--broker: no credentials in the URI; use --username/--password");
+  if (const auto error = tools::broker_option_error(o.broker, o.username, o.password,
+                                                    o.allow_plaintext_credentials)) {
+    return usage(*error);
   }
   const bool tls = uplink::uses_tls(o.broker);
-  if (!tls && (!o.username.empty() || !o.password.empty()) && !o.allow_plaintext_credentials) {
-    return usage("refusing to send credentials over plain tcp://; use ssl://");
-  }
   if (o.cert_file.empty() != o.key_file.empty()) {
     return usage("--cert-file and --key-file go together");
   }
@@ -297,17 +292,18 @@ int run_command_tool(const CommandToolOptions& o) {
   std::string delegation;  // serialized SignedDelegation, or empty
   std::string delegated_key_id;
   if (!o.delegation.empty()) {
-    std::ifstream in(o.delegation, std::ios::binary);
-    delegation.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
-    v1::SignedDelegation sd;
-    v1::Delegation d;
-    if (!in.good() && !in.eof()) return usage("--delegation: cannot read " + o.delegation.string());
-    if (delegation.empty() || !sd.ParseFromString(delegation) || sd.delegation().empty() ||
-        !d.ParseFromString(sd.delegation()) || d.key_id().empty()) {
-      return usage("--delegation: " + o.delegation.string() +
-                   " is not a signed delegation (fleetgw keys delegate)");
+    constexpr std::string_view kWhat = "a signed delegation (fleetgw keys delegate)";
+    std::string error;
+    auto file = tools::read_signed_file<v1::SignedDelegation, v1::Delegation>(
+        o.delegation,
+        [](const v1::SignedDelegation& sd) -> const std::string& { return sd.delegation(); }, kWhat,
+        error);
+    if (!file) return usage("--delegation: " + error);
+    if (file->document.key_id().empty()) {
+      return usage("--delegation: " + o.delegation.string() + " is not " + std::string(kWhat));
     }
-    delegated_key_id = d.key_id();
+    delegation = std::move(file->bytes);
+    delegated_key_id = file->document.key_id();
   }
   std::string key_id = !o.key_id.empty()           ? o.key_id
                        : !delegated_key_id.empty() ? delegated_key_id

@@ -2,14 +2,13 @@
 // revocations topic. A separate file: the only part of the keys tool that speaks MQTT.
 #include <mqtt/async_client.h>
 
-#include <fstream>
 #include <iostream>
-#include <iterator>
 
 #include "fleetgw/v1/keys.pb.h"
 #include "gateway/command/ed25519.h"
 #include "gateway/command/signing.h"
 #include "gateway/tools/operator/keys_tool.h"
+#include "gateway/tools/operator/operator_inputs.h"
 #include "gateway/uplink/mqtt_connection.h"
 
 namespace fleetgw::tools {
@@ -24,27 +23,24 @@ int run_keys_publish_revocations(const KeysPublishOptions& o, std::ostream& out,
   for (const auto& v : o.vehicles) {
     if (!command::is_valid_tool_id(v)) return usage("--vehicle: 1..64 of [A-Za-z0-9._-]");
   }
-  if (o.broker.rfind("tcp://", 0) != 0 && o.broker.rfind("ssl://", 0) != 0) {
-    return usage("--broker: tcp://host:port or ssl://host:port");
-  }
-  if (o.broker.find('@') != std::string::npos) {
-    return usage("--broker: no credentials in the URI; use --username/--password");
+  if (const auto error =
+          broker_option_error(o.broker, o.username, o.password, o.allow_plaintext_credentials)) {
+    return usage(*error);
   }
   const bool tls = uplink::uses_tls(o.broker);
-  if (!tls && (!o.username.empty() || !o.password.empty()) && !o.allow_plaintext_credentials) {
-    return usage("refusing to send credentials over plain tcp://; use ssl://");
-  }
   if (o.topic_prefix.empty() || o.topic_prefix.find_first_of("#+") != std::string::npos) {
     return usage("--topic-prefix: no wildcards");
   }
-  std::ifstream in(o.file, std::ios::binary);
-  const std::string payload((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  v1::SignedRevocationList sl;
-  v1::RevocationList list;
-  if (payload.empty() || !sl.ParseFromString(payload) || !list.ParseFromString(sl.revocations()) ||
-      list.version() == 0) {
-    return usage(o.file.string() + " is not a signed revocation list (fleetgw keys revoke)");
-  }
+  constexpr std::string_view kWhat = "a signed revocation list (fleetgw keys revoke)";
+  std::string error;
+  const auto file = read_signed_file<v1::SignedRevocationList, v1::RevocationList>(
+      o.file,
+      [](const v1::SignedRevocationList& sl) -> const std::string& { return sl.revocations(); },
+      kWhat, error);
+  if (!file) return usage(error);
+  const v1::RevocationList& list = file->document;
+  if (list.version() == 0) return usage(o.file.string() + " is not " + std::string(kWhat));
+  const std::string& payload = file->bytes;
   try {
     const std::string uri = uplink::normalise_broker_uri(o.broker);
     const auto suffix = command::random_bytes(4);
