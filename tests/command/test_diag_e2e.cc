@@ -15,6 +15,7 @@
 #include "tests/support/gateway_config.h"
 #include "tests/support/mosquitto_fixture.h"
 #include "tests/support/process.h"
+#include "tests/support/source_dir.h"
 #include "tests/support/temp_dir.h"
 #include "tests/support/wait.h"
 
@@ -29,9 +30,8 @@ struct DiagE2e {
     broker.start();
     fleetgw::testing::service_config(
         "rt-diag", dir.path(),
-        std::filesystem::path(__FILE__).parent_path().parent_path().parent_path() / "config" /
-            "scenarios" / "parked.toml",
-        1, broker.uri(), "tech", key.public_key().base64())
+        fleetgw::testing::source_dir() / "config" / "scenarios" / "parked.toml", 1, broker.uri(),
+        "tech", key.public_key().base64())
         .write(dir.path() / "fleetgw.toml");
     std::ofstream(dir.path() / "tech.pem") << key.pem();
     service.emplace(FLEETGW_BIN, dir.path() / "fleetgw.toml", dir.path() / "service.log");

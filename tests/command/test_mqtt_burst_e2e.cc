@@ -17,6 +17,7 @@
 #include "tests/support/gateway_config.h"
 #include "tests/support/mosquitto_fixture.h"
 #include "tests/support/process.h"
+#include "tests/support/source_dir.h"
 #include "tests/support/temp_dir.h"
 #include "tests/support/wait.h"
 
@@ -37,11 +38,8 @@ struct BurstE2e {
   static constexpr const char* kBike = "rt-burst";
   BurstE2e() {
     broker.start();
-    // tests/command/ -> the source root.
     fleetgw::testing::service_config(
-        kBike, dir.path(),
-        std::filesystem::path(__FILE__).parent_path().parent_path().parent_path() / "config" /
-            "scenarios" / "parked.toml",
+        kBike, dir.path(), fleetgw::testing::source_dir() / "config" / "scenarios" / "parked.toml",
         1, broker.uri(), "ops", key.public_key().base64())
         .write(dir.path() / "fleetgw.toml");
     service.emplace(fleetgw_binary(), dir.path() / "fleetgw.toml", dir.path() / "service.log");

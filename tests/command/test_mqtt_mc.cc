@@ -17,6 +17,7 @@
 #include "tests/support/gateway_config.h"
 #include "tests/support/mosquitto_fixture.h"
 #include "tests/support/process.h"
+#include "tests/support/source_dir.h"
 #include "tests/support/sqlite_query.h"
 #include "tests/support/temp_dir.h"
 #include "tests/support/wait.h"
@@ -27,9 +28,7 @@ namespace {
 using namespace std::chrono_literals;
 
 std::filesystem::path mc_e2e_scenario(const std::string& name = "parked") {
-  // tests/command/ -> the source root.
-  return std::filesystem::path(__FILE__).parent_path().parent_path().parent_path() / "config" /
-         "scenarios" / (name + ".toml");
+  return fleetgw::testing::source_dir() / "config" / "scenarios" / (name + ".toml");
 }
 
 std::string mc_e2e_read(const std::filesystem::path& p) {
