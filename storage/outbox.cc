@@ -81,7 +81,7 @@ std::size_t Store::ack(std::span<const std::uint64_t> seqs) {
     impl_->record_success();
   } catch (const std::exception& e) {
     // Nothing deleted: the entries stay queued and are sent again (the backend deduplicates).
-    impl_->record_failure(to_store_error(e), "ack");
+    impl_->record_failure(to_status(e), "ack");
     deleted = 0;
   }
   for (auto seq : seqs) impl_->in_flight.erase(seq);

@@ -58,39 +58,25 @@ RideRow read_ride(const Statement& st) {
 
 }  // namespace
 
-std::string_view to_string(StoreError::Code code) {
-  switch (code) {
-    case StoreError::Code::kFull:
-      return "full";
-    case StoreError::Code::kIo:
-      return "io";
-    case StoreError::Code::kInvalid:
-      return "invalid";
-    case StoreError::Code::kOther:
-      return "other";
-  }
-  return "other";
-}
-
-StoreError to_store_error(const std::exception& e) {
+Status to_status(const std::exception& e) {
   if (const auto* sq = dynamic_cast<const SqliteError*>(&e)) {
     switch (sq->code()) {
       case SQLITE_FULL:
-        return {StoreError::Code::kFull, std::string("disk full (SQLITE_FULL): ") + e.what()};
+        return {StatusCode::kFull, std::string("disk full (SQLITE_FULL): ") + e.what()};
       case SQLITE_IOERR:
-        return {StoreError::Code::kIo, std::string("I/O error (SQLITE_IOERR): ") + e.what()};
+        return {StatusCode::kIo, std::string("I/O error (SQLITE_IOERR): ") + e.what()};
       case SQLITE_CONSTRAINT:
       case SQLITE_MISMATCH:
       case SQLITE_TOOBIG:
-        return {StoreError::Code::kInvalid, e.what()};
+        return {StatusCode::kInvalid, e.what()};
       default:
-        return {StoreError::Code::kOther, e.what()};
+        return {StatusCode::kOther, e.what()};
     }
   }
   if (dynamic_cast<const std::invalid_argument*>(&e) != nullptr) {
-    return {StoreError::Code::kInvalid, e.what()};
+    return {StatusCode::kInvalid, e.what()};
   }
-  return {StoreError::Code::kOther, e.what()};
+  return {StatusCode::kOther, e.what()};
 }
 
 std::size_t Batch::size() const {
@@ -140,7 +126,7 @@ Store::Store(Store&&) noexcept = default;
 Store& Store::operator=(Store&&) noexcept = default;
 Store::~Store() = default;
 
-WriteResult Store::write(const Batch& batch) {
+Result<Written> Store::write(const Batch& batch) {
   return impl_->write(batch);
 }
 
@@ -179,7 +165,7 @@ void Store::Impl::record_success() {
   health.failing_since_us = 0;
 }
 
-void Store::Impl::record_failure(const StoreError& error, std::string_view what) {
+void Store::Impl::record_failure(const Status& error, std::string_view what) {
   if (!health.failing) {
     health.failing_since_us = options.env->wall_now().count();
   }
@@ -187,10 +173,10 @@ void Store::Impl::record_failure(const StoreError& error, std::string_view what)
   ++health.failed_writes;
   // The health line keeps the reason short; the log has SQLite's whole message.
   switch (error.code) {
-    case StoreError::Code::kFull:
+    case StatusCode::kFull:
       health.last_error = "disk full (SQLITE_FULL)";
       break;
-    case StoreError::Code::kIo:
+    case StatusCode::kIo:
       health.last_error = "I/O error (SQLITE_IOERR)";
       break;
     default:
@@ -238,7 +224,7 @@ std::size_t Store::purge_expired_commands(std::int64_t now_us) {
   try {
     return impl_->purge_expired_commands(now_us);
   } catch (const std::exception& e) {
-    impl_->record_failure(to_store_error(e), "purging expired commands");
+    impl_->record_failure(to_status(e), "purging expired commands");
     return 0;
   }
 }

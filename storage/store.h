@@ -19,8 +19,9 @@
 //   of it is. Sequence numbers are allocated gap-free and are never reused, even after acks,
 //   evictions, crashes or restarts.
 // - Errors never escape the write and ack paths (nothing on the hot path throws): write()
-//   returns WriteResult::error (kInvalid for bad input, naming the batch entry and field;
-//   kFull, kIo, kOther for disk and SQLite errors) and stores nothing of the batch. ack(),
+//   returns what it stored (Written) or a Status (env/status.h) and then stores nothing of the
+//   batch: kInvalid for bad input, naming the batch entry and field; kFull, kIo, kOther for
+//   disk and SQLite errors. ack(),
 //   release(), peek_outbox() and outbox_depth() never throw either. Every failed write attempt
 //   is recorded in health() (reason, count, since when); the next successful one clears
 //   `failing`. Only the constructor throws (cannot open, not a store, schema too new...).
@@ -79,6 +80,7 @@
 #include <vector>
 
 #include "env/env.h"
+#include "env/status.h"
 #include "storage/health.h"
 #include "storage/records.h"
 
@@ -153,14 +155,6 @@ struct Batch {
   void clear();
 };
 
-// Why a write did not happen.
-struct StoreError {
-  enum class Code : std::uint8_t { kFull, kIo, kInvalid, kOther };
-  Code code = Code::kOther;
-  std::string message;
-};
-std::string_view to_string(StoreError::Code code);
-
 // A file that is not a fleetgw store (missing, not SQLite, or SQLite without fleetgw's tables),
 // from a read-only open.
 class NotAStoreError : public std::runtime_error {
@@ -168,15 +162,14 @@ class NotAStoreError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
-struct WriteResult {
+// What a successful write() stored (a failed one returns its Status instead).
+struct Written {
   // Sequence numbers assigned by this batch: [first_seq, end_seq), contiguous; empty when the
   // batch queued nothing.
   std::uint64_t first_seq = 0;
   std::uint64_t end_seq = 0;
   std::size_t records = 0;  // table rows written
   std::optional<EvictionPass> eviction;
-  std::optional<StoreError> error;  // set when nothing of the batch was stored
-  bool ok() const { return !error.has_value(); }
 };
 
 struct OutboxDepth {
@@ -229,7 +222,7 @@ class Store {
   Store& operator=(Store&&) noexcept;
   ~Store();
 
-  WriteResult write(const Batch& batch);
+  Result<Written> write(const Batch& batch);
 
   // Outbox, for the uplink.
   // Up to `limit` entries, in (priority, seq) order, not in flight, whose payloads total at most

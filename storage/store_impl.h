@@ -77,7 +77,8 @@ BudgetPlan plan_budget(std::uint64_t configured, std::uint64_t effective, std::u
 // fails (the budget is then left as configured).
 std::optional<std::uint64_t> disk_capacity_for(Env& env, const std::string& db_path);
 
-StoreError to_store_error(const std::exception& e);
+// The Status of a failed SQLite step (kFull, kIo, kInvalid, kOther), with SQLite's message.
+Status to_status(const std::exception& e);
 
 struct Store::Impl {
   StoreOptions options;
@@ -130,15 +131,15 @@ struct Store::Impl {
   bool checkpoint(int mode);  // SQLITE_CHECKPOINT_*; false on failure/busy, never throws
 
   // store_write.cc
-  WriteResult write(const Batch& b);
-  WriteResult write_once(const Batch& b);
+  Result<Written> write(const Batch& b);
+  Written write_once(const Batch& b);  // throws; write() turns the exception into a Status
   void enqueue(Statement& st, OutboxKind kind, int priority, std::span<const std::uint8_t> payload,
                std::optional<std::int64_t> source_id, std::int64_t now_us, std::uint64_t& seq);
 
   // store.cc
   std::size_t purge_expired_commands(std::int64_t now_us);
   void record_success();
-  void record_failure(const StoreError& error, std::string_view what);
+  void record_failure(const Status& error, std::string_view what);
 };
 
 }  // namespace fleetgw::storage

@@ -232,45 +232,42 @@ void Store::Impl::enqueue(Statement& st, OutboxKind kind, int priority,
   ++seq;
 }
 
-WriteResult Store::Impl::write(const Batch& b) {
-  WriteResult result;
+Result<Written> Store::Impl::write(const Batch& b) {
   if (options.read_only) {
-    result.error = StoreError{StoreError::Code::kInvalid, "the store is open read-only"};
-    record_failure(*result.error, "write");
-    return result;
+    Status error{StatusCode::kInvalid, "the store is open read-only"};
+    record_failure(error, "write");
+    return error;
   }
   try {
     validate(b);
   } catch (const std::invalid_argument& e) {
-    result.error = StoreError{StoreError::Code::kInvalid, e.what()};
-    record_failure(*result.error, "write");
-    return result;
+    Status error{StatusCode::kInvalid, e.what()};
+    record_failure(error, "write");
+    return error;
   }
-  if (b.empty()) return result;
+  if (b.empty()) return Written{};
   for (int attempt = 0;; ++attempt) {
     try {
-      result = write_once(b);
+      Written result = write_once(b);
       if (attempt > 0) ++health.full_recoveries;
       record_success();
       if (wal_frames >= budget.wal_pages) checkpoint(SQLITE_CHECKPOINT_PASSIVE);
       return result;
     } catch (const std::exception& e) {
       // The transaction was rolled back: nothing of the batch is stored or numbered.
-      StoreError error = to_store_error(e);
-      if (error.code == StoreError::Code::kFull && attempt < kFullRetries &&
+      Status error = to_status(e);
+      if (error.code == StatusCode::kFull && attempt < kFullRetries &&
           evict_for_space(b.now_us, attempt + 1) > 0) {
         continue;
       }
-      result = WriteResult{};
-      result.error = std::move(error);
-      record_failure(*result.error, "write");
-      return result;
+      record_failure(error, "write");
+      return error;
     }
   }
 }
 
-WriteResult Store::Impl::write_once(const Batch& b) {
-  WriteResult result;
+Written Store::Impl::write_once(const Batch& b) {
+  Written result;
 
   Transaction tx(db);
   std::uint64_t seq = next_seq;

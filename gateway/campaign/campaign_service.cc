@@ -162,7 +162,7 @@ void CampaignService::persist(std::string* error) {
   }
   batch.meta.emplace_back(kIndexKey, index);
   const auto result = store_.write(batch);
-  if (!result.ok()) *error = result.error->message;
+  if (!result.ok()) *error = result.status().message;
 }
 
 nlohmann::json CampaignService::status(Micros bus_now) const {

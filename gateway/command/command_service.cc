@@ -70,8 +70,8 @@ v1::LockState proto_state(std::optional<std::uint8_t> raw) {
 
 std::optional<std::string> write_batch(storage::Store& store, const storage::Batch& batch) {
   // Store::write never throws: a disk error comes back in the result.
-  const storage::WriteResult written = store.write(batch);
-  if (written.error) return written.error->message;
+  const auto written = store.write(batch);
+  if (!written.ok()) return written.status().message;
   return std::nullopt;
 }
 

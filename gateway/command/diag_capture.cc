@@ -109,9 +109,10 @@ void DiagCapture::persist(const std::string& name, Slot& slot, Micros now) {
                       fmt::format("{} {}", slot.record->heard_wall_us,
                                   to_hex_text(slot.record->frame.data.span())));
   // Store::write never throws: a disk error comes back in the result.
-  const storage::WriteResult written = store_.write(b);
-  if (written.error) {
-    spdlog::error("diagnostics: storing the {} record failed: {}", name, written.error->message);
+  const auto written = store_.write(b);
+  if (!written.ok()) {
+    spdlog::error("diagnostics: storing the {} record failed: {}", name,
+                  written.status().message);
     slot.written = now;  // tried again after the interval, not on every frame
     return;
   }

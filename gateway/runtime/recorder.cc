@@ -149,7 +149,7 @@ Recorder::Recorder(const config::Config& config, storage::Store& store, Micros n
 Recorder::~Recorder() {
   try {
     const auto outcome = flush(last_now_);
-    if (outcome.failed) {
+    if (!outcome.status.ok()) {
       spdlog::error("storage: {} record(s) could not be written before stopping: {}",
                     pending_records(), last_error_);
     }
@@ -181,7 +181,7 @@ void Recorder::tick(Micros now) {
   if (tick_retry_.waiting(w)) return;  // failing: wait for the retry interval
   const auto deadline = flush_deadline();
   if (urgent() || (deadline && w >= *deadline)) {
-    if (flush(last_now_).failed) {
+    if (!flush(last_now_).status.ok()) {
       tick_retry_.failed(w);
     } else {
       tick_retry_.succeeded();
@@ -245,16 +245,17 @@ FlushOutcome Recorder::flush(Micros now) {
   if (!last_flush_failed_) failing_since_us_ = env_->wall_now().count();
   last_flush_failed_ = true;
   last_error_ = store_.health().last_error;
-  if (result.error->code == storage::StoreError::Code::kInvalid) {
+  const Status error = result.status();
+  if (error.code == StatusCode::kInvalid) {
     // A record the store refuses is a bug upstream; keeping it would block every later batch.
-    error_log_.report("storage: refused a batch (dropped): " + result.error->message);
+    error_log_.report("storage: refused a batch (dropped): " + error.message);
     dropped_ += retry_.size();
     retry_.clear();
     return out;
   }
-  out.failed = true;  // records kept: retried by the caller's back-off
+  out.status = error;  // records kept: retried by the caller's back-off
   error_log_.report("storage: write failed, records kept in memory for a retry: " + last_error_);
-  if (result.error->code == storage::StoreError::Code::kFull &&
+  if (error.code == StatusCode::kFull &&
       (!retry_.telemetry.empty() || !retry_.packs.empty()) && has_non_telemetry(retry_)) {
     const auto first = write_without_evictable(now);
     out.records += first.records;
@@ -277,7 +278,7 @@ FlushOutcome Recorder::write_without_evictable(Micros now) {
     retry_.clear();
     if (after_flush_) after_flush_();
   } else {
-    out.failed = true;
+    out.status = result.status();
   }
   append(retry_, evictable);
   return out;

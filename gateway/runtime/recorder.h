@@ -14,8 +14,8 @@
 //    times retries: a caller that schedules flush() (the engine) retries a failed flush with its
 //    back-off (runtime/backoff.h); tick() in its own mode retries with the same Backoff, once
 //    per kRetryInterval of wall time, so a full disk is not hammered.
-//  * flush(bus_now) writes everything pending now and returns what it wrote and whether it
-//    failed. tick(bus_now) still flushes when urgent() or the deadline has passed, so a caller
+//  * flush(bus_now) writes everything pending now and returns what it wrote and, when it failed
+//    and kept the records, the store's Status (env/status.h). tick(bus_now) still flushes when urgent() or the deadline has passed, so a caller
 //    that only ticks keeps working.
 //  * Errors never escape: a failed write keeps the records in memory and retries. Memory for
 //    retries is bounded (kRetryMemoryBytes): past it, telemetry is dropped first (oldest
@@ -40,6 +40,7 @@
 #include "gateway/domain/domain_trackers.h"
 #include "gateway/runtime/backoff.h"
 #include "env/env.h"
+#include "env/status.h"
 #include "gateway/runtime/gateway_core.h"
 #include "storage/health.h"
 #include "storage/rate_limited_log.h"
@@ -52,7 +53,10 @@ storage::StoreOptions make_store_options(const config::Config& config);
 
 struct FlushOutcome {
   std::size_t records = 0;  // records written by this flush
-  bool failed = false;      // a write was attempted and failed (records kept for a retry)
+  // Not ok: a write was attempted and failed, its records are kept for a retry (the store's
+  // code: kFull, kIo, kOther). A batch the store refused (kInvalid) is dropped, not retried:
+  // it is logged and counted in health().dropped_records, and the outcome stays ok.
+  Status status;
 };
 
 class Recorder final : public MessageListener {

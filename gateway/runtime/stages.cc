@@ -47,9 +47,9 @@ StageRun RecorderStage::run(EngineTime now) {
   if (!urgent && !(due && (piggyback || now >= *due))) return {};
   if (urgent) ++urgent_flushes_;
   const FlushOutcome out = recorder_.flush(clock_.now());
-  if (out.failed) {
+  if (!out.status.ok()) {
     return {.produced = 0,
-            .status = Status::error(StatusCode::kIo, "write failed, records kept: " +
+            .status = Status::error(out.status.code, "write failed, records kept: " +
                                                          recorder_.health().last_error)};
   }
   if (out.records > 0) stored_ = true;

@@ -83,13 +83,13 @@ TEST(CampaignEviction, UnderDiskPressureCampaignRecordsGoAndEveryFaultAndAlarmSt
           {storage::OutboxKind::kCampaign, bulk_priority, budget_record("bulk", i * 3 + k, 8'000)});
     }
     const auto r = store.write(b);
-    ASSERT_TRUE(r.ok()) << r.error->message;
-    if (r.eviction) {
+    ASSERT_TRUE(r.ok()) << r.status().message;
+    if (r->eviction) {
       ++passes;
-      EXPECT_GT(r.eviction->campaign_records, 0u);
-      EXPECT_FALSE(r.eviction->budget_exhausted);
-      reported += r.eviction->campaign_records;
-      reported_outbox += r.eviction->outbox_rows;
+      EXPECT_GT(r->eviction->campaign_records, 0u);
+      EXPECT_FALSE(r->eviction->budget_exhausted);
+      reported += r->eviction->campaign_records;
+      reported_outbox += r->eviction->outbox_rows;
     }
     ASSERT_LE(store.live_bytes(), kBudget) << "batch " << i;
   }
@@ -147,7 +147,7 @@ TEST(CampaignEviction, TheStoreKeepsCampaignRecordsInTheirOwnPriorityRange) {
     b.messages.push_back({storage::OutboxKind::kCampaign, p, budget_record("x", 0, 10)});
     const auto r = store.write(b);
     ASSERT_FALSE(r.ok()) << p;
-    EXPECT_NE(r.error->message.find("messages[0]"), std::string::npos) << r.error->message;
+    EXPECT_NE(r.status().message.find("messages[0]"), std::string::npos) << r.status().message;
   }
   storage::Batch other;
   other.now_us = kDay0.count();

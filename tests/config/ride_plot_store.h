@@ -112,7 +112,7 @@ inline void write_ride_store(const std::filesystem::path& path) {
     b.telemetry.push_back({s, std::nullopt});
   }
   const auto r = store.write(b);
-  if (!r.ok()) throw std::runtime_error("ride plot store: " + r.error->message);
+  if (!r.ok()) throw std::runtime_error("ride plot store: " + r.status().message);
 }
 
 }  // namespace fleetgw::testing::ride_plot_store

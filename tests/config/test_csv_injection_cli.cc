@@ -139,7 +139,7 @@ void make_store(const fs::path& path) {
   t.speed_kmh = 12.0;
   b.telemetry.push_back({t, std::nullopt});
   const auto r = store.write(b);
-  ASSERT_TRUE(r.ok()) << r.error->message;
+  ASSERT_TRUE(r.ok()) << r.status().message;
 }
 
 class CsvInjection : public ::testing::Test {

@@ -77,7 +77,7 @@ void make_store(const fs::path& path) {
   a.detail = "";
   b.alarms.push_back({a, std::nullopt});
   const auto r = store.write(b);
-  ASSERT_TRUE(r.ok()) << r.error->message;
+  ASSERT_TRUE(r.ok()) << r.status().message;
 }
 
 class DbCli : public ::testing::Test {

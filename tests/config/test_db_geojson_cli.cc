@@ -59,7 +59,7 @@ void make_store(const fs::path& path) {
     b.rides.push_back({open, std::nullopt});
     b.rides.push_back({closed_ride("ride-damaged", kT0 + 10000 * kSec, 1.0), std::nullopt});
     const auto r = store.write(b);
-    ASSERT_TRUE(r.ok()) << r.error->message;
+    ASSERT_TRUE(r.ok()) << r.status().message;
   }
   storage::Database raw(path.string());
   raw.exec("UPDATE rides SET track = '[[13.4,52.5],[200,52.5]]' WHERE ride_id = 'ride-damaged'");

@@ -96,7 +96,7 @@ void make_store(const fs::path& path) {
     b.alarms.push_back({a, std::nullopt});
   }
   const auto r = store.write(b);
-  ASSERT_TRUE(r.ok()) << r.error->message;
+  ASSERT_TRUE(r.ok()) << r.status().message;
 }
 
 // RFC 4180 records: quoted fields with doubled quotes, CR LF inside quotes kept, CR LF between

@@ -30,7 +30,7 @@ EvictionPass fill_until_eviction(Store& store) {
       b.telemetry.push_back({telemetry_at(t), Bytes(64, static_cast<std::uint8_t>(i))});
     }
     const auto r = store.write(b);
-    if (r.eviction) return *r.eviction;
+    if (r.ok() && r->eviction) return *r->eviction;
   }
   ADD_FAILURE() << "no eviction";
   return {};

@@ -51,19 +51,19 @@ TEST(Budget, TelemetryEvictedFirstPreciousRecordsKept) {
       }
       auto r = store.write(b);
       ASSERT_LE(store.live_bytes(), kBudget) << "batch " << batch;
-      if (r.eviction) {
+      if (r.ok() && r->eviction) {
         ++passes;
-        EXPECT_EQ(r.eviction->pack_snapshot_rows, 0u) << "telemetry was still available";
-        EXPECT_FALSE(r.eviction->budget_exhausted);
+        EXPECT_EQ(r->eviction->pack_snapshot_rows, 0u) << "telemetry was still available";
+        EXPECT_FALSE(r->eviction->budget_exhausted);
         // Eviction starts below the budget: the WAL allowance and the reserve are inside it.
-        EXPECT_LT(r.eviction->budget_bytes, kBudget);
-        EXPECT_GT(r.eviction->bytes_before, r.eviction->budget_bytes);
-        EXPECT_LE(r.eviction->bytes_after,
-                  static_cast<std::uint64_t>(r.eviction->budget_bytes * 0.9));
-        EXPECT_GT(r.eviction->telemetry_rows, 0u);
-        reported_telemetry += r.eviction->telemetry_rows;
-        reported_outbox += r.eviction->outbox_rows;
-        ASSERT_TRUE(r.eviction->oldest_telemetry_kept_us.has_value());
+        EXPECT_LT(r->eviction->budget_bytes, kBudget);
+        EXPECT_GT(r->eviction->bytes_before, r->eviction->budget_bytes);
+        EXPECT_LE(r->eviction->bytes_after,
+                  static_cast<std::uint64_t>(r->eviction->budget_bytes * 0.9));
+        EXPECT_GT(r->eviction->telemetry_rows, 0u);
+        reported_telemetry += r->eviction->telemetry_rows;
+        reported_outbox += r->eviction->outbox_rows;
+        ASSERT_TRUE(r->eviction->oldest_telemetry_kept_us.has_value());
       }
     }
     ASSERT_GT(passes, 1u);
@@ -125,9 +125,9 @@ TEST(Budget, PackSnapshotsEvictedWhenNoTelemetryLeft) {
     b.now_us = batch;
     for (int i = 0; i < 200; ++i) b.packs.push_back({pack_at(batch * 1000 + i), Bytes(80, 1)});
     auto r = store.write(b);
-    if (r.eviction) {
-      EXPECT_EQ(r.eviction->telemetry_rows, 0u);
-      evicted_packs += r.eviction->pack_snapshot_rows;
+    if (r.ok() && r->eviction) {
+      EXPECT_EQ(r->eviction->telemetry_rows, 0u);
+      evicted_packs += r->eviction->pack_snapshot_rows;
     }
     ASSERT_LE(store.live_bytes(), kBudget);
   }
@@ -155,9 +155,9 @@ TEST(Budget, TelemetryGoesBeforeAnyPackSnapshot) {
       b.telemetry.push_back({telemetry_at(1'000'000 + batch * 500 + i), Bytes(64, 2)});
     }
     auto r = store.write(b);
-    if (r.eviction) {
-      evicted_telemetry += r.eviction->telemetry_rows;
-      EXPECT_EQ(r.eviction->pack_snapshot_rows, 0u) << "batch " << batch;
+    if (r.ok() && r->eviction) {
+      evicted_telemetry += r->eviction->telemetry_rows;
+      EXPECT_EQ(r->eviction->pack_snapshot_rows, 0u) << "batch " << batch;
     }
   }
   EXPECT_GT(evicted_telemetry, 0u);
@@ -174,9 +174,9 @@ TEST(Budget, NothingEvictableKeepsEverythingAndReportsOnce) {
     b.now_us = batch;
     for (int i = 0; i < 200; ++i) b.faults.push_back({fault_at(batch, i), Bytes(100, 3)});
     auto r = store.write(b);
-    if (r.eviction) {
-      EXPECT_TRUE(r.eviction->budget_exhausted);
-      EXPECT_EQ(r.eviction->telemetry_rows + r.eviction->pack_snapshot_rows, 0u);
+    if (r.ok() && r->eviction) {
+      EXPECT_TRUE(r->eviction->budget_exhausted);
+      EXPECT_EQ(r->eviction->telemetry_rows + r->eviction->pack_snapshot_rows, 0u);
       ++exhausted_reports;
     }
   }
@@ -210,12 +210,12 @@ TEST(Budget, EvictionDeletesExactlyTheEvictedSamplesEntriesFromAMixedQueue) {
     // A message of another kind at the telemetry's priority, between the samples' entries.
     b.messages.push_back({OutboxKind::kInfo, kLowestPriority, Bytes(16, 7)});
     const auto r = store.write(b);
-    ASSERT_TRUE(r.ok()) << r.error->message;
+    ASSERT_TRUE(r.ok()) << r.status().message;
     ++info_messages;
-    if (r.eviction && r.eviction->telemetry_rows > 0) {
+    if (r->eviction && r->eviction->telemetry_rows > 0) {
       ++passes;
-      evicted_samples += r.eviction->telemetry_rows;
-      evicted_entries += r.eviction->outbox_rows;
+      evicted_samples += r->eviction->telemetry_rows;
+      evicted_entries += r->eviction->outbox_rows;
     }
     if (batch == 3) {
       // Acknowledge every third queued sample of the oldest batches: no longer queued.

@@ -36,7 +36,9 @@ void expect_fresh_and_usable(Store& store) {
   EXPECT_EQ(store.next_seq(), 1u);
   Batch b;
   b.telemetry.push_back({telemetry_at(1), payload_of("x")});
-  EXPECT_EQ(store.write(b).first_seq, 1u);
+  const auto written = store.write(b);
+  ASSERT_TRUE(written.ok()) << written.status().message;
+  EXPECT_EQ(written->first_seq, 1u);
 }
 
 TEST(Corrupt, GarbageFileIsMovedAsideNotOverwritten) {

@@ -47,8 +47,9 @@ static_assert(sizeof(Report) < PIPE_BUF, "pipe writes below PIPE_BUF are atomic"
       RideRow ride = ride_named(ride_id, round, false);
       ride.distance_km = static_cast<double>(batch);
       b.rides.push_back({ride, std::nullopt});
-      WriteResult r = store.write(b);
-      Report rep{r.first_seq, r.end_seq, batch};
+      const auto r = store.write(b);
+      if (!r.ok()) _exit(4);  // a failed write: the parent reports the early exit
+      Report rep{r->first_seq, r->end_seq, batch};
       if (::write(report_fd, &rep, sizeof rep) != static_cast<ssize_t>(sizeof rep)) _exit(3);
     }
   } catch (...) {

@@ -125,7 +125,7 @@ TEST(DiskBudget, ReserveLetsPreciousRecordsInWhenTelemetryFilledTheDisk) {
     precious.command_results.push_back({command_result("r" + std::to_string(k), k), Bytes(50, 2)});
   }
   const auto r = store.write(precious);
-  ASSERT_TRUE(r.ok()) << r.error->message;
+  ASSERT_TRUE(r.ok()) << r.status().message;
   EXPECT_EQ(store.health().full_recoveries, 0u) << "the reserve held: no SQLITE_FULL at all";
   EXPECT_FALSE(store.health().failing);
   EXPECT_EQ(counts(store)["fault_events"], 200u);
@@ -145,7 +145,7 @@ TEST(DiskFull, EvictsTelemetryAndRetriesSoEveryWriteSucceeds) {
     for (const auto& c : p.command_results) b.command_results.push_back(c);
     for (const auto& c : p.commands) b.commands.push_back(c);
     const auto r = store.write(b);
-    ASSERT_TRUE(r.ok()) << "round " << round << ": " << r.error->message;
+    ASSERT_TRUE(r.ok()) << "round " << round << ": " << r.status().message;
   }
   const auto h = store.health();
   EXPECT_GT(h.full_recoveries, 0u) << "the disk did fill up";
@@ -169,19 +169,19 @@ TEST(DiskFull, NothingEvictableFailsWithoutThrowingAndRecoversWhenSpaceReturns) 
   std::int64_t wall = env.wall_now().count();
   Store store(StoreOptions{.path = path, .max_page_count = 64, .env = &env});
   int k = 0;
-  StoreError last{};
+  Status last;
   for (; k < 5000; ++k) {
     Batch b;
     b.now_us = k;
     b.faults.push_back({fault_at(k, k), Bytes(200, 7)});
     const auto r = store.write(b);
     if (!r.ok()) {
-      last = *r.error;
+      last = r.status();
       break;
     }
   }
   ASSERT_LT(k, 5000) << "64 pages must fill up";
-  EXPECT_EQ(last.code, StoreError::Code::kFull);
+  EXPECT_EQ(last.code, StatusCode::kFull);
   auto h = store.health();
   EXPECT_TRUE(h.failing);
   EXPECT_EQ(h.last_error, "disk full (SQLITE_FULL)");
@@ -206,7 +206,7 @@ TEST(DiskFull, NothingEvictableFailsWithoutThrowingAndRecoversWhenSpaceReturns) 
   Batch small;
   small.faults.push_back({fault_at(k, k), Bytes(10, 7)});
   const auto r = store.write(small);
-  ASSERT_TRUE(r.ok()) << r.error->message;
+  ASSERT_TRUE(r.ok()) << r.status().message;
   EXPECT_FALSE(store.health().failing);
   EXPECT_EQ(store.health().failing_since_us, 0);
 }

@@ -156,7 +156,7 @@ TEST(Export, ZoneEventsAreQueuedAsZoneAndValidated) {
   half.zone_events.push_back({z, payload_of("zone")});
   const auto r = store.write(half);
   ASSERT_FALSE(r.ok());
-  EXPECT_NE(r.error->message.find("zone_events[0].lat_deg"), std::string::npos) << r.error->message;
+  EXPECT_NE(r.status().message.find("zone_events[0].lat_deg"), std::string::npos) << r.status().message;
   Batch unnamed;
   unnamed.now_us = 6'000;
   auto u = zone_event_at(6'000, "exit");
@@ -164,8 +164,8 @@ TEST(Export, ZoneEventsAreQueuedAsZoneAndValidated) {
   unnamed.zone_events.push_back({u, payload_of("zone")});
   const auto r2 = store.write(unnamed);
   ASSERT_FALSE(r2.ok());
-  EXPECT_NE(r2.error->message.find("zone_events[0].zone_id: empty"), std::string::npos)
-      << r2.error->message;
+  EXPECT_NE(r2.status().message.find("zone_events[0].zone_id: empty"), std::string::npos)
+      << r2.status().message;
   EXPECT_EQ(export_rows(store, "zone_events").size(), 1u) << "refused batches wrote nothing";
 }
 

@@ -136,8 +136,9 @@ TEST(Outbox, SequenceNumbersGapFreeAcrossReopenAndNeverReused) {
     Store store(StoreOptions{.path = path});
     for (int i = 0; i < 5; ++i) {
       auto r = store.write(mixed_batch(round * 100 + i));
-      ASSERT_EQ(r.end_seq - r.first_seq, 6u);
-      for (auto s = r.first_seq; s < r.end_seq; ++s) seen.push_back(s);
+      ASSERT_TRUE(r.ok()) << r.status().message;
+      ASSERT_EQ(r->end_seq - r->first_seq, 6u);
+      for (auto s = r->first_seq; s < r->end_seq; ++s) seen.push_back(s);
     }
     // Ack everything: an empty outbox must not let the counter restart.
     auto entries = store.peek_outbox(1000, 1 << 30);
@@ -159,8 +160,8 @@ TEST(Outbox, RejectedBatchStoresNothingAndBurnsNoNumbers) {
   bad.rides.push_back({ride_named("", 2, false), std::nullopt});
   const auto rejected = store.write(bad);
   ASSERT_FALSE(rejected.ok()) << "empty ride id must be rejected";
-  EXPECT_EQ(rejected.error->code, StoreError::Code::kInvalid);
-  EXPECT_EQ(rejected.error->message, "storage: Batch.rides[1].ride_id: empty");
+  EXPECT_EQ(rejected.status().code, StatusCode::kInvalid);
+  EXPECT_EQ(rejected.status().message, "storage: Batch.rides[1].ride_id: empty");
   EXPECT_EQ(store.next_seq(), next);
   EXPECT_EQ(store.outbox_depth().size(), 6u);
 
@@ -173,7 +174,7 @@ TEST(Outbox, RejectedBatchStoresNothingAndBurnsNoNumbers) {
   }
   const auto failed = store.write(failing);  // never throws: the error is returned
   ASSERT_FALSE(failed.ok());
-  EXPECT_NE(failed.error->message.find("boom"), std::string::npos) << failed.error->message;
+  EXPECT_NE(failed.status().message.find("boom"), std::string::npos) << failed.status().message;
   EXPECT_TRUE(store.health().failing);
   EXPECT_EQ(store.health().failed_writes, 2u) << "the rejected batch and the failed one";
   EXPECT_EQ(store.next_seq(), next);
@@ -185,7 +186,8 @@ TEST(Outbox, RejectedBatchStoresNothingAndBurnsNoNumbers) {
     raw.exec("DROP TRIGGER boom");
   }
   auto r = store.write(mixed_batch(4));
-  EXPECT_EQ(r.first_seq, next) << "numbers of the rolled-back batch are handed out again";
+  ASSERT_TRUE(r.ok()) << r.status().message;
+  EXPECT_EQ(r->first_seq, next) << "numbers of the rolled-back batch are handed out again";
   EXPECT_FALSE(store.health().failing) << "a successful write ends the failing stretch";
   EXPECT_EQ(store.health().failing_since_us, 0);
 }
@@ -196,8 +198,8 @@ TEST(Outbox, ValidationNamesEntryAndField) {
   auto expect_reject = [&](const Batch& b, const std::string& message) {
     const auto r = store.write(b);
     ASSERT_FALSE(r.ok()) << "expected rejection: " << message;
-    EXPECT_EQ(r.error->code, StoreError::Code::kInvalid);
-    EXPECT_EQ(r.error->message, message);
+    EXPECT_EQ(r.status().code, StatusCode::kInvalid);
+    EXPECT_EQ(r.status().message, message);
   };
   Batch b;
   b.telemetry.push_back({telemetry_at(-5), std::nullopt});
@@ -253,7 +255,8 @@ TEST(Store, OpenRideSurvivesRestartAndIsUpdatedInPlace) {
     r.distance_km = 1.0;
     b.rides.push_back({r, std::nullopt});  // checkpoint only: no uplink yet
     auto res = store.write(b);
-    EXPECT_EQ(res.first_seq, res.end_seq) << "no outbox entry for a checkpoint";
+    ASSERT_TRUE(res.ok()) << res.status().message;
+    EXPECT_EQ(res->first_seq, res->end_seq) << "no outbox entry for a checkpoint";
   }
   Store store(StoreOptions{.path = path});
   auto open = store.open_rides();

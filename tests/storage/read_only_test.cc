@@ -103,7 +103,7 @@ TEST(ReadOnly, ReadsWhileTheWriterHoldsTheFileAndTouchesNothing) {
     // And the reader cannot write.
     const auto r = reader.write(more);
     ASSERT_FALSE(r.ok());
-    EXPECT_EQ(r.error->code, StoreError::Code::kInvalid);
+    EXPECT_EQ(r.status().code, StatusCode::kInvalid);
     EXPECT_EQ(reader.ack(std::vector<std::uint64_t>{1}), 0u);
   }
   // Same files (the WAL may have grown from the writer's second batch, nothing else).

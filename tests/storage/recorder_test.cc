@@ -119,6 +119,35 @@ TEST(Recorder, FullDiskBoundsRetryMemoryDropsTelemetryAndReports) {
   // Retries follow the wall clock (once a second), not every tick (14,400 ticks).
   EXPECT_GT(recorder.write_failures(), 100u);
   EXPECT_LE(recorder.write_failures(), 1440u + 10u);
+  // flush() hands the store's code to its caller: the engine's stage backs off on a kFull.
+  ASSERT_GT(h.pending_records, 0u);
+  const FlushOutcome out = recorder.flush(t0 + Micros(std::int64_t{4 * 3600} * 1'000'000));
+  EXPECT_EQ(out.status.code, StatusCode::kFull) << out.status.message;
+  EXPECT_NE(out.status.message.find("SQLITE_FULL"), std::string::npos) << out.status.message;
+  EXPECT_GT(recorder.pending_records(), 0u) << "records kept for the retry";
+}
+
+TEST(Recorder, ARefusedBatchIsDroppedAndCountedNotRetried) {
+  TempDir dir;
+  ManualEnv env;
+  storage::Store store(storage::StoreOptions{.path = dir.file("refused.db"), .env = &env});
+  config::Config config;
+  const auto t0 = Micros(1'700'000'000'000'000);
+  Recorder recorder(config, store, t0, env);
+  // Priority 99 is outside every kind's range: the store refuses the batch (kInvalid).
+  recorder.queue_message(storage::UplinkMessage{storage::OutboxKind::kInfo, 99, {1, 2, 3}});
+  const FlushOutcome out = recorder.flush(t0);
+  EXPECT_TRUE(out.status.ok()) << "nothing is kept to retry: " << out.status.message;
+  EXPECT_EQ(out.records, 0u);
+  EXPECT_EQ(recorder.pending_records(), 0u);
+  EXPECT_EQ(recorder.health().dropped_records, 1u);
+  EXPECT_NE(recorder.health().last_error.find("priority"), std::string::npos)
+      << recorder.health().last_error;
+  // The next good batch goes through: the refused one does not block the queue.
+  recorder.queue_message(storage::UplinkMessage{
+      storage::OutboxKind::kInfo, static_cast<int>(storage::OutboxPriority::kPack), {4}});
+  EXPECT_TRUE(recorder.flush(t0).status.ok());
+  EXPECT_EQ(recorder.batches_written(), 1u);
 }
 
 }  // namespace

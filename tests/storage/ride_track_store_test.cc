@@ -57,13 +57,13 @@ TEST(RideTrackStore, PositionsRoundTripAndAnUpsertReplacesThem) {
   Batch b;
   b.now_us = 2'000'000;
   b.rides.push_back({open, std::nullopt});
-  ASSERT_FALSE(store.write(b).error);
+  ASSERT_TRUE(store.write(b).ok());
   EXPECT_FALSE(store.ride("r1")->track) << "no fix yet: NULL";
 
   RideRow closed = ride_with_track("r1");
   b.rides.clear();
   b.rides.push_back({closed, std::nullopt});
-  ASSERT_FALSE(store.write(b).error);
+  ASSERT_TRUE(store.write(b).ok());
   const auto back = store.ride("r1");
   ASSERT_TRUE(back.has_value());
   RideRow expected = closed;
@@ -80,7 +80,7 @@ TEST(RideTrackStore, BadPositionsAreRefusedNamingTheField) {
     b.now_us = 2'000'000;
     b.rides.push_back({r, std::nullopt});
     const auto w = store.write(b);
-    return w.error ? w.error->message : std::string();
+    return w.ok() ? std::string() : w.status().message;
   };
   RideRow r = ride_with_track("r2");
   r.end_lon_deg.reset();

@@ -86,7 +86,8 @@ TEST_P(MigrateFrom, EarlierVersionUpgradesKeepingData) {
   b.now_us = 20;
   b.telemetry.push_back({testing::telemetry_at(20), testing::payload_of("t")});
   auto r = store.write(b);
-  EXPECT_EQ(r.first_seq, 42u);
+  ASSERT_TRUE(r.ok()) << r.status().message;
+  EXPECT_EQ(r->first_seq, 42u);
 }
 
 INSTANTIATE_TEST_SUITE_P(EveryEarlierVersion, MigrateFrom, ::testing::Range(1, kSchemaVersion),
@@ -162,13 +163,13 @@ TEST(Schema, V2JournalRowsOpenWithoutDigestAndNewRowsKeepTheirs) {
   Batch b;
   b.now_us = 20;
   b.commands.push_back({"new-cmd", 20, "executing", 2000, digest});
-  ASSERT_FALSE(store.write(b).error);
+  ASSERT_TRUE(store.write(b).ok());
   EXPECT_EQ(store.command("new-cmd")->command_sha256, digest);
 
   Batch update;
   update.now_us = 30;
   update.commands.push_back({"new-cmd", 20, "succeeded", 2000, {}});
-  ASSERT_FALSE(store.write(update).error);
+  ASSERT_TRUE(store.write(update).ok());
   const auto updated = store.command("new-cmd");
   EXPECT_EQ(updated->state, "succeeded");
   EXPECT_EQ(updated->command_sha256, digest) << "an update without a digest keeps it";
