@@ -75,6 +75,8 @@ class Result {
   const T& operator*() const& { return value(); }
   T* operator->() { return &value(); }
   const T* operator->() const { return &value(); }
+  // The value, or `fallback` on an error (a caller that only needs a count).
+  T value_or(T fallback) const& { return ok() ? std::get<0>(v_) : std::move(fallback); }
 
   // The error; the ok Status when the Result holds a value.
   Status status() const { return ok() ? Status{} : std::get<1>(v_); }

@@ -63,11 +63,12 @@ std::vector<OutboxRow> Store::peek_outbox(std::size_t limit, std::size_t max_byt
   return out;
 }
 
-std::size_t Store::ack(std::span<const std::uint64_t> seqs) {
-  if (seqs.empty()) return 0;
+Result<std::size_t> Store::ack(std::span<const std::uint64_t> seqs) {
+  if (seqs.empty()) return std::size_t{0};
   auto& db = impl_->db;
   std::size_t deleted = 0;
-  if (impl_->options.read_only) return 0;
+  if (impl_->options.read_only) return Status{StatusCode::kInvalid, "the store is open read-only"};
+  Status error;
   try {
     Transaction tx(db);
     auto st = db.cached("DELETE FROM outbox WHERE seq = ?");
@@ -81,10 +82,11 @@ std::size_t Store::ack(std::span<const std::uint64_t> seqs) {
     impl_->record_success();
   } catch (const std::exception& e) {
     // Nothing deleted: the entries stay queued and are sent again (the backend deduplicates).
-    impl_->record_failure(to_status(e), "ack");
-    deleted = 0;
+    error = to_status(e);
+    impl_->record_failure(error, "ack");
   }
   for (auto seq : seqs) impl_->in_flight.erase(seq);
+  if (!error.ok()) return error;
   return deleted;
 }
 

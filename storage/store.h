@@ -236,9 +236,10 @@ class Store {
                                        std::span<const OutboxKind> skip_kinds);
   // Deletes the acknowledged entries (only those); returns how many rows existed and were
   // deleted (an entry evicted meanwhile is not counted). Clears their in-flight mark. On a
-  // disk error nothing is deleted (the entries are sent again later), 0 is returned and the
-  // failure is recorded in health().
-  std::size_t ack(std::span<const std::uint64_t> seqs);
+  // disk error nothing is deleted (the entries are sent again later) and its Status is
+  // returned (kFull, kIo, kOther), the failure recorded in health(). A read-only store deletes
+  // nothing and returns kInvalid (not recorded in health()).
+  Result<std::size_t> ack(std::span<const std::uint64_t> seqs);
   // Makes in-flight entries eligible for peek_outbox() again.
   void release(std::span<const std::uint64_t> seqs);
   void release_all();

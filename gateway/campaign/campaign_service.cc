@@ -54,8 +54,7 @@ void CampaignService::restore(Micros wall_now, Micros bus_now) {
     engine_.put(authority_.in_force().at(v.id).compiled, bus_now);
     spdlog::info("campaign: '{}' restored: {}", v.id, v.detail);
   }
-  std::string error;
-  persist(&error);  // drops what was refused
+  persist();  // drops what was refused
   count_stored_records();
 }
 
@@ -110,9 +109,9 @@ CampaignVerdict CampaignService::on_payload(std::string_view topic, std::string_
   }
   if (v.accepted()) {
     ++accepted_;
-    std::string error;
-    persist(&error);
-    if (!error.empty()) spdlog::error("campaign: '{}' not stored: {}", v.id, error);
+    if (const Status stored = persist(); !stored.ok()) {
+      spdlog::error("campaign: '{}' not stored: {}", v.id, stored.message);
+    }
     engine_.put(authority_.in_force().at(v.id).compiled, bus_now);
     spdlog::info("campaign: '{}' accepted: {}", v.id, v.detail);
   } else if (v.outcome == CampaignOutcome::kRefused) {
@@ -135,8 +134,7 @@ void CampaignService::expire(Micros wall_now, Micros bus_now) {
     engine_.remove(id, bus_now);
     spdlog::info("campaign: '{}' ended", id);
   }
-  std::string error;
-  persist(&error);
+  persist();
 }
 
 void CampaignService::tick(Micros wall_now, Micros bus_now) {
@@ -153,7 +151,7 @@ std::vector<storage::UplinkMessage> CampaignService::take_messages() {
   return out;
 }
 
-void CampaignService::persist(std::string* error) {
+Status CampaignService::persist() {
   storage::Batch batch;
   std::string index;
   for (const auto& [id, held] : authority_.in_force()) {
@@ -161,8 +159,7 @@ void CampaignService::persist(std::string* error) {
     batch.meta.emplace_back("campaign." + id, command::encode_base64(service_bytes(held.payload)));
   }
   batch.meta.emplace_back(kIndexKey, index);
-  const auto result = store_.write(batch);
-  if (!result.ok()) *error = result.status().message;
+  return store_.write(batch).status();
 }
 
 nlohmann::json CampaignService::status(Micros bus_now) const {

@@ -79,7 +79,8 @@ class CampaignService {
   nlohmann::json status(Micros bus_now) const;
 
  private:
-  void persist(std::string* error);
+  // Stores the campaigns in force (meta table); the store's Status when that failed.
+  Status persist();
   void count_stored_records();
   void expire(Micros wall_now, Micros bus_now);
 

@@ -53,6 +53,8 @@ TEST(Result, HoldsAValueOrAnError) {
   ASSERT_FALSE(refused.ok());
   EXPECT_EQ(refused.status().code, StatusCode::kInvalid);
   EXPECT_EQ(refused.status().message, "Batch.rides[1].ride_id: empty");
+  EXPECT_EQ(refused.value_or(-1), -1);
+  EXPECT_EQ(seven.value_or(-1), 7);
 }
 
 TEST(Result, AnOkStatusWithoutAValueBecomesAnErrorNotASilentSuccess) {

@@ -226,7 +226,7 @@ TEST(Budget, EvictionDeletesExactlyTheEvictedSamplesEntriesFromAMixedQueue) {
         acked_samples.push_back(*e.source_id);
       }
       store.release_all();
-      ASSERT_EQ(store.ack(acked), acked.size());
+      ASSERT_EQ(store.ack(acked).value_or(0), acked.size());
     }
   }
   ASSERT_EQ(passes, 3u) << "the budget was not reached three times";

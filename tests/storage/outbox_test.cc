@@ -115,7 +115,7 @@ TEST(Outbox, AckDeletesOnlyAcknowledged) {
   auto all = store.peek_outbox(100, 1 << 20);
   ASSERT_EQ(all.size(), 6u);
   const std::vector<std::uint64_t> acked = {all[1].seq, all[4].seq, 9999};  // 9999: unknown
-  EXPECT_EQ(store.ack(acked), 2u);
+  EXPECT_EQ(store.ack(acked).value_or(0), 2u);
   store.release_all();
   auto left = seqs_of(store.peek_outbox(100, 1 << 20));
   std::vector<std::uint64_t> expected = {all[0].seq, all[2].seq, all[3].seq, all[5].seq};
@@ -125,7 +125,34 @@ TEST(Outbox, AckDeletesOnlyAcknowledged) {
   std::uint64_t faults = 0;
   store.export_table("fault_events", 0, [&](const nlohmann::json&) { ++faults; });
   EXPECT_EQ(faults, 1u);
-  EXPECT_EQ(store.ack(std::vector<std::uint64_t>{all[1].seq}), 0u) << "double ack is harmless";
+  EXPECT_EQ(store.ack(std::vector<std::uint64_t>{all[1].seq}).value_or(9), 0u)
+      << "double ack is harmless";
+}
+
+TEST(Outbox, AFailedAckReturnsItsStatusAndDeletesNothing) {
+  TempDir dir;
+  Store store(StoreOptions{.path = dir.file("ackfail.db")});
+  store.write(mixed_batch(1000));
+  const auto all = seqs_of(store.peek_outbox(100, 1 << 20));
+  ASSERT_EQ(all.size(), 6u);
+  {
+    Database raw(store.path());
+    raw.exec("CREATE TRIGGER boom BEFORE DELETE ON outbox BEGIN SELECT RAISE(ABORT, 'boom'); END");
+  }
+  const auto failed = store.ack(all);  // never throws: the error is returned
+  ASSERT_FALSE(failed.ok());
+  EXPECT_NE(failed.status().message.find("boom"), std::string::npos) << failed.status().message;
+  EXPECT_TRUE(store.health().failing);
+  store.release_all();
+  EXPECT_EQ(store.peek_outbox(100, 1 << 20).size(), 6u) << "nothing deleted: sent again later";
+  {
+    Database raw(store.path());
+    raw.exec("DROP TRIGGER boom");
+  }
+  const auto acked = store.ack(all);
+  ASSERT_TRUE(acked.ok()) << acked.status().message;
+  EXPECT_EQ(*acked, 6u);
+  EXPECT_FALSE(store.health().failing);
 }
 
 TEST(Outbox, SequenceNumbersGapFreeAcrossReopenAndNeverReused) {
