@@ -71,7 +71,8 @@ Pipeline::Pipeline(asio::io_context& io, const config::Config& config, BusTransp
                   [](const node::ShutdownOutcome&) { spdlog::info("shutdown complete: ACC off"); },
           }),
       outbox_(store, env_),
-      device_info_(core_.node().config().identity) {
+      device_info_(core_.node().config().identity),
+      config_(config) {
   bus_.transport->start([this](const motinova::CanFrame& frame, Micros ts) { on_frame(frame, ts); },
                         [this](const can::BusHealth& h) {
                           spdlog::info("bus {}: {}{}{}", bus_.transport->name(),
@@ -279,6 +280,7 @@ void Pipeline::add_stages() {
   recorder_backoff_ = engine_.backoff(*recorder_stage_);
   if (uplink_stage_) {
     engine_.add(*uplink_stage_, [this] { return route_uplink(); });
+    add_status_stage();
   }
   engine_.set_after_settle([this] { after_settle(); });
 }
@@ -323,7 +325,7 @@ bool Pipeline::route_gnss() {
 
 bool Pipeline::route_uplink() {
   UplinkStage& up = *uplink_stage_;
-  up.set_bus_state(bus_state());
+  want_status();
   bool moved = false;
   // A command acts on the bus as it is now, not as of the last batch.
   if (!up.commands.empty() && bus_.sim) bus_.sim->flush();
@@ -429,6 +431,7 @@ void Pipeline::finish() {
     uplink_->poll(env_.wall_now());
     uplink_->wait_for_events(std::chrono::milliseconds(50));
   }
+  uplink_->set_status(status_message());  // the offline status shows the stop's figures
   uplink_->stop(env_.wall_now());
   answer_commands_at_stop();
   const auto s = uplink_->stats();

@@ -14,8 +14,10 @@
 //    through the command service), vehicle state (StateStage: the state and the parked/riding
 //    rates to the uplink), recorder (group commit), uplink (poll; the commands, busy notices
 //    and retained documents it took are routed to the command service, the campaigns and the
-//    zones, and the echoes of what the node sent delivered). The routes run after their stage;
-//    the settle repeats until nothing moves (engine.h).
+//    zones, and the echoes of what the node sent delivered), status (the retained Status,
+//    built when the uplink wants one, the bus state changed or its refresh is due; the route
+//    hands it to the uplink, which publishes it). The routes run after their stage; the settle
+//    repeats until nothing moves (engine.h).
 //  * Results, faults, alarms, rides and locks are published as soon as they are stored (an
 //    urgent recorder flush, or result_stored, makes the uplink poll in the same settle); only
 //    telemetry waits for its group commit (storage.flush_ms of wall time at the latest; outside
@@ -61,6 +63,7 @@
 #include "gateway/runtime/recorder.h"
 #include "gateway/runtime/stages.h"
 #include "gateway/runtime/state_stage.h"
+#include "gateway/runtime/status_stage.h"
 #include "gateway/runtime/status_provider.h"
 #include "gateway/runtime/store_outbox.h"
 #include "gateway/runtime/zones_stage.h"
@@ -148,6 +151,8 @@ class Pipeline {
   std::optional<bool> parked() const { return state_stage_->parked(); }
   // Bus time covered by the frames delivered so far (0 before the first frame).
   double bus_seconds() const;
+  // The status socket's document (pipeline_status.cc; runtime/status_provider.h).
+  nlohmann::json status_document() const;
 
  private:
   class CommandFeed;
@@ -176,6 +181,13 @@ class Pipeline {
   void start_state(const config::Config& config);
   bool route_state();
   fleetgw::v1::BusState bus_state() const;
+  // The retained status (pipeline_status.cc): built by the status stage, handed to the uplink by
+  // its route; want_status() (the uplink's route) asks for one when the uplink wants it or the
+  // bus state changed.
+  StatusInputs status_inputs() const;
+  fleetgw::v1::Status status_message();
+  void add_status_stage();
+  void want_status();
 
   asio::io_context& io_;
   PipelineOptions options_;
@@ -208,10 +220,13 @@ class Pipeline {
   std::unique_ptr<StateStage> state_stage_;  // always (parked mode); the state needs [mqtt]
   std::unique_ptr<RecorderStage> recorder_stage_;
   std::unique_ptr<UplinkStage> uplink_stage_;
+  std::unique_ptr<StatusStage> status_stage_;  // after the uplink: what it wants is built
   const Backoff* recorder_backoff_ = nullptr;  // the engine's retry state of the recorder
   bool stopping_ = false;
   std::uint64_t commands_handled_ = 0;
   std::shared_ptr<int> alive_ = std::make_shared<int>(0);  // guards posted handlers
+  const config::Config& config_;  // outlives the pipeline (run_service's); read by the status
+  fleetgw::v1::BusState status_bus_state_ = fleetgw::v1::BUS_STATE_UNSPECIFIED;  // last built
 };
 
 }  // namespace fleetgw::runtime

@@ -13,7 +13,6 @@
 #include "gateway/runtime/recorder.h"
 #include "gateway/runtime/status_provider.h"
 #include "gateway/status/notifier.h"
-#include "gateway/status/status_message.h"
 #include "gateway/status/status_server.h"
 #include "storage/store.h"
 
@@ -91,7 +90,6 @@ uplink::UplinkConfig make_uplink_config(const config::Config& c) {
   u.qos = c.mqtt.qos;
   u.live_telemetry_qos = c.mqtt.telemetry_qos;
   u.live_telemetry_max_age = std::chrono::milliseconds(c.mqtt.live_telemetry_max_age_ms);
-  u.status_interval = std::chrono::milliseconds(c.mqtt.status_interval_ms);
   u.telemetry_batch_max_samples = static_cast<std::size_t>(c.mqtt.batch_max_samples);
   u.telemetry_batch_max_delay = std::chrono::milliseconds(c.mqtt.batch_max_ms);
   u.protocol = c.mqtt.protocol == "3.1.1" ? uplink::MqttProtocol::kV311 : uplink::MqttProtocol::kV5;
@@ -173,38 +171,11 @@ int run_service(const config::Config& config, const ServiceOptions& options,
     watchdog.emplace(io, notifier, *timeout);
     watchdog->start();
   }
-  // One status document for the technician (status socket) and the fleet (published Status).
-  const auto status_document = [&] {
-    StatusInputs in{config,
-                    pipeline->core(),
-                    pipeline->transport(),
-                    *store,
-                    pipeline->uplink(),
-                    pipeline->started(),
-                    pipeline->bus_now()};
-    in.storage_health = pipeline->recorder().health();
-    in.gnss = pipeline->gnss();
-    in.open_ride = pipeline->recorder().trackers().rides().current(pipeline->bus_now());
-    in.parked = pipeline->parked();
-    in.geofence = pipeline->geofence_status();
-    in.campaigns = pipeline->campaign_status();
-    if (!config.command.root_keys.empty()) in.revocation_version = pipeline->revocation_version();
-    if (const uplink::Uplink* up = pipeline->uplink()) {
-      const auto s = up->stats();
-      in.uplink_failure =
-          UplinkFailure{s.last_connect_error, s.last_connect_error_us, s.tls_failures};
-    }
-    return make_status_json(in);
-  };
-  if (uplink::Uplink* up = pipeline->uplink()) {
-    up->set_status_decorator(
-        [&](v1::Status& status) { status::fill_status_health(status, status_document()); });
-  }
   if (!config.status.socket.empty()) {
     try {
       const std::filesystem::path socket(config.status.socket);
       if (socket.has_parent_path()) std::filesystem::create_directories(socket.parent_path());
-      status_server.emplace(io, socket, status_document);
+      status_server.emplace(io, socket, [&] { return pipeline->status_document(); });
     } catch (const std::exception& e) {
       spdlog::warn("status socket {} disabled: {}", config.status.socket, e.what());
     }

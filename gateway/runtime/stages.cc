@@ -81,7 +81,6 @@ std::optional<EngineTime> UplinkStage::next_deadline() const {
 }
 
 StageRun UplinkStage::run(EngineTime now) {
-  uplink_.set_bus_state(bus_state_);
   const auto poll_at = uplink_.next_deadline();
   const bool woken = woken_.exchange(false);
   if (!publish_due_ && !woken && !(poll_at && now >= *poll_at)) return {};

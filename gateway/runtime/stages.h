@@ -91,7 +91,6 @@ class UplinkStage final : public Stage {
     woken_.store(true);
     engine_.wake();
   }
-  void set_bus_state(fleetgw::v1::BusState s) { bus_state_ = s; }
 
   // Outputs, taken by the routes.
   std::vector<std::string> commands;
@@ -104,7 +103,6 @@ class UplinkStage final : public Stage {
   Engine& engine_;
   std::atomic<bool> woken_{false};
   bool publish_due_ = false;
-  fleetgw::v1::BusState bus_state_ = fleetgw::v1::BUS_STATE_SILENT;
   std::uint64_t polls_ = 0;
 };
 

@@ -1,6 +1,10 @@
 #include "gateway/runtime/status_provider.h"
 
+#include <algorithm>
 #include <chrono>
+
+#include "gateway/status/status_message.h"
+#include "gateway/uplink/uplink_status.h"
 
 namespace fleetgw::runtime {
 namespace {
@@ -69,21 +73,130 @@ nlohmann::json geofence_json(const GeofenceStatus& g, Micros wall_now) {
   return out;
 }
 
+Micros wall_clock(const StatusInputs& in) {
+  return in.wall_now.count() > 0 ? in.wall_now
+                                 : std::chrono::duration_cast<Micros>(
+                                       std::chrono::system_clock::now().time_since_epoch());
+}
+
+// The outbox as the uplink counts it (records acked but not yet deleted are not waiting), or
+// the store's own count without an uplink.
+uplink::OutboxStats outbox_figures(const StatusInputs& in) {
+  if (in.uplink) return {in.uplink->outbox_depth, in.uplink->oldest_unsent_created_us};
+  uplink::OutboxStats o;
+  for (const auto& d : in.store.outbox_depth()) o.depth += d.entries;
+  o.oldest_created_us = in.store.oldest_unsent_us().value_or(0);
+  return o;
+}
+
+// Every node a standard bike has, plus the fitted locks.
+std::vector<motinova::Node> expected_nodes(const config::Config& config) {
+  std::vector<motinova::Node> expected{motinova::Node::kMc, motinova::Node::kBms,
+                                       motinova::Node::kObc};
+  for (int k = 0; k < motinova::kLockCount; ++k) {
+    if (!config.protocol.lock_kinds[static_cast<std::size_t>(k)].empty()) {
+      expected.push_back(motinova::lock_node(k));
+    }
+  }
+  return expected;
+}
+
+status::Health health_of(const StatusInputs& in, const uplink::OutboxStats& outbox,
+                         Micros wall_now) {
+  status::Health h;
+  const auto& bus = in.transport.health();
+  h.bus = status::BusFacts{std::string(in.transport.name()),
+                           std::string(can::controller_state_name(bus.state)), bus.detail};
+  const auto& registry = in.core.node().registry();
+  h.nodes.emplace();
+  for (const auto n : expected_nodes(in.config)) {
+    const auto& s = registry.node(n);
+    status::NodeFacts facts{std::string(motinova::node_name(n)), s.online, std::nullopt};
+    if (s.present) facts.last_heard_age_s = seconds(in.now - s.last_heard);
+    h.nodes->push_back(std::move(facts));
+  }
+  h.faults.emplace();
+  for (const auto& f : in.core.live().faults) {
+    std::optional<std::int64_t> code;
+    if (f.code >= 0) code = f.code;
+    h.faults->push_back({f.node, code, f.name, f.severity});
+  }
+  h.has_locks = true;
+  status::BrokerFacts b;
+  b.enabled = in.uplink.has_value();
+  if (const auto& s = in.uplink) {
+    b.connected = s->state == uplink::UplinkState::kConnected;
+    b.uri = uplink::redact_uri(in.config.mqtt.uri);
+    if (!b.connected && !s->last_connect_error.empty()) {
+      // The reason, not only a count: "TLS: certificate verify failed (...)".
+      b.last_error = s->last_connect_error;
+    } else if (!b.connected && s->connect_failures > 0) {
+      b.last_error = "connect failed " + std::to_string(s->connect_failures) + " time(s)";
+    }
+    b.last_publish_refusal = s->last_publish_refusal;
+    b.refused_records = s->refused_records;
+  }
+  h.broker = std::move(b);
+  if (in.gnss) h.gnss = status::GnssFacts{true, in.gnss->connected(), in.gnss->endpoint()};
+  const std::uint64_t configured = static_cast<std::uint64_t>(in.config.storage.max_mb) << 20;
+  std::uint64_t budget = configured;
+  if (const auto& sh = in.storage_health) {
+    status::StorageFacts f;
+    f.failing = sh->failing;
+    f.last_error = sh->last_error;
+    f.failed_writes = sh->failed_writes;
+    f.failing_since_us = sh->failing_since_us;
+    if (sh->failing && sh->failing_since_us > 0) {
+      f.failing_for_s = std::max(0.0, seconds(wall_now - Micros(sh->failing_since_us)));
+    }
+    f.configured_budget_bytes =
+        sh->configured_budget_bytes > 0 ? sh->configured_budget_bytes : configured;
+    f.effective_budget_bytes =
+        sh->effective_budget_bytes > 0 ? sh->effective_budget_bytes : configured;
+    f.dropped_records = sh->dropped_records;
+    budget = f.effective_budget_bytes;
+    h.storage = std::move(f);
+  }
+  h.disk = status::DiskFacts{in.store.live_bytes(), budget};
+  status::OutboxFacts o{outbox.depth, std::nullopt};
+  if (outbox.oldest_created_us != 0) {
+    o.oldest_unsent_age_s = std::max(0.0, seconds(in.now - Micros(outbox.oldest_created_us)));
+  }
+  h.outbox = o;
+  return h;
+}
+
 }  // namespace
+
+status::Health make_status_health(const StatusInputs& in) {
+  return health_of(in, outbox_figures(in), wall_clock(in));
+}
+
+v1::Status make_status_message(const StatusInputs& in) {
+  const uplink::OutboxStats outbox = outbox_figures(in);
+  v1::Status s;
+  s.set_firmware_version(FLEETGW_VERSION);
+  s.set_bus_state(in.bus_state);
+  s.set_outbox_depth(outbox.depth);
+  s.set_oldest_unsent_created_at_us(outbox.oldest_created_us);
+  if (in.uplink) uplink::fill_status(s, *in.uplink);
+  status::fill_status(s, health_of(in, outbox, wall_clock(in)));
+  return s;
+}
 
 nlohmann::json make_status_json(const StatusInputs& in) {
   using nlohmann::json;
-  const Micros wall_now =
-      in.wall_now.count() > 0
-          ? in.wall_now
-          : std::chrono::duration_cast<Micros>(std::chrono::system_clock::now().time_since_epoch());
+  const Micros wall_now = wall_clock(in);
+  const uplink::OutboxStats outbox = outbox_figures(in);
+  // The judged keys come from the same facts as the published Status's verdict.
+  const status::Health h = health_of(in, outbox, wall_now);
   json j;
   j["schema"] = 1;
   j["version"] = FLEETGW_VERSION;
   j["vehicle_id"] = in.config.vehicle.id;
   j["uptime_s"] = seconds(in.now - in.started);
 
-  const auto& h = in.transport.health();
+  const auto& bh = in.transport.health();
   json frame_errors = json::object();
   const auto& bus = in.core.bus_stats();
   for (std::size_t k = 0; k < motinova::kReassemblyErrorKinds; ++k) {
@@ -91,30 +204,25 @@ nlohmann::json make_status_json(const StatusInputs& in) {
         static_cast<motinova::ReassemblyError>(k)))] = bus.errors[k];
   }
   j["bus"] = {{"transport", in.config.can.transport},
-              {"interface", std::string(in.transport.name())},
-              {"state", std::string(can::controller_state_name(h.state))},
-              {"rx_frames", h.rx_frames},
-              {"tx_frames", h.tx_frames},
-              {"tx_failures", h.tx_failures},
-              {"error_frames", h.error_frames},
-              {"reopens", h.reopens},
+              {"interface", h.bus->interface},
+              {"state", h.bus->state},
+              {"rx_frames", bh.rx_frames},
+              {"tx_frames", bh.tx_frames},
+              {"tx_failures", bh.tx_failures},
+              {"error_frames", bh.error_frames},
+              {"reopens", bh.reopens},
               {"frame_errors", frame_errors},
-              {"detail", h.detail}};
+              {"detail", h.bus->detail}};
 
-  // Every node a standard bike has, plus the fitted locks.
-  std::vector<motinova::Node> expected{motinova::Node::kMc, motinova::Node::kBms,
-                                       motinova::Node::kObc};
-  for (int k = 0; k < motinova::kLockCount; ++k) {
-    if (!in.config.protocol.lock_kinds[static_cast<std::size_t>(k)].empty()) {
-      expected.push_back(motinova::lock_node(k));
-    }
-  }
   json nodes = json::array();
   const auto& registry = in.core.node().registry();
-  for (const auto n : expected) {
+  const auto expected = expected_nodes(in.config);
+  for (std::size_t i = 0; i < expected.size(); ++i) {
+    const auto n = expected[i];
+    const auto& facts = (*h.nodes)[i];
     const auto& s = registry.node(n);
-    json node = {{"name", std::string(motinova::node_name(n))}, {"online", s.online}};
-    node["last_heard_age_s"] = s.present ? json(seconds(in.now - s.last_heard)) : json(nullptr);
+    json node = {{"name", facts.name}, {"online", facts.online}};
+    node["last_heard_age_s"] = or_null(facts.last_heard_age_s);
     node["firmware"] = s.model ? json(s.model->fw) : json(nullptr);
     node["model"] = s.model ? json(s.model->model) : json(nullptr);
     node["fault_word"] = std::string(node::fault_state_name(registry.fault_word(n, in.now).state));
@@ -123,11 +231,9 @@ nlohmann::json make_status_json(const StatusInputs& in) {
   j["nodes"] = std::move(nodes);
 
   json faults = json::array();
-  for (const auto& f : in.core.live().faults) {
-    faults.push_back({{"node", f.node},
-                      {"code", f.code >= 0 ? json(f.code) : json(nullptr)},
-                      {"name", f.name},
-                      {"severity", f.severity}});
+  for (const auto& f : *h.faults) {
+    faults.push_back(
+        {{"node", f.node}, {"code", or_null(f.code)}, {"name", f.name}, {"severity", f.severity}});
   }
   j["faults"] = std::move(faults);
   json locks = json::array();
@@ -140,90 +246,65 @@ nlohmann::json make_status_json(const StatusInputs& in) {
   j["locks"] = std::move(locks);
   j["vehicle"] = vehicle_json(in.core.live(), in.open_ride, in.parked);
 
-  json broker = {
-      {"enabled", in.uplink != nullptr}, {"connected", false}, {"uri", ""}, {"last_error", ""}};
-  if (in.uplink) {
-    const auto s = in.uplink->stats();
-    broker["connected"] = s.state == uplink::UplinkState::kConnected;
-    broker["state"] = std::string(uplink::to_string(s.state));
-    broker["uri"] = uplink::redact_uri(in.config.mqtt.uri);
-    broker["acked_records"] = s.acked_records;
-    broker["reconnects"] = s.reconnects;
-    broker["last_publish_ok_us"] = s.last_publish_ok_us;
-    if (s.state != uplink::UplinkState::kConnected && s.connect_failures > 0) {
-      broker["last_error"] = "connect failed " + std::to_string(s.connect_failures) + " time(s)";
-    }
-    broker["connect_failures"] = s.connect_failures;
+  const status::BrokerFacts& b = *h.broker;
+  json broker = {{"enabled", b.enabled},
+                 {"connected", b.connected},
+                 {"uri", b.uri},
+                 {"last_error", b.last_error}};
+  if (const auto& s = in.uplink) {
+    broker["state"] = std::string(uplink::to_string(s->state));
+    broker["acked_records"] = s->acked_records;
+    broker["reconnects"] = s->reconnects;
+    broker["last_publish_ok_us"] = s->last_publish_ok_us;
+    broker["connect_failures"] = s->connect_failures;
     // MQTT 5: publishes the broker refused (docs/uplink.md "MQTT 5"); the records stay queued.
     broker["protocol"] = in.config.mqtt.protocol;
-    broker["publish_refusals"] = s.publish_refusals;
-    broker["last_publish_refusal"] = s.last_publish_refusal;
-    broker["last_publish_refusal_code"] = s.last_publish_refusal_code;
-    broker["last_publish_refusal_us"] = s.last_publish_refusal_us;
-    broker["refused_records"] = s.refused_records;
-  }
-  if (in.uplink && in.uplink_failure) {
-    const auto& f = *in.uplink_failure;
-    broker["last_connect_error"] = f.last_connect_error;
-    broker["last_connect_error_us"] = f.last_connect_error_us;
+    broker["publish_refusals"] = s->publish_refusals;
+    broker["last_publish_refusal"] = b.last_publish_refusal;
+    broker["last_publish_refusal_code"] = s->last_publish_refusal_code;
+    broker["last_publish_refusal_us"] = s->last_publish_refusal_us;
+    broker["refused_records"] = b.refused_records;
+    broker["last_connect_error"] = s->last_connect_error;
+    broker["last_connect_error_us"] = s->last_connect_error_us;
     broker["last_connect_error_age_s"] =
-        f.last_connect_error_us > 0
-            ? json(std::max(0.0, seconds(wall_now - Micros(f.last_connect_error_us))))
+        s->last_connect_error_us > 0
+            ? json(std::max(0.0, seconds(wall_now - Micros(s->last_connect_error_us))))
             : json(nullptr);
-    broker["tls_failures"] = f.tls_failures;
-    if (!broker["connected"].get<bool>() && !f.last_connect_error.empty()) {
-      // The reason, not only a count: "TLS: certificate verify failed (...)".
-      broker["last_error"] = f.last_connect_error;
-    }
-  }
-  j["broker"] = std::move(broker);
-  if (in.uplink) {
+    broker["tls_failures"] = s->tls_failures;
     // Every command payload the uplink did not hand on, by class (docs/commands.md "Bursts and
     // floods"); `busy` ones were answered.
-    const auto s = in.uplink->stats();
-    j["commands"] = {{"received", s.commands_received},
-                     {"unauthenticated", s.commands_unauthenticated},
-                     {"busy", s.commands_busy},
-                     {"dropped", s.commands_dropped},
+    j["commands"] = {{"received", s->commands_received},
+                     {"unauthenticated", s->commands_unauthenticated},
+                     {"busy", s->commands_busy},
+                     {"dropped", s->commands_dropped},
                      {"dropped_by_reason",
-                      {{"oversized", s.commands_dropped_oversized},
-                       {"undecodable", s.commands_dropped_undecodable},
-                       {"unauthenticated", s.commands_dropped_unauthenticated},
-                       {"queue_full", s.commands_dropped_queue_full}}}};
+                      {{"oversized", s->commands_dropped_oversized},
+                       {"undecodable", s->commands_dropped_undecodable},
+                       {"unauthenticated", s->commands_dropped_unauthenticated},
+                       {"queue_full", s->commands_dropped_queue_full}}}};
   }
+  j["broker"] = std::move(broker);
 
-  uint64_t depth = 0;
-  for (const auto& d : in.store.outbox_depth()) depth += d.entries;
-  const auto oldest = in.store.oldest_unsent_us();
-  j["outbox"] = {{"depth", depth},
-                 {"oldest_unsent_age_s",
-                  oldest ? json(std::max(0.0, seconds(in.now - Micros(*oldest)))) : json(nullptr)}};
-  const uint64_t configured = static_cast<uint64_t>(in.config.storage.max_mb) * 1024 * 1024;
-  j["disk"] = {{"used_bytes", in.store.live_bytes()}, {"budget_bytes", configured}};
-  if (in.storage_health) {
-    const auto& h = *in.storage_health;
-    const uint64_t effective = h.effective_budget_bytes > 0 ? h.effective_budget_bytes : configured;
-    j["disk"]["budget_bytes"] = effective;
-    j["storage"] = {
-        {"failing", h.failing},
-        {"last_error", h.last_error},
-        {"failed_writes", h.failed_writes},
-        {"failing_since_us", h.failing_since_us},
-        {"failing_for_s", h.failing && h.failing_since_us > 0
-                              ? json(std::max(0.0, seconds(wall_now - Micros(h.failing_since_us))))
-                              : json(nullptr)},
-        {"configured_budget_bytes",
-         h.configured_budget_bytes > 0 ? h.configured_budget_bytes : configured},
-        {"effective_budget_bytes", effective},
-        {"dropped_records", h.dropped_records}};
+  j["outbox"] = {{"depth", h.outbox->depth},
+                 {"oldest_unsent_age_s", or_null(h.outbox->oldest_unsent_age_s)}};
+  j["disk"] = {{"used_bytes", h.disk->used_bytes}, {"budget_bytes", h.disk->budget_bytes}};
+  if (const auto& st = h.storage) {
+    j["storage"] = {{"failing", st->failing},
+                    {"last_error", st->last_error},
+                    {"failed_writes", st->failed_writes},
+                    {"failing_since_us", st->failing_since_us},
+                    {"failing_for_s", or_null(st->failing_for_s)},
+                    {"configured_budget_bytes", st->configured_budget_bytes},
+                    {"effective_budget_bytes", st->effective_budget_bytes},
+                    {"dropped_records", st->dropped_records}};
   }
   if (in.gnss) {
     // Judged on the feed's own (wall) clock, like the fix itself.
     const Micros gnss_now = in.gnss->wall_now();
     const auto& state = in.gnss->state();
-    json g = {{"enabled", true},
-              {"gpsd", in.gnss->endpoint()},
-              {"connected", in.gnss->connected()},
+    json g = {{"enabled", h.gnss->enabled},
+              {"gpsd", h.gnss->gpsd},
+              {"connected", h.gnss->connected},
               {"fix", false},
               {"reason", std::string(state.reason(gnss_now))},
               {"fixes", state.fixes()}};

@@ -2,6 +2,7 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cmath>
 #include <optional>
 
@@ -75,98 +76,161 @@ std::string vehicle_text(const json& v) {
 
 }  // namespace
 
-std::vector<Attention> evaluate(const json& status, const AttentionRules& rules) {
-  std::vector<Attention> out;
-  auto section = [&](const char* key, bool array) -> const json* {
+Health health_from_json(const json& status) {
+  Health h;
+  const auto object = [&](const char* key) -> const json* {
     const json* s = member(status, key);
-    if (!s || (array ? !s->is_array() : !s->is_object())) {
-      out.push_back(
-          {"malformed", fmt::format("status has no \"{}\" {}", key, array ? "list" : "section")});
-      return nullptr;
-    }
-    return s;
+    return s && s->is_object() ? s : nullptr;
   };
-
-  if (const json* bus = section("bus", false)) {
-    const std::string state = str(*bus, "state");
-    if (state != "up") {
-      const std::string detail = str(*bus, "detail", "");
-      out.push_back({"bus", fmt::format("CAN bus {} is {}{}{}", str(*bus, "interface"), state,
-                                        detail.empty() ? "" : ": ", detail)});
-    }
+  const auto array = [&](const char* key) -> const json* {
+    const json* s = member(status, key);
+    return s && s->is_array() ? s : nullptr;
+  };
+  if (const json* bus = object("bus")) {
+    h.bus = BusFacts{str(*bus, "interface"), str(*bus, "state"), str(*bus, "detail", "")};
   }
-  if (const json* nodes = section("nodes", true)) {
+  if (const json* nodes = array("nodes")) {
+    h.nodes.emplace();
     for (const auto& n : *nodes) {
-      if (boolean(n, "online").value_or(false)) continue;
-      const auto age = num(n, "last_heard_age_s");
-      out.push_back({"node", fmt::format("node {} offline ({})", str(n, "name"),
-                                         age ? "last heard " + age_text(*age) + " ago"
-                                             : std::string("never heard"))});
+      h.nodes->push_back(
+          {str(n, "name"), boolean(n, "online").value_or(false), num(n, "last_heard_age_s")});
     }
   }
-  if (const json* faults = section("faults", true)) {
+  if (const json* faults = array("faults")) {
+    h.faults.emplace();
     for (const auto& f : *faults) {
-      if (str(f, "severity") != "critical") continue;
-      out.push_back({"fault", fmt::format("critical fault on {}: {} (code {})", str(f, "node"),
-                                          str(f, "name"), count(f, "code"))});
+      h.faults->push_back({str(f, "node"), static_cast<std::int64_t>(count(f, "code")),
+                           str(f, "name"), str(f, "severity")});
     }
   }
-  section("locks", true);  // informational, but a provider that drops it is broken
-  if (const json* broker = section("broker", false)) {
-    const bool enabled = boolean(*broker, "enabled").value_or(true);
-    if (enabled && !boolean(*broker, "connected").value_or(false)) {
-      const std::string err = str(*broker, "last_error", "");
-      out.push_back({"broker", fmt::format("broker {} not connected{}{}", str(*broker, "uri"),
-                                           err.empty() ? "" : ": ", err)});
+  h.has_locks = array("locks") != nullptr;
+  if (const json* broker = object("broker")) {
+    h.broker = BrokerFacts{boolean(*broker, "enabled").value_or(true),
+                           boolean(*broker, "connected").value_or(false),
+                           str(*broker, "uri"),
+                           str(*broker, "last_error", ""),
+                           str(*broker, "last_publish_refusal", ""),
+                           count(*broker, "refused_records")};
+  }
+  if (const json* g = object("gnss")) {
+    h.gnss = GnssFacts{boolean(*g, "enabled").value_or(false),
+                       boolean(*g, "connected").value_or(true), str(*g, "gpsd")};
+  }
+  if (const json* st = object("storage")) {
+    StorageFacts f;
+    f.failing = boolean(*st, "failing").value_or(false);
+    f.last_error = str(*st, "last_error", "unknown error");
+    f.failed_writes = count(*st, "failed_writes");
+    f.failing_for_s = num(*st, "failing_for_s");
+    f.configured_budget_bytes = count(*st, "configured_budget_bytes");
+    f.effective_budget_bytes = count(*st, "effective_budget_bytes");
+    f.dropped_records = count(*st, "dropped_records");
+    h.storage = std::move(f);
+  }
+  if (const json* disk = object("disk")) {
+    h.disk = DiskFacts{count(*disk, "used_bytes"), count(*disk, "budget_bytes")};
+  }
+  if (const json* outbox = object("outbox")) {
+    h.outbox = OutboxFacts{count(*outbox, "depth"), num(*outbox, "oldest_unsent_age_s")};
+  }
+  return h;
+}
+
+std::vector<Attention> evaluate(const Health& h, const AttentionRules& rules) {
+  std::vector<Attention> out;
+  auto missing = [&](const char* key, bool array) {
+    out.push_back(
+        {"malformed", fmt::format("status has no \"{}\" {}", key, array ? "list" : "section")});
+  };
+  if (!h.bus) {
+    missing("bus", false);
+  } else if (h.bus->state != "up") {
+    out.push_back({"bus", fmt::format("CAN bus {} is {}{}{}", h.bus->interface, h.bus->state,
+                                      h.bus->detail.empty() ? "" : ": ", h.bus->detail)});
+  }
+  if (!h.nodes) {
+    missing("nodes", true);
+  } else {
+    for (const auto& n : *h.nodes) {
+      if (n.online) continue;
+      out.push_back(
+          {"node",
+           fmt::format("node {} offline ({})", n.name,
+                       n.last_heard_age_s ? "last heard " + age_text(*n.last_heard_age_s) + " ago"
+                                          : std::string("never heard"))});
+    }
+  }
+  if (!h.faults) {
+    missing("faults", true);
+  } else {
+    for (const auto& f : *h.faults) {
+      if (f.severity != "critical") continue;
+      out.push_back({"fault", fmt::format("critical fault on {}: {} (code {})", f.node, f.name,
+                                          std::max<std::int64_t>(0, f.code.value_or(0)))});
+    }
+  }
+  if (!h.has_locks) missing("locks", true);  // informational, but a provider dropping it is broken
+  if (!h.broker) {
+    missing("broker", false);
+  } else {
+    const BrokerFacts& b = *h.broker;
+    if (b.enabled && !b.connected) {
+      out.push_back({"broker", fmt::format("broker {} not connected{}{}", b.uri,
+                                           b.last_error.empty() ? "" : ": ", b.last_error)});
     }
     // MQTT 5: the broker answers publishes with a refusal (e.g. an ACL's 0x87).
-    if (const std::string refusal = str(*broker, "last_publish_refusal", ""); !refusal.empty()) {
+    if (!b.last_publish_refusal.empty()) {
       out.push_back({"broker", fmt::format("broker refuses publishes: {}; {} record(s) kept in "
                                            "the outbox, retried with back-off",
-                                           refusal, count(*broker, "refused_records"))});
+                                           b.last_publish_refusal, b.refused_records)});
     }
   }
   // Optional section (older services do not send it).
-  if (const json* g = member(status, "gnss"); g && g->is_object()) {
-    if (boolean(*g, "enabled").value_or(false) && !boolean(*g, "connected").value_or(true)) {
-      out.push_back(
-          {"gnss", fmt::format("gpsd at {} unreachable: position unknown", str(*g, "gpsd"))});
-    }
+  if (h.gnss && h.gnss->enabled && !h.gnss->connected) {
+    out.push_back({"gnss", fmt::format("gpsd at {} unreachable: position unknown", h.gnss->gpsd)});
   }
-  if (const json* storage = member(status, "storage"); storage && storage->is_object()) {
-    if (boolean(*storage, "failing").value_or(false)) {
-      const auto since = num(*storage, "failing_for_s");
-      out.push_back({"storage", fmt::format("store writes failing{}: {} ({} failed writes)",
-                                            since ? " for " + age_text(*since) : std::string(),
-                                            str(*storage, "last_error", "unknown error"),
-                                            count(*storage, "failed_writes"))});
+  if (const auto& st = h.storage) {
+    if (st->failing) {
+      out.push_back(
+          {"storage",
+           fmt::format("store writes failing{}: {} ({} failed writes)",
+                       st->failing_for_s ? " for " + age_text(*st->failing_for_s) : std::string(),
+                       st->last_error, st->failed_writes)});
     }
-    const double configured = num(*storage, "configured_budget_bytes").value_or(0);
-    const double effective = num(*storage, "effective_budget_bytes").value_or(0);
+    const auto configured = static_cast<double>(st->configured_budget_bytes);
+    const auto effective = static_cast<double>(st->effective_budget_bytes);
     if (effective > 0 && configured > effective) {
       out.push_back({"budget", fmt::format("disk budget clamped to {} (storage.max_mb asks for {}, "
                                            "more than the disk holds)",
                                            bytes_text(effective), bytes_text(configured))});
     }
   }
-  if (const json* disk = section("disk", false)) {
-    const double used = num(*disk, "used_bytes").value_or(0);
-    const double budget = num(*disk, "budget_bytes").value_or(0);
+  if (!h.disk) {
+    missing("disk", false);
+  } else {
+    const auto used = static_cast<double>(h.disk->used_bytes);
+    const auto budget = static_cast<double>(h.disk->budget_bytes);
     if (budget > 0 && used > rules.disk_fraction * budget) {
       out.push_back(
           {"disk", fmt::format("store uses {} of its {} budget ({:.0f} %)", bytes_text(used),
                                bytes_text(budget), 100.0 * used / budget)});
     }
   }
-  if (const json* outbox = section("outbox", false)) {
-    const auto age = num(*outbox, "oldest_unsent_age_s");
+  if (!h.outbox) {
+    missing("outbox", false);
+  } else {
+    const auto& age = h.outbox->oldest_unsent_age_s;
     const auto limit = static_cast<double>(rules.outbox_max_age.count());
     if (age && *age > limit) {
       out.push_back({"outbox", fmt::format("oldest unsent record is {} old ({} records waiting)",
-                                           age_text(*age), count(*outbox, "depth"))});
+                                           age_text(*age), h.outbox->depth)});
     }
   }
   return out;
+}
+
+std::vector<Attention> evaluate(const json& status, const AttentionRules& rules) {
+  return evaluate(health_from_json(status), rules);
 }
 
 std::string format_summary(const json& s, const std::vector<Attention>& findings) {

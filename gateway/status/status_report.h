@@ -67,7 +67,9 @@
 //   * the oldest unsent outbox record is older than outbox_max_age ("outbox"),
 //   * gpsd is unreachable while [gnss] is enabled ("gnss"; no fix under a roof is not a fault
 //     of the unit: it shows in the rendering and as the IoT GNSS fault, not as attention).
-// Evaluation never throws, whatever the JSON holds.
+// The rules judge typed facts (status_health.h): the service its own, built from the live
+// components (runtime::make_status_health), `fleetgw status` the document it received, read by
+// health_from_json(). Evaluation never throws, whatever the JSON holds.
 #pragma once
 
 #include <nlohmann/json.hpp>
@@ -75,6 +77,8 @@
 #include <chrono>
 #include <string>
 #include <vector>
+
+#include "gateway/status/status_health.h"
 
 namespace fleetgw::status {
 
@@ -91,6 +95,8 @@ struct Attention {
   std::string detail;  // one line for the technician
 };
 
+std::vector<Attention> evaluate(const Health& health, const AttentionRules& rules = {});
+// A document from the socket: evaluate(health_from_json(status), rules).
 std::vector<Attention> evaluate(const nlohmann::json& status, const AttentionRules& rules = {});
 
 // Multi-line summary for a terminal, ending with either "OK" or one "ATTENTION: ..." line per

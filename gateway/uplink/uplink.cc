@@ -289,7 +289,9 @@ void Uplink::Impl::on_connected(Micros now) {
       spdlog::error("uplink: subscribe to {} failed: {}", topic, e.what());
     }
   }
-  publish_status(now);
+  // The status handed before was built while disconnected: the owner builds a fresh one.
+  status_due = false;
+  status_wanted = true;
   // The broker may hold an older state (published before an outage, or by the previous run).
   vehicle_state_due = !vehicle_state.empty();
 }
@@ -316,6 +318,7 @@ void Uplink::Impl::on_connection_lost(Micros now, const std::string& cause) {
 void Uplink::Impl::poll(Micros now) {
   last_now = now;
   last_poll_steady = env.steady_now();
+  const std::uint64_t connects_before = counters.connects;
   for (auto& ev : events.take()) {
     std::visit([&](auto& e) { handle(now, e); }, ev);
   }
@@ -332,11 +335,16 @@ void Uplink::Impl::poll(Micros now) {
   }
   if (refusal_retry_at.count() != 0 && now >= refusal_retry_at) retry_refused(now);
   if (state == UplinkState::kConnected) {
-    resend_stale(now);
-    if (status_changed || (config.status_interval.count() > 0 &&
-                           now - last_status >= duration_cast<Micros>(config.status_interval))) {
-      publish_status(now);
+    // The poll in which the connection came up publishes nothing: the owner first hands the
+    // status of this connection (status_wanted()), which then leaves before the vehicle state
+    // and the records, at the next poll (due at once).
+    if (counters.connects != connects_before) {
+      first_poll_due = true;
+      return;
     }
+    first_poll_due = false;
+    resend_stale(now);
+    if (status_due) publish_status(now);
     if (vehicle_state_due) publish_vehicle_state(now, true);
     drain(now);
   }
@@ -428,10 +436,9 @@ Micros Uplink::Impl::next_due(Micros now) const {
   if (!batch.empty()) {
     due = std::min(due, Micros(batch.oldest_created_us) + duration_cast<Micros>(batch_delay));
   }
-  if (state == UplinkState::kConnected && config.status_interval.count() > 0) {
-    due = std::min(due, last_status + duration_cast<Micros>(config.status_interval));
+  if (state == UplinkState::kConnected && (status_due || vehicle_state_due || first_poll_due)) {
+    due = now;
   }
-  if (state == UplinkState::kConnected && (status_changed || vehicle_state_due)) due = now;
   if (draining && !batch.empty()) due = now;
   if (state == UplinkState::kConnected) {
     const bool stale_possible = std::any_of(in_flight.begin(), in_flight.end(), [&](auto& f) {
@@ -462,16 +469,16 @@ Uplink::~Uplink() {
 void Uplink::set_wakeup(std::function<void()> wakeup) {
   impl_->events.wakeup_ = std::move(wakeup);
 }
-void Uplink::set_bus_state(v1::BusState state) {
-  if (impl_->bus_state == state) return;
-  impl_->bus_state = state;
-  impl_->status_changed = true;  // the retained status follows at the next poll
+void Uplink::set_status(v1::Status status) {
+  impl_->status = std::move(status);
+  impl_->status_due = true;
+  impl_->status_wanted = false;
+}
+bool Uplink::status_wanted() const {
+  return impl_->status_wanted && impl_->state == UplinkState::kConnected;
 }
 void Uplink::drain_for_stop() {
   impl_->draining = true;
-}
-void Uplink::set_status_decorator(std::function<void(v1::Status&)> decorate) {
-  impl_->status_decorator = std::move(decorate);
 }
 
 void Uplink::start(Micros now) {

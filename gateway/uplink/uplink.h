@@ -11,7 +11,7 @@
 //    adding records to the outbox. wait_for_events() serves owners without an event loop.
 //    Apart from the wake-up hook and wait_for_events(), methods must not be called concurrently.
 //  * Time: no clock is read for decisions; every entry point takes `now` (microseconds since the
-//    Unix epoch) and back-off, telemetry batching and status refresh run on that timeline.
+//    Unix epoch) and back-off and telemetry batching run on that timeline.
 //    next_deadline() converts the next due time to the steady clock of the Env the uplink is
 //    given (env/env.h), anchored at the last poll; the connect diagnosis thread is started
 //    through that Env too.
@@ -24,10 +24,15 @@
 //    logged, counted (rejected_records) and removed, so one bad record cannot block the queue.
 //    Telemetry samples are spliced into the batch as stored, never parsed (envelope_writer.h).
 //    Every record's Envelope carries config.store_id: (vehicle_id, store_id, sequence) is its key.
-//  * Session: client id = vehicle id, persistent session (clean_session = false), retained
-//    online Status on connect (and again when the bus state changes), retained offline Status
-//    on stop(). The last will is an offline Status marked last_will that carries only what is
-//    known at connect (no outbox figures, created_at_us 0).
+//  * Session: client id = vehicle id, persistent session (clean_session = false). The retained
+//    Status is a value the owner builds and hands over (set_status(); runtime/status_provider.h
+//    builds the service's): the uplink never builds one and never calls out for one. It stamps
+//    what only the connection knows (state ONLINE, connection CONNECTED, connected_at_us) and
+//    publishes it at the next poll while connected; after a (re)connect, and when the refusals
+//    in force changed, status_wanted() asks the owner for a fresh one (the one it holds was
+//    built before). stop() publishes the latest one as OFFLINE/DISCONNECTED (a bare one if none
+//    was ever handed). The last will is an offline Status marked last_will that carries only
+//    what is known at connect (no outbox figures, created_at_us 0).
 //  * MQTT 5 (config.protocol, the default; 3.1.1 is the fallback): a publish the broker refuses
 //    with a PUBACK reason code >= 0x80 is not delivered: its records stay in the outbox, its
 //    kind waits (the other kinds keep flowing; order within a kind is kept) and they are sent
@@ -193,11 +198,13 @@ class Uplink {
   // Set before start(): sorts command payloads into the authenticated and unauthenticated lanes
   // on Paho's thread (see "Commands" above).
   void set_command_authenticator(CommandAuthenticator authenticator);
-  // Reported in Status messages; a change republishes the retained status at the next poll.
-  void set_bus_state(fleetgw::v1::BusState state);
-  // Completes every Status the uplink publishes (the retained one and the last will) with what
-  // only the owner knows: storage health, attention findings. Runs on the owner's thread.
-  void set_status_decorator(std::function<void(fleetgw::v1::Status&)> decorate);
+  // The retained status to publish (see "Session"): at the next poll while connected, stamped
+  // with this connection's state, connection and connected_at_us (the rest is published as
+  // given). Only the latest is kept; it is also what stop() publishes as OFFLINE.
+  void set_status(fleetgw::v1::Status status);
+  // The owner should build and hand a fresh status: connected, and none was handed since the
+  // connection came up, or the publish refusals in force (UplinkStats) changed since.
+  bool status_wanted() const;
 
   // Begins connecting.
   void start(Micros now);
@@ -230,8 +237,8 @@ class Uplink {
   void set_telemetry_batch_delay(std::optional<std::chrono::milliseconds> delay);
   // Latest time by which poll() should run again even without a wake-up, on the `now` timeline.
   Micros next_poll_due(Micros now) const;
-  // The same as a steady_clock deadline (reconnect due, telemetry batch due, status refresh,
-  // stale resend); nullopt = poll only on a wake-up.
+  // The same as a steady_clock deadline (reconnect due, telemetry batch due, a handed status
+  // to publish, stale resend); nullopt = poll only on a wake-up.
   std::optional<std::chrono::steady_clock::time_point> next_deadline() const;
   // A clean stop is coming: from now on a telemetry batch leaves at the next poll instead of
   // waiting for telemetry_batch_max_delay, so the owner can drain the outbox before stop().

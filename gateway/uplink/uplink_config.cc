@@ -110,7 +110,6 @@ void UplinkConfig::validate() const {
   if (!zone_topics.empty() && max_queued_zone_bundles == 0) {
     fail("max_queued_zone_bundles", "must be positive");
   }
-  if (status_interval.count() < 0) fail("status_interval", "must be >= 0");
 }
 
 }  // namespace fleetgw::uplink

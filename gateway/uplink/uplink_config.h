@@ -111,9 +111,6 @@ struct UplinkConfig {
   std::size_t max_zone_bundle_bytes = 1024 * 1024;
   std::size_t max_queued_zone_bundles = 4;
 
-  // The retained online status is refreshed this often while connected (0 = only on connect).
-  std::chrono::milliseconds status_interval{60'000};
-
   void validate() const;
 };
 

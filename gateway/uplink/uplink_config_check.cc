@@ -113,7 +113,6 @@ std::vector<UplinkConfigProblem> check_uplink_config(const UplinkConfig& c) {
   if (c.max_fetch_bytes == 0) fail("max_fetch_bytes", "must be positive");
   if (c.max_command_bytes == 0) fail("max_command_bytes", "must be positive");
   if (c.max_queued_commands == 0) fail("max_queued_commands", "must be positive");
-  if (c.status_interval.count() < 0) fail("status_interval", "must be >= 0");
   // MQTT 5 carries both as four-byte intervals.
   constexpr std::int64_t kMaxInterval = 0xFFFF'FFFF;
   if (c.session_expiry.count() < 0 || c.session_expiry.count() > kMaxInterval) {

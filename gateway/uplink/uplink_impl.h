@@ -141,13 +141,14 @@ struct Uplink::Impl {
   std::set<std::string> logged_refusals;  // each distinct reason (and topic) logged once
   UplinkState state = UplinkState::kStopped;
   UplinkStats counters;
-  v1::BusState bus_state = v1::BUS_STATE_UNSPECIFIED;
-  bool status_changed = false;     // bus_state changed since the last status publish
+  v1::Status status;            // the latest the owner handed (set_status); empty = none yet
+  bool status_due = false;      // handed and not yet published on this connection
+  bool status_wanted = false;   // connected and the owner should hand a fresh one
+  bool first_poll_due = false;  // connected in the last poll: the next one publishes
   std::string vehicle_state;       // latest VehicleState body from the owner; empty = none
   bool vehicle_state_due = false;  // not yet published on this connection
   std::chrono::milliseconds batch_delay{0};  // telemetry_batch_max_delay, or the parked one
   bool draining = false;  // drain_for_stop(): telemetry batches leave without waiting
-  std::function<void(v1::Status&)> status_decorator;
   detail::CommandInbox commands;                // lanes and hand-over (uplink_commands.cc)
   std::vector<ZoneBundleMessage> zone_bundles;  // waiting for take_zone_bundles()
   std::uint64_t connect_attempt = 0;
@@ -156,7 +157,6 @@ struct Uplink::Impl {
   std::set<std::uint64_t> claimed;  // in flight or in the pending batch
   PendingBatch batch;
   bool head_is_telemetry = true;  // the last outbox read ended in telemetry records
-  Micros last_status{0};
   Micros connected_at{0};
   Micros connect_started{0};  // `now` of the attempt that made (or makes) the connection
   Micros last_now{0};  // the latest `now` we were given (for the destructor's offline status)

@@ -21,25 +21,16 @@ EnvelopeHeader Uplink::Impl::header(std::uint64_t seq, std::int64_t created_us) 
                         config.store_id};
 }
 
+// The owner's status (set_status), stamped with what only this connection knows.
 std::string Uplink::Impl::serialize_status(Micros now, v1::OnlineState online,
                                            v1::ConnectionState conn) const {
   v1::Envelope env;
   fill_header(env, header(0, now.count()));
-  auto* s = env.mutable_status();
+  v1::Status* s = env.mutable_status();
+  *s = status;
   s->set_state(online);
   s->set_connection(conn);
-  const OutboxStats os = outbox.stats();
-  s->set_outbox_depth(os.depth);
-  s->set_oldest_unsent_created_at_us(os.oldest_created_us);
-  s->set_last_publish_ok_at_us(counters.last_publish_ok_us);
-  s->set_bus_state(bus_state);
-  s->set_firmware_version(config.firmware_version);
   s->set_connected_at_us(connect_started.count());
-  s->set_publish_refusals(counters.publish_refusals);
-  s->set_last_publish_refusal(counters.last_publish_refusal);
-  s->set_last_publish_refusal_code(static_cast<std::uint32_t>(counters.last_publish_refusal_code));
-  s->set_last_publish_refusal_at_us(counters.last_publish_refusal_us);
-  if (status_decorator) status_decorator(*s);
   return env.SerializeAsString();
 }
 
@@ -60,11 +51,11 @@ std::string Uplink::Impl::serialize_will(Micros connecting_at) const {
 }
 
 void Uplink::Impl::publish_status(Micros now) {
-  publish(topics.status,
-          serialize_status(now, v1::ONLINE_STATE_ONLINE, v1::CONNECTION_STATE_CONNECTED),
-          config.qos, true, {});
-  last_status = now;
-  status_changed = false;
+  if (publish(topics.status,
+              serialize_status(now, v1::ONLINE_STATE_ONLINE, v1::CONNECTION_STATE_CONNECTED),
+              config.qos, true, {})) {
+    status_due = false;
+  }
 }
 
 // Safety net for the persistent session: Paho normally re-sends QoS 1 publishes interrupted by a
@@ -257,9 +248,12 @@ void Uplink::Impl::refusals_changed(std::string_view kind) {
       refusal_retry_at = lane.retry_at;
     }
   }
-  // News for the retained status at the next poll; not when only the status itself was refused
-  // (it would be refused again, in a loop).
-  if (text != counters.last_publish_refusal && kind != kind::kStatus) status_changed = true;
+  // News for the retained status: the owner is asked for a fresh one; not when only the status
+  // itself was refused (it would be refused again, in a loop).
+  if (text != counters.last_publish_refusal && kind != kind::kStatus &&
+      state == UplinkState::kConnected) {
+    status_wanted = true;
+  }
   counters.last_publish_refusal = std::move(text);
   counters.last_publish_refusal_code = latest != nullptr ? latest->code : 0;
   counters.last_publish_refusal_us = latest != nullptr ? latest->at.count() : 0;

@@ -1,7 +1,8 @@
 // Honest status (issue 11): storage failures, a clamped disk budget and uplink/TLS connect
 // failures reach the status document built by the service (runtime::make_status_json), make
 // `fleetgw status` say ATTENTION with exit 1 (text and --json), and reach the published
-// fleetgw.v1.Status; a healthy service is OK with exit 0.
+// fleetgw.v1.Status (runtime::make_status_message, built directly from the same typed values,
+// issue 26: the two agree on every field they share); a healthy service is OK with exit 0.
 #include <gtest/gtest.h>
 
 #include <asio/io_context.hpp>
@@ -12,7 +13,6 @@
 
 #include "gateway/runtime/status_provider.h"
 #include "gateway/status/status_command.h"
-#include "gateway/status/status_message.h"
 #include "gateway/status/status_server.h"
 #include "gateway/uplink/memory_outbox.h"
 #include "status_test_util.h"
@@ -24,6 +24,13 @@ using namespace std::chrono_literals;
 using nlohmann::json;
 using runtime::Micros;
 using test::TempDir;
+
+// Why the uplink cannot connect, as its stats report it.
+struct Failure {
+  std::string why;
+  std::int64_t at_us = 0;
+  std::uint64_t tls_failures = 0;
+};
 
 struct RefusingSender final : node::FrameSender {
   bool send(const motinova::AppFrame&) override { return false; }
@@ -60,16 +67,27 @@ class ServiceStatus : public ::testing::Test {
     uplink_.emplace(uc, outbox_);
   }
 
-  json document(std::optional<storage::StorageHealth> health,
-                std::optional<runtime::UplinkFailure> failure, bool with_uplink = true) {
-    runtime::StatusInputs in{
-        config_,           core_, bus_, *store_, with_uplink ? &*uplink_ : nullptr, Micros(0),
-        Micros(10'000'000)};
+  runtime::StatusInputs inputs(std::optional<storage::StorageHealth> health,
+                               std::optional<Failure> failure, bool with_uplink = true) {
+    runtime::StatusInputs in{config_, core_, bus_, *store_, std::nullopt, Micros(0),
+                             Micros(10'000'000)};
+    if (with_uplink) {
+      in.uplink = uplink_->stats();
+      if (failure) {
+        in.uplink->last_connect_error = failure->why;
+        in.uplink->last_connect_error_us = failure->at_us;
+        in.uplink->tls_failures = failure->tls_failures;
+      }
+    }
     in.storage_health = std::move(health);
-    in.uplink_failure = std::move(failure);
     in.wall_now = kWallNow;
     in.revocation_version = revocation_version_;
-    json d = runtime::make_status_json(in);
+    return in;
+  }
+
+  json document(std::optional<storage::StorageHealth> health, std::optional<Failure> failure,
+                bool with_uplink = true) {
+    json d = runtime::make_status_json(inputs(std::move(health), std::move(failure), with_uplink));
     for (auto& n : d["nodes"]) n["online"] = true;
     return d;
   }
@@ -140,7 +158,7 @@ TEST_F(ServiceStatus, ClampedBudgetNeedsAttentionAndIsTheBudgetShown) {
 }
 
 TEST_F(ServiceStatus, TlsFailureIsTheBrokerFindingsReason) {
-  runtime::UplinkFailure tls{
+  Failure tls{
       "TLS: certificate verify failed (unable to get local issuer "
       "certificate)",
       kWallNow.count() - 3'000'000, 4};
@@ -155,9 +173,8 @@ TEST_F(ServiceStatus, TlsFailureIsTheBrokerFindingsReason) {
 }
 
 TEST_F(ServiceStatus, PublishedStatusCarriesTheSameHealthAndVerdict) {
-  runtime::UplinkFailure tls{"TLS: host name mismatch", kWallNow.count() - 1'000'000, 1};
-  v1::Status s;
-  fill_status_health(s, document(disk_full(), tls));
+  Failure tls{"TLS: host name mismatch", kWallNow.count() - 1'000'000, 1};
+  const v1::Status s = runtime::make_status_message(inputs(disk_full(), tls));
   EXPECT_TRUE(s.storage().failing());
   EXPECT_EQ(s.storage().last_error(), "disk full (SQLITE_FULL)");
   EXPECT_EQ(s.storage().failed_writes(), 5383u);
@@ -167,16 +184,93 @@ TEST_F(ServiceStatus, PublishedStatusCarriesTheSameHealthAndVerdict) {
   EXPECT_EQ(s.last_connect_error_at_us(), kWallNow.count() - 1'000'000);
   EXPECT_EQ(s.tls_failures(), 1u);
   EXPECT_TRUE(s.attention_needed());
-  ASSERT_EQ(s.attention_size(), 2);  // broker + storage
+  // Every expected node was never heard (a bare core), then the broker and the store.
+  const auto nodes = document(std::nullopt, std::nullopt)["nodes"].size();
+  ASSERT_EQ(static_cast<std::size_t>(s.attention_size()), nodes + 2);
+  EXPECT_NE(s.attention(nodes).find("host name mismatch"), std::string::npos);
+  EXPECT_NE(s.attention(nodes + 1).find("store writes failing for 42.0 s"), std::string::npos);
   // A compatible addition: an old reader skips the fields, a new one reads them back.
   v1::Status back;
   ASSERT_TRUE(back.ParseFromString(s.SerializeAsString()));
   EXPECT_EQ(back.storage().failed_writes(), 5383u);
+}
 
-  v1::Status healthy;
-  fill_status_health(healthy, document(std::nullopt, std::nullopt, /*with_uplink=*/false));
-  EXPECT_FALSE(healthy.attention_needed());
-  EXPECT_EQ(healthy.attention_size(), 0);
+// Issue 26: the Status is built from the typed values, not read back from the document; both
+// must still say the same thing. A populated status (failing store, clamped budget, TLS failure,
+// MQTT 5 refusals, queued records, offline nodes): every field the Status shares with the
+// document has the document's value, and its verdict is `fleetgw status`'s, line for line.
+TEST_F(ServiceStatus, PublishedStatusAndDocumentAgreeOnEveryField) {
+  storage::Batch batch;
+  batch.now_us = 4'000'000;  // 6 s before the status's `now`
+  for (int i = 0; i < 3; ++i) {
+    batch.messages.push_back(
+        storage::UplinkMessage{storage::OutboxKind::kFault, 1, storage::Bytes(8, 1)});
+  }
+  ASSERT_TRUE(store_->write(batch).ok());
+  storage::StorageHealth h = disk_full();
+  h.effective_budget_bytes = 10ull << 20;  // clamped
+  runtime::StatusInputs in =
+      inputs(h, Failure{"TLS: certificate verify failed", kWallNow.count() - 3'000'000, 2});
+  in.uplink->outbox_depth = 3;
+  in.uplink->oldest_unsent_created_us = 4'000'000;
+  in.uplink->last_publish_ok_us = kWallNow.count() - 9'000'000;
+  in.uplink->publish_refusals = 4;
+  in.uplink->last_publish_refusal = "0x87 Not authorized (fleet/v1/bike-0001/ride)";
+  in.uplink->last_publish_refusal_code = 0x87;
+  in.uplink->last_publish_refusal_us = kWallNow.count() - 5'000'000;
+  in.uplink->refused_records = 2;
+  in.bus_state = v1::BUS_STATE_ACTIVE;
+
+  const json d = runtime::make_status_json(in);
+  const v1::Status s = runtime::make_status_message(in);
+  const json& st = d["storage"];
+  EXPECT_EQ(s.storage().failing(), st["failing"].get<bool>());
+  EXPECT_EQ(s.storage().last_error(), st["last_error"].get<std::string>());
+  EXPECT_EQ(s.storage().failed_writes(), st["failed_writes"].get<std::uint64_t>());
+  EXPECT_EQ(s.storage().failing_since_us(), st["failing_since_us"].get<std::int64_t>());
+  EXPECT_EQ(s.storage().configured_budget_bytes(),
+            st["configured_budget_bytes"].get<std::uint64_t>());
+  EXPECT_EQ(s.storage().effective_budget_bytes(),
+            st["effective_budget_bytes"].get<std::uint64_t>());
+  EXPECT_EQ(s.storage().effective_budget_bytes(), d["disk"]["budget_bytes"].get<std::uint64_t>());
+  EXPECT_EQ(s.storage().dropped_records(), st["dropped_records"].get<std::uint64_t>());
+  const json& b = d["broker"];
+  EXPECT_EQ(s.last_connect_error(), b["last_connect_error"].get<std::string>());
+  EXPECT_EQ(s.last_connect_error_at_us(), b["last_connect_error_us"].get<std::int64_t>());
+  EXPECT_EQ(s.tls_failures(), b["tls_failures"].get<std::uint64_t>());
+  EXPECT_EQ(s.last_publish_ok_at_us(), b["last_publish_ok_us"].get<std::int64_t>());
+  EXPECT_EQ(s.publish_refusals(), b["publish_refusals"].get<std::uint64_t>());
+  EXPECT_EQ(s.last_publish_refusal(), b["last_publish_refusal"].get<std::string>());
+  EXPECT_EQ(s.last_publish_refusal_code(), b["last_publish_refusal_code"].get<std::uint32_t>());
+  EXPECT_EQ(s.last_publish_refusal_at_us(), b["last_publish_refusal_us"].get<std::int64_t>());
+  EXPECT_EQ(s.outbox_depth(), d["outbox"]["depth"].get<std::uint64_t>());
+  EXPECT_EQ(s.outbox_depth(), 3u);
+  // The document shows the age on the service's (bus) clock: 10 s - 4 s.
+  EXPECT_DOUBLE_EQ(d["outbox"]["oldest_unsent_age_s"].get<double>(), 6.0);
+  EXPECT_EQ(s.oldest_unsent_created_at_us(), 4'000'000);
+  EXPECT_EQ(s.firmware_version(), d["version"].get<std::string>());
+  EXPECT_EQ(s.bus_state(), v1::BUS_STATE_ACTIVE);
+
+  // The verdict: what `fleetgw status` finds in the document is what the Status says.
+  const auto findings = evaluate(d);
+  ASSERT_EQ(static_cast<std::size_t>(s.attention_size()), findings.size()) << d.dump(2);
+  for (std::size_t i = 0; i < findings.size(); ++i) {
+    EXPECT_EQ(s.attention(static_cast<int>(i)), findings[i].detail);
+  }
+  EXPECT_TRUE(s.attention_needed());
+  std::vector<std::string> rules;
+  for (const auto& f : findings) rules.push_back(f.rule);
+  std::vector<std::string> want(d["nodes"].size(), "node");  // none heard: a bare core
+  want.insert(want.end(), {"broker", "broker", "storage", "budget"});
+  EXPECT_EQ(rules, want) << d.dump(2);
+
+  // A healthy one has no verdict in either form.
+  in.storage_health = storage::StorageHealth{};
+  in.uplink.reset();
+  const v1::Status quiet = runtime::make_status_message(in);
+  EXPECT_EQ(static_cast<std::size_t>(quiet.attention_size()), d["nodes"].size())
+      << "only the never-heard nodes";
+  EXPECT_FALSE(quiet.storage().failing());
 }
 
 // `fleetgw status` against a status socket serving the provider's document.
@@ -201,7 +295,7 @@ Served serve_and_query(const std::filesystem::path& sock, const json& doc, bool 
 
 TEST_F(ServiceStatus, StatusCommandExitsOneOnFailuresAndZeroWhenHealthy) {
   const auto sock = dir_.path() / "status.sock";
-  runtime::UplinkFailure tls{"TLS: certificate verify failed (certificate has expired)",
+  Failure tls{"TLS: certificate verify failed (certificate has expired)",
                              kWallNow.count() - 1'000'000, 2};
   const json bad = document(disk_full(), tls);
   const Served text = serve_and_query(sock, bad, false);

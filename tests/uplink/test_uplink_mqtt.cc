@@ -465,37 +465,74 @@ TEST(UplinkMqtt, StopPublishesRetainedOfflineStatus) {
   EXPECT_EQ(last_status(late).connection(), v1::CONNECTION_STATE_DISCONNECTED);
 }
 
-// Schema v1.1: the retained status follows the bus state at once (not at the next 60 s refresh),
-// so a consumer arriving later reads the current one.
-TEST(UplinkMqtt, BusStateChangeRepublishesTheRetainedStatus) {
+// Issue 26: the retained status is a value the owner hands over; the uplink builds none and
+// calls out for none. It asks for one after the connect (status_wanted), publishes exactly what
+// it was handed stamped with its connection (state, connection, connected_at_us), publishes
+// nothing when nothing new was handed, and stop() publishes the latest one as OFFLINE.
+TEST(UplinkMqtt, PublishesTheStatusItIsHandedStampedWithItsConnection) {
   MosquittoBroker broker;
   broker.start();
   MemoryOutbox box;
-  UplinkConfig config = plain_config(broker.uri(), "bike-bus");
-  config.status_interval = std::chrono::minutes(10);
-  Uplink up(config, box);
-  up.set_bus_state(v1::BUS_STATE_ACTIVE);
+  Subscriber sub(broker.uri(), "fleet/v1/bike-bus/status", "backend-bus");
+  Uplink up(plain_config(broker.uri(), "bike-bus"), box);
+  EXPECT_FALSE(up.status_wanted()) << "not connected: nothing to publish it on";
   up.start(wall_now());
+  const auto until = std::chrono::steady_clock::now() + 10s;
+  while (up.state() != UplinkState::kConnected && std::chrono::steady_clock::now() < until) {
+    up.poll(wall_now());
+    up.wait_for_events(5ms);
+  }
+  ASSERT_EQ(up.state(), UplinkState::kConnected) << broker.log();
+  EXPECT_TRUE(up.status_wanted()) << "a new connection asks its owner for a fresh status";
+  for (int i = 0; i < 5; ++i) up.poll(wall_now());
+  EXPECT_EQ(up.stats().published_messages, 0u) << "no status of its own making";
+
+  v1::Status handed;
+  handed.set_firmware_version("owner-9");
+  handed.set_bus_state(v1::BUS_STATE_ACTIVE);
+  handed.set_outbox_depth(7);
+  handed.mutable_storage()->set_failing(true);
+  handed.set_attention_needed(true);
+  handed.add_attention("store writes failing: disk full (SQLITE_FULL) (3 failed writes)");
+  handed.set_state(v1::ONLINE_STATE_OFFLINE);  // the connection's to say: overwritten
+  up.set_status(handed);
+  EXPECT_FALSE(up.status_wanted());
+  EXPECT_TRUE(up.next_poll_due(wall_now()) <= wall_now()) << "a handed status makes a poll due";
   ASSERT_TRUE(drive(
       up, [&] { return up.stats().acked_messages >= 1; }, 10s));
-  const auto status_with = [&](v1::BusState want) {
-    Subscriber late(broker.uri(), "fleet/v1/bike-bus/status", "backend-bus");
-    const bool got = late.wait_until([](auto& m) { return !m.empty(); }, 5s);
-    return got && last_status(late).bus_state() == want &&
-           last_status(late).state() == v1::ONLINE_STATE_ONLINE;
-  };
-  EXPECT_TRUE(status_with(v1::BUS_STATE_ACTIVE));
-  up.set_bus_state(v1::BUS_STATE_SILENT);
-  EXPECT_TRUE(up.next_poll_due(wall_now()) <= wall_now()) << "the change makes a poll due now";
-  const auto acked = up.stats().acked_messages;
-  ASSERT_TRUE(drive(
-      up, [&] { return up.stats().acked_messages > acked; }, 10s));
-  EXPECT_TRUE(status_with(v1::BUS_STATE_SILENT));
-  up.set_bus_state(v1::BUS_STATE_SILENT);  // no change: nothing new to publish
+  ASSERT_TRUE(sub.wait_until([](auto& m) { return !m.empty(); }, 5s));
+  const v1::Status got = last_status(sub);
+  EXPECT_EQ(got.state(), v1::ONLINE_STATE_ONLINE);
+  EXPECT_EQ(got.connection(), v1::CONNECTION_STATE_CONNECTED);
+  EXPECT_GT(got.connected_at_us(), 0);
+  v1::Status rest = got;  // everything else is what the owner handed
+  rest.clear_state();
+  rest.clear_connection();
+  rest.clear_connected_at_us();
+  handed.clear_state();
+  EXPECT_EQ(rest.SerializeAsString(), handed.SerializeAsString());
+
+  // Nothing new handed: nothing published.
   const auto published = up.stats().published_messages;
-  up.poll(wall_now());
+  for (int i = 0; i < 5; ++i) up.poll(wall_now());
   EXPECT_EQ(up.stats().published_messages, published);
+  // A new one (the bus fell silent) goes out at the next poll.
+  handed.set_bus_state(v1::BUS_STATE_SILENT);
+  up.set_status(handed);
+  ASSERT_TRUE(drive(
+      up, [&] { return up.stats().acked_messages >= 2; }, 10s));
+  ASSERT_TRUE(sub.wait_until([](auto& m) { return m.size() >= 2; }, 5s));
+  EXPECT_EQ(last_status(sub).bus_state(), v1::BUS_STATE_SILENT);
+
   up.stop(wall_now());
+  Subscriber late(broker.uri(), "fleet/v1/bike-bus/status", "backend-late");
+  ASSERT_TRUE(late.wait_until([](auto& m) { return !m.empty(); }, 5s));
+  EXPECT_TRUE(late.messages().back().retained);
+  const v1::Status offline = last_status(late);
+  EXPECT_EQ(offline.state(), v1::ONLINE_STATE_OFFLINE);
+  EXPECT_EQ(offline.connection(), v1::CONNECTION_STATE_DISCONNECTED);
+  EXPECT_EQ(offline.attention_size(), 1) << "the latest handed status, as offline";
+  EXPECT_EQ(offline.bus_state(), v1::BUS_STATE_SILENT);
 }
 
 constexpr const char* kChildEnv = "FLEETGW_UPLINK_TEST_CHILD_URI";
@@ -580,10 +617,11 @@ int run_will_child(const char* uri) {
   const char* delay = std::getenv("FLEETGW_UPLINK_TEST_CHILD_WILL_DELAY_S");
   config.will_delay = std::chrono::seconds(delay != nullptr ? std::atoi(delay) : 0);
   Uplink up(config, box);
-  up.set_status_decorator([](v1::Status& s) { s.set_attention_needed(true); });
   up.start(wall_now());
   for (;;) {
     up.poll(wall_now());
+    // The owner's status flags attention: the will must not carry it.
+    testing::hand_status(up, [](v1::Status& s) { s.set_attention_needed(true); });
     up.wait_for_events(50ms);
   }
 }

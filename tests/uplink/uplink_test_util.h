@@ -16,6 +16,7 @@
 
 #include "fleetgw/v1/envelope.pb.h"
 #include "gateway/uplink/uplink.h"
+#include "gateway/uplink/uplink_status.h"
 
 namespace fleetgw::testing {
 
@@ -83,11 +84,30 @@ class Subscriber {
 };
 
 // Polls the uplink (on this thread, as its owner would) until `done` or the timeout.
+// Plays the owner's status route (the pipeline's status stage, runtime/status_stage.h): when
+// the uplink wants a status, one is built from its stats and handed over. `decorate` adds what
+// a test wants the owner's status to carry. True when one was handed.
+inline bool hand_status(uplink::Uplink& up,
+                        const std::function<void(v1::Status&)>& decorate = nullptr) {
+  if (!up.status_wanted()) return false;
+  const uplink::UplinkStats stats = up.stats();
+  v1::Status s;
+  s.set_firmware_version("test-1.2.3");
+  s.set_outbox_depth(stats.outbox_depth);
+  s.set_oldest_unsent_created_at_us(stats.oldest_unsent_created_us);
+  uplink::fill_status(s, stats);
+  if (decorate) decorate(s);
+  up.set_status(std::move(s));
+  return true;
+}
+
 inline bool drive(uplink::Uplink& up, const std::function<bool()>& done,
                   std::chrono::milliseconds timeout) {
   const auto deadline = std::chrono::steady_clock::now() + timeout;
   while (std::chrono::steady_clock::now() < deadline) {
     up.poll(wall_now());
+    // As the engine's settle does: the status handed is published in the same turn.
+    if (hand_status(up)) up.poll(wall_now());
     if (done()) return true;
     up.wait_for_events(std::chrono::milliseconds(5));
   }
