@@ -73,19 +73,17 @@ SocketCanOptions validated(SocketCanOptions options) {
 
 }  // namespace
 
-SocketCanTransport::SocketCanTransport(asio::io_context& io, SocketCanOptions options)
+SocketCanTransport::SocketCanTransport(asio::io_context& io, SocketCanOptions options, Env& env)
     : io_(io),
       options_(validated(std::move(options))),
+      env_(env),
       name_("socketcan:" + options_.interface),
       sock_(io),
-      reopen_timer_(io),
-      tx_retry_timer_(io),
       tx_(io, options_.tx_queue_limit, [this] { flush_tx(); }) {
   std::string why;
   if (!open(/*fatal_errors=*/true, why)) {
     health_.detail = why;
-    spdlog::warn("SocketCAN {}: {}; will retry every {} ms", options_.interface, why,
-                 options_.reopen_interval.count());
+    spdlog::warn("SocketCAN {}: {}; re-opening until it is up", options_.interface, why);
   }
 }
 
@@ -171,7 +169,7 @@ bool SocketCanTransport::open(bool fatal_errors, std::string& why) {
 void SocketCanTransport::close_socket() {
   std::error_code ignored;
   sock_.close(ignored);  // cancels pending waits; their handlers see operation_aborted
-  tx_retry_timer_.cancel();
+  tx_retry_at_.reset();
   tx_.release();
 }
 
@@ -187,7 +185,8 @@ void SocketCanTransport::start(FrameHandler on_frame, HealthHandler on_health) {
     if (!tx_.empty()) flush_tx();
   } else {
     set_state(ControllerState::kDown, health_.detail, /*force=*/true);
-    schedule_reopen();
+    loss_ = health_.detail;  // the first re-open waits the back-off, as after a loss
+    wake();
   }
 }
 
@@ -209,8 +208,8 @@ void SocketCanTransport::stop() {
   stopped_ = true;
   alive_.reset();
   tx_.stop();
-  reopen_timer_.cancel();
   close_socket();
+  loss_.reset();
 }
 
 void SocketCanTransport::wait_readable() {
@@ -326,13 +325,8 @@ void SocketCanTransport::flush_tx() {
       // The driver's TX queue is full; poll() does not signal when it drains, so retry later.
       ++stats_.tx_enobufs_retries;
       tx_.hold();
-      tx_retry_timer_.expires_after(options_.tx_retry_interval);
-      tx_retry_timer_.async_wait(
-          [this, token = std::weak_ptr<int>(alive_)](const std::error_code& ec) {
-            if (ec || token.expired()) return;
-            tx_.release();
-            flush_tx();
-          });
+      tx_retry_at_ = env_.steady_now() + options_.tx_retry_interval;
+      wake();  // the owner polls at tx_retry_at_
       return;
     }
     if (is_link_error(err)) {
@@ -364,40 +358,58 @@ void SocketCanTransport::wait_writable() {
 void SocketCanTransport::link_lost(int err, std::string_view during) {
   if (!sock_.is_open()) return;
   const char* err_name = strerrorname_np(err);
-  spdlog::warn("SocketCAN {}: {} during {}; closing, re-opening every {} ms", options_.interface,
-               errno_text(err), during, options_.reopen_interval.count());
+  spdlog::warn("SocketCAN {}: {} during {}; closing, re-opening until it is back",
+               options_.interface, errno_text(err), during);
   close_socket();
   health_.tx_failures += tx_.drop_all();
   set_state(ControllerState::kDown,
             std::string(err_name != nullptr ? err_name : "error") + " on " + options_.interface,
             /*force=*/true);
-  if (!stopped_) schedule_reopen();
+  if (stopped_) return;
+  loss_ = errno_text(err) + " during " + std::string(during) + " on " + options_.interface;
+  wake();
 }
 
-void SocketCanTransport::schedule_reopen() {
-  reopen_timer_.expires_after(options_.reopen_interval);
-  reopen_timer_.async_wait([this, token = std::weak_ptr<int>(alive_)](const std::error_code& ec) {
-    if (ec || token.expired()) return;
-    ++stats_.reopen_attempts;
-    std::string why;
-    bool ok = false;
-    try {
-      ok = open(/*fatal_errors=*/false, why);
-    } catch (const SocketCanError& e) {  // setsockopt failures: keep trying, they may pass
-      why = e.what();
-    }
-    if (!ok) {
-      spdlog::debug("SocketCAN {}: re-open failed: {}", options_.interface, why);
-      schedule_reopen();
-      return;
-    }
-    ++health_.reopens;
-    spdlog::info("SocketCAN {}: interface back, socket re-opened (re-open #{})", options_.interface,
-                 health_.reopens);
-    set_state(ControllerState::kUp, "re-opened " + options_.interface, /*force=*/true);
-    if (token.expired() || !sock_.is_open()) return;  // the health handler may have stopped us
-    wait_readable();
-  });
+std::optional<TimedWork::Time> SocketCanTransport::next_deadline() const {
+  if (stopped_ || !started_) return std::nullopt;
+  // Closed: a re-open is due now (the owner's back-off holds it back after a failure).
+  if (!sock_.is_open() || loss_) return env_.steady_now();
+  return tx_retry_at_;
+}
+
+std::optional<std::string> SocketCanTransport::poll(TimedWork::Time now) {
+  if (stopped_ || !started_) return std::nullopt;
+  if (tx_retry_at_ && now >= *tx_retry_at_) {
+    tx_retry_at_.reset();
+    tx_.release();
+    flush_tx();  // may lose the link: reported below
+  }
+  if (auto loss = std::exchange(loss_, std::nullopt)) return loss;
+  if (!sock_.is_open()) return reopen();
+  return std::nullopt;
+}
+
+std::optional<std::string> SocketCanTransport::reopen() {
+  ++stats_.reopen_attempts;
+  std::string why;
+  bool ok = false;
+  try {
+    ok = open(/*fatal_errors=*/false, why);
+  } catch (const SocketCanError& e) {  // setsockopt failures: keep trying, they may pass
+    why = e.what();
+  }
+  if (!ok) {
+    spdlog::debug("SocketCAN {}: re-open failed: {}", options_.interface, why);
+    return "re-open failed: " + why;
+  }
+  ++health_.reopens;
+  spdlog::info("SocketCAN {}: interface back, socket re-opened (re-open #{})", options_.interface,
+               health_.reopens);
+  const std::weak_ptr<int> token = alive_;
+  set_state(ControllerState::kUp, "re-opened " + options_.interface, /*force=*/true);
+  if (token.expired() || !sock_.is_open()) return std::nullopt;  // the handler stopped us
+  wait_readable();
+  return std::nullopt;
 }
 
 void SocketCanTransport::set_state(ControllerState s, std::string detail, bool force) {

@@ -16,14 +16,16 @@
 //    less than a second (see TimestampGuard: small regressions are clamped, bigger ones are wall
 //    clock steps and pass through); both are counted in stats().
 //  * send() never blocks: frames go into a bounded TxQueue (tx_queue_limit) drained in order; a
-//  full
-//    queue or a down link makes send() return false and counts a tx failure. ENOBUFS (driver
-//    queue full, common at 250 kbit/s) is retried after tx_retry_interval; frames are never
-//    reordered.
+//    full queue or a down link makes send() return false and counts a tx failure. ENOBUFS
+//    (driver queue full, common at 250 kbit/s) is retried tx_retry_interval later; frames are
+//    never reordered.
 //  * When the interface goes down (ENETDOWN/ENODEV or any other read/write error) the socket is
-//    closed, the state is kDown, queued frames are dropped (counted as tx failures) and re-opening
-//    is attempted every reopen_interval until the interface is up again; each success counts in
-//    health().reopens.
+//    closed, the state is kDown, queued frames are dropped (counted as tx failures) and it is
+//    re-opened until the interface is up again; each success counts in health().reopens.
+//  * No timer of its own: the ENOBUFS retry and the re-opening are its TimedWork
+//    (timed_work.h), done when its owner polls it -- the gateway's engine, whose one back-off
+//    spaces the re-open attempts (reopen_interval, doubling up to reopen_max: TransportStage).
+//    Time is read from the Env given at construction (env/env.h).
 //  * Single-threaded: all member functions must be called on the io_context's thread; handlers
 //    run there too. Destruction or stop() cancels everything; no handler runs afterwards.
 #pragma once
@@ -31,13 +33,14 @@
 #include <chrono>
 #include <cstddef>
 #include <memory>
+#include <optional>
 #include <stdexcept>
 #include <string>
 
 #include <asio/io_context.hpp>
 #include <asio/posix/stream_descriptor.hpp>
-#include <asio/steady_timer.hpp>
-
+#include "env/env.h"
+#include "gateway/can/timed_work.h"
 #include "gateway/can/timestamp_guard.h"
 #include "gateway/can/transport.h"
 #include "gateway/can/tx_queue.h"
@@ -51,7 +54,8 @@ class SocketCanError : public std::runtime_error {
 
 struct SocketCanOptions {
   std::string interface = "can0";
-  std::chrono::milliseconds reopen_interval{500};
+  std::chrono::milliseconds reopen_interval{500};  // the first re-open's wait (back-off start)
+  std::chrono::milliseconds reopen_max{5000};      // the longest wait between re-open attempts
   std::chrono::milliseconds tx_retry_interval{2};
   std::size_t tx_queue_limit = 256;
   std::size_t rx_batch = 64;  // frames read per readiness event before yielding to the loop
@@ -67,9 +71,10 @@ struct SocketCanStats {
   uint64_t reopen_attempts = 0;
 };
 
-class SocketCanTransport final : public Transport {
+class SocketCanTransport final : public Transport, private TimedWork {
  public:
-  SocketCanTransport(asio::io_context& io, SocketCanOptions options);
+  // `env` (the steady clock of the transmit retry) must outlive the transport.
+  SocketCanTransport(asio::io_context& io, SocketCanOptions options, Env& env = Env::system());
   ~SocketCanTransport() override;
 
   SocketCanTransport(const SocketCanTransport&) = delete;
@@ -80,6 +85,8 @@ class SocketCanTransport final : public Transport {
   void stop() override;
   const BusHealth& health() const override { return health_; }
   std::string_view name() const override { return name_; }
+  TimedWork* timed_work() override { return this; }
+  const SocketCanOptions& options() const { return options_; }
 
   const SocketCanStats& stats() const { return stats_; }
   std::size_t tx_queue_size() const { return tx_.size(); }
@@ -95,16 +102,23 @@ class SocketCanTransport final : public Transport {
   void flush_tx();
   void wait_writable();
   void link_lost(int err, std::string_view during);
-  void schedule_reopen();
+  // TimedWork: the transmit retry, then a re-open attempt while the socket is closed.
+  std::optional<TimedWork::Time> next_deadline() const override;
+  std::optional<std::string> poll(TimedWork::Time now) override;
+  RetrySpacing retry_spacing() const override {
+    return {options_.reopen_interval, options_.reopen_max};
+  }
+  std::optional<std::string> reopen();
   void set_state(ControllerState s, std::string detail, bool force = false);
 
   asio::io_context& io_;
   SocketCanOptions options_;
+  Env& env_;
   std::string name_;
   asio::posix::stream_descriptor sock_;
-  asio::steady_timer reopen_timer_;
-  asio::steady_timer tx_retry_timer_;
   TxQueue tx_;  // held while a write-readiness wait or ENOBUFS retry is pending
+  std::optional<TimedWork::Time> tx_retry_at_;  // ENOBUFS: when to write again
+  std::optional<std::string> loss_;  // the link went down: the next poll() reports it
 
   FrameHandler on_frame_;
   HealthHandler on_health_;

@@ -9,7 +9,9 @@
 //    messages on one CAN ID. send() returns false when the frame cannot be queued (interface
 //    down, queue full); the caller counts that as a transmit failure.
 //  * Health changes (link up/down, error-passive, bus-off, error frames) are reported through
-//    the health handler; a transport that can recover (re-open) does so by itself.
+//    the health handler. A transport that can recover (re-open) or must retry (a full driver
+//    queue) exposes that timed work through timed_work() (timed_work.h) and keeps no timer of
+//    its own: whoever runs it (the gateway's engine, runtime/stages.h TransportStage) polls it.
 #pragma once
 
 #include <cstdint>
@@ -17,6 +19,7 @@
 #include <string>
 #include <string_view>
 
+#include "gateway/can/timed_work.h"
 #include "motinova/can.h"
 
 namespace fleetgw::can {
@@ -47,6 +50,8 @@ class Transport {
   virtual void stop() = 0;
   virtual const BusHealth& health() const = 0;
   virtual std::string_view name() const = 0;
+  // The transport's timed work (re-open, transmit retry), or nullptr when it has none.
+  virtual TimedWork* timed_work() { return nullptr; }
 };
 
 }  // namespace fleetgw::can

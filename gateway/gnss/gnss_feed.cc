@@ -11,15 +11,10 @@ GnssFeed::GnssFeed(asio::io_context& io, GnssFeedOptions options, Env& env,
       env_(env),
       on_event_(std::move(on_event)),
       client_(options_.host, options_.port),
-      state_(options_.state),
-      backoff_(options_.reconnect_min) {}
+      state_(options_.state) {}
 
 GnssFeed::~GnssFeed() {
   stop();
-}
-
-void GnssFeed::start() {
-  try_connect();
 }
 
 void GnssFeed::stop() {
@@ -32,26 +27,21 @@ void GnssFeed::stop() {
   client_.close();
 }
 
-void GnssFeed::try_connect() {
-  reconnect_at_.reset();
-  if (stopped_) return;
-  const std::string error = client_.connect();
+std::optional<std::string> GnssFeed::connect() {
+  if (!needs_connect()) return std::nullopt;
+  ++connect_attempts_;
+  std::string error = client_.connect();
   if (!error.empty()) {
-    if (error != last_error_) spdlog::warn("gnss: {} (position unknown, retrying)", error);
-    last_error_ = error;
     state_.on_source_lost(wall_now());
     changed_ = true;
-    reconnect_at_ = env_.steady_now() + backoff_;
-    backoff_ = std::min(backoff_ * 2, options_.reconnect_max);
-    return;
+    return error + " (position unknown)";
   }
   spdlog::info("gnss: connected to gpsd at {}", client_.endpoint());
-  last_error_.clear();
-  backoff_ = options_.reconnect_min;
   state_.on_source_connected(wall_now());
   changed_ = true;
   socket_.emplace(io_, client_.fd());
   watch();
+  return std::nullopt;
 }
 
 void GnssFeed::watch() {
@@ -83,8 +73,6 @@ void GnssFeed::on_readable() {
 }
 
 void GnssFeed::lost(const std::string& why) {
-  spdlog::warn("gnss: {} (position unknown, reconnecting)", why);
-  last_error_ = why;
   if (socket_) {
     socket_->release();
     socket_.reset();
@@ -92,12 +80,11 @@ void GnssFeed::lost(const std::string& why) {
   client_.close();
   state_.on_source_lost(wall_now());
   changed_ = true;
-  reconnect_at_ = env_.steady_now() + backoff_;
+  loss_ = why + " (position unknown, reconnecting)";
 }
 
 std::optional<GnssFeed::Clock::time_point> GnssFeed::next_deadline() const {
   if (stopped_) return std::nullopt;
-  if (reconnect_at_) return reconnect_at_;
   const Micros now = wall_now();
   if (const auto stale_at = state_.next_change(now)) {
     return env_.steady_now() + std::chrono::duration_cast<Clock::duration>(*stale_at - now);
@@ -107,7 +94,6 @@ std::optional<GnssFeed::Clock::time_point> GnssFeed::next_deadline() const {
 
 void GnssFeed::on_timer() {
   if (stopped_) return;
-  if (reconnect_at_ && env_.steady_now() >= *reconnect_at_) try_connect();
   // A fix that went stale while nothing arrived: the owner re-reads the state.
   changed_ = true;
 }

@@ -1,18 +1,23 @@
-// GnssFeed: gpsd on the gateway's event loop -- connects, watches the socket, reconnects with
-// backoff, and keeps the GnssState. It never blocks the loop on reads and never calls into
-// other stages: the owner (the Pipeline) asks changed() after an event and applies the state.
+// GnssFeed: gpsd on the gateway's event loop -- connects when asked, watches the socket, and
+// keeps the GnssState. It never blocks the loop on reads and never calls into other stages: the
+// owner (the runtime's GnssStage) asks changed() after an event and applies the state.
 //
 // Contract:
-//  * start() makes the first connection attempt; a failure is logged once per distinct reason
-//    and retried after reconnect_min, doubling up to reconnect_max; the first success after a
-//    failure is logged.
+//  * The feed does not time its reconnects: the ENGINE does, with its one back-off
+//    (gateway/runtime/backoff.h). While needs_connect(), the owner calls connect() when its
+//    retry is due; a failure is returned as text (the owner reports it as its stage's error,
+//    which the engine logs once per distinct reason and retries after reconnect_min, doubling
+//    up to reconnect_max: GnssFeedOptions are those Backoff options); a success is logged.
+//  * A connection lost while reading is reported once by take_loss() (the owner reports it as
+//    its error too, so the first reconnect waits the back-off instead of hammering a gpsd that
+//    just went away).
 //  * Readability of the gpsd socket posts `on_event` (the owner's "something happened" hook,
 //    e.g. request a settle); changed() is then true until take_changed() is called.
-//  * next_deadline() is the wall time of the next reconnect attempt or of the current fix going
-//    stale; the owner calls on_timer() when its timer reaches it.
+//  * next_deadline() is the steady time at which the current fix goes stale; the owner calls
+//    on_timer() when its timer reaches it.
 //  * Time comes from the Env it is given (env/env.h), never from a clock of its own: positions
 //    are judged on env.wall_now() (when they were received, whatever the bus's possibly virtual
-//    timeline); reconnect back-off and next_deadline() are on env.steady_now().
+//    timeline); next_deadline() is on env.steady_now().
 #pragma once
 
 #include <asio/io_context.hpp>
@@ -22,6 +27,8 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "env/env.h"
 #include "gateway/gnss/gnss_state.h"
@@ -47,8 +54,15 @@ class GnssFeed {
   GnssFeed(const GnssFeed&) = delete;
   GnssFeed& operator=(const GnssFeed&) = delete;
 
-  void start();
   void stop();
+
+  // Not connected and not stopped: the owner calls connect() when its back-off allows.
+  bool needs_connect() const { return !stopped_ && !socket_; }
+  // One connection attempt; the reason on failure (the state is then "unknown").
+  std::optional<std::string> connect();
+  // Why the connection was lost since the last call, once.
+  std::optional<std::string> take_loss() { return std::exchange(loss_, std::nullopt); }
+  std::uint64_t connect_attempts() const { return connect_attempts_; }
 
   std::optional<Clock::time_point> next_deadline() const;
   void on_timer();
@@ -56,12 +70,12 @@ class GnssFeed {
   bool changed() const { return changed_; }
   void take_changed() { changed_ = false; }
   const GnssState& state() const { return state_; }
+  const GnssFeedOptions& options() const { return options_; }
   Micros wall_now() const { return env_.wall_now(); }
   bool connected() const { return client_.connected(); }
   std::string endpoint() const { return client_.endpoint(); }
 
  private:
-  void try_connect();
   void watch();
   void on_readable();
   void lost(const std::string& why);
@@ -73,9 +87,8 @@ class GnssFeed {
   GpsdClient client_;
   GnssState state_;
   std::optional<asio::posix::stream_descriptor> socket_;
-  std::optional<Clock::time_point> reconnect_at_;
-  std::chrono::milliseconds backoff_;
-  std::string last_error_;
+  std::optional<std::string> loss_;
+  std::uint64_t connect_attempts_ = 0;
   bool changed_ = true;  // the initial "unknown" is news too (sets the fault bit)
   bool stopped_ = false;
   std::shared_ptr<int> alive_ = std::make_shared<int>(0);

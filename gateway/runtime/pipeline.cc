@@ -73,6 +73,7 @@ Pipeline::Pipeline(asio::io_context& io, const config::Config& config, BusTransp
       outbox_(store, env_),
       device_info_(core_.node().config().identity),
       config_(config) {
+  if (auto* work = bus_.transport->timed_work()) work->set_wake([this] { request_settle(); });
   bus_.transport->start([this](const motinova::CanFrame& frame, Micros ts) { on_frame(frame, ts); },
                         [this](const can::BusHealth& h) {
                           spdlog::info("bus {}: {}{}{}", bus_.transport->name(),
@@ -151,7 +152,7 @@ Pipeline::Pipeline(asio::io_context& io, const config::Config& config, BusTransp
                                        std::move(a.command_sha256)};
         });
     // Paho's threads only raise a flag and, once, post a settle to the loop.
-    uplink_stage_ = std::make_unique<UplinkStage>(*uplink_, engine_);
+    uplink_stage_ = std::make_unique<UplinkStage>(*uplink_, engine_, &outbox_);
     uplink_->set_wakeup([stage = uplink_stage_.get()] { stage->signal(); });
   }
   core_.add_listener(*recorder_);
@@ -184,7 +185,6 @@ Pipeline::Pipeline(asio::io_context& io, const config::Config& config, BusTransp
     o.state.max_age = std::chrono::milliseconds(config.gnss.max_age_ms);
     o.reconnect_max = std::chrono::milliseconds(config.gnss.reconnect_max_ms);
     gnss_ = std::make_unique<gnss::GnssFeed>(io_, std::move(o), env_, [this] { request_settle(); });
-    gnss_->start();
   }
   start_zones(config);
   add_stages();
@@ -227,6 +227,11 @@ void Pipeline::add_stages() {
       return false;
     });
   }
+  // The transport's re-opens and transmit retries: the engine's timer and back-off time them.
+  if (auto* work = bus_.transport->timed_work()) {
+    transport_stage_ = std::make_unique<TransportStage>(*work);
+    engine_.add(*transport_stage_, {}, transport_stage_->backoff());
+  }
   core_stage_ = std::make_unique<CoreStage>(core_, clock_, bus_.sim, engine_);
   engine_.add(*core_stage_, [this] {
     // A tick may have raised or cleared an alarm.
@@ -264,7 +269,10 @@ void Pipeline::add_stages() {
   });
   if (gnss_) {
     gnss_stage_ = std::make_unique<GnssStage>(*gnss_, engine_);
-    engine_.add(*gnss_stage_, [this] { return route_gnss(); });
+    // The engine times gpsd's reconnects with its one back-off (GnssStage reports failures).
+    engine_.add(*gnss_stage_, [this] { return route_gnss(); },
+                Backoff::Options{.initial = gnss_->options().reconnect_min,
+                                 .max = gnss_->options().reconnect_max});
   }
   if (zones_stage_) engine_.add(*zones_stage_, [this] { return route_zones(); });
   engine_.add(*state_stage_, [this] { return route_state(); });

@@ -212,6 +212,7 @@ class Pipeline {
 
   // The stages, in the order the engine runs them (add_stages()).
   std::unique_ptr<TimerStage> duration_stage_;
+  std::unique_ptr<TransportStage> transport_stage_;
   std::unique_ptr<CoreStage> core_stage_;
   std::unique_ptr<TimerStage> live_stage_;
   std::unique_ptr<DeviceInfoStage> device_info_stage_;

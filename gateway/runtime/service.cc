@@ -58,7 +58,7 @@ BusTransport make_bus(asio::io_context& io, const config::Config& c, const SimBu
   } else {
     can::SocketCanOptions o;
     o.interface = c.can.interface;
-    bus.transport = std::make_unique<can::SocketCanTransport>(io, o);
+    bus.transport = std::make_unique<can::SocketCanTransport>(io, o, env);
   }
   return bus;
 }
@@ -168,7 +168,7 @@ int run_service(const config::Config& config, const ServiceOptions& options,
   spdlog::info("fleetgw {} running on {} ({} transport)", FLEETGW_VERSION,
                pipeline->transport().name(), transport_name);
   if (const auto timeout = status::watchdog_timeout_from_environment()) {
-    watchdog.emplace(io, notifier, *timeout);
+    watchdog.emplace(io, notifier, *timeout, env);
     watchdog->start();
   }
   if (!config.status.socket.empty()) {

@@ -77,10 +77,15 @@ fleetgw::v1::BusState bus_state(const can::Transport& transport, const BusClock&
 
 std::optional<EngineTime> UplinkStage::next_deadline() const {
   if (publish_due_) return engine_.now();
-  return uplink_.next_deadline();
+  auto at = uplink_.next_deadline();
+  if (const auto retry = outbox_ ? outbox_->next_retry() : std::nullopt) {
+    if (!at || *retry < *at) at = retry;
+  }
+  return at;
 }
 
 StageRun UplinkStage::run(EngineTime now) {
+  if (outbox_) outbox_->retry_deletes();  // a no-op unless a retry is due
   const auto poll_at = uplink_.next_deadline();
   const bool woken = woken_.exchange(false);
   if (!publish_due_ && !woken && !(poll_at && now >= *poll_at)) return {};
@@ -102,8 +107,13 @@ StageRun UplinkStage::run(EngineTime now) {
 }
 
 StageRun GnssStage::run(EngineTime) {
+  // A loss is reported first, so the first reconnect waits the back-off; otherwise a due
+  // attempt is made now (the engine does not run this stage before its retry time).
+  std::optional<std::string> error = feed_.take_loss();
+  if (!error && feed_.needs_connect()) error = feed_.connect();
+  Status status = error ? Status::error(StatusCode::kUnavailable, std::move(*error)) : Status{};
   if (engine_.timer_turn()) feed_.on_timer();
-  if (!feed_.changed()) return {};
+  if (!feed_.changed()) return {.produced = 0, .status = std::move(status)};
   feed_.take_changed();
   const auto wall = feed_.wall_now();
   update = Update{wall, feed_.state().current(wall)};
@@ -119,7 +129,7 @@ StageRun GnssStage::run(EngineTime) {
     fault_ = now_fault;
     fault = now_fault;
   }
-  return {.produced = 1, .status = {}};
+  return {.produced = 1, .status = std::move(status)};
 }
 
 StageRun DeviceInfoStage::run(EngineTime) {

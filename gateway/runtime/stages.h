@@ -8,10 +8,17 @@
 //  * RecorderStage: the group commit (urgent records at once, telemetry at its deadline or at
 //    any earlier timer turn outside replays); a failed write is reported, the engine retries.
 //  * UplinkStage: polls the uplink when something was stored, Paho woke it, or its deadline is
-//    due; the commands, busy notices and retained documents it took wait in its outputs.
+//    due; the commands, busy notices and retained documents it took wait in its outputs. The
+//    StoreOutbox's delete retries (acknowledged rows a failing disk kept) are due work of it too.
 //  * GnssStage: gpsd's feed; owns the GNSS fault-bit policy (IoT fault 0x0004 set while the
-//    position is unknown), reported as an output for the node.
+//    position is unknown), reported as an output for the node. A refused connection or a lost
+//    one is the stage's error: the engine's back-off times the reconnects (add the stage with
+//    the feed's reconnect_min/max as its Backoff::Options).
 //  * DeviceInfoStage: node identities heard in a burst become one DeviceInfo record.
+//  * TransportStage: the CAN transport's timed work (can/timed_work.h): re-opening a lost
+//    interface (a failed attempt is the stage's error, so the engine's back-off spaces them;
+//    add it with the transport's retry_spacing() as its Backoff::Options) and the transmit
+//    retry of a full driver queue.
 //  * TimerStage: a deadline of the run itself (the duration, the live view's second).
 #pragma once
 
@@ -29,6 +36,7 @@
 #include "gateway/runtime/engine.h"
 #include "gateway/runtime/gateway_core.h"
 #include "gateway/runtime/recorder.h"
+#include "gateway/runtime/store_outbox.h"
 #include "gateway/uplink/uplink.h"
 
 namespace fleetgw::runtime {
@@ -78,7 +86,9 @@ fleetgw::v1::BusState bus_state(const can::Transport& transport, const BusClock&
 
 class UplinkStage final : public Stage {
  public:
-  UplinkStage(uplink::Uplink& uplink, Engine& engine) : uplink_(uplink), engine_(engine) {}
+  // `outbox` (optional): its delete retries are due work of this stage.
+  UplinkStage(uplink::Uplink& uplink, Engine& engine, StoreOutbox* outbox = nullptr)
+      : uplink_(uplink), engine_(engine), outbox_(outbox) {}
   std::string_view name() const override { return "uplink"; }
   std::optional<EngineTime> next_deadline() const override;
   StageRun run(EngineTime now) override;
@@ -101,6 +111,7 @@ class UplinkStage final : public Stage {
  private:
   uplink::Uplink& uplink_;
   Engine& engine_;
+  StoreOutbox* outbox_;
   std::atomic<bool> woken_{false};
   bool publish_due_ = false;
   std::uint64_t polls_ = 0;
@@ -110,7 +121,12 @@ class GnssStage final : public Stage {
  public:
   GnssStage(gnss::GnssFeed& feed, const Engine& engine) : feed_(feed), engine_(engine) {}
   std::string_view name() const override { return "gnss"; }
-  std::optional<EngineTime> next_deadline() const override { return feed_.next_deadline(); }
+  // Due at once while the feed needs a connection (the engine's back-off defers it after a
+  // failure), else when the fix goes stale.
+  std::optional<EngineTime> next_deadline() const override {
+    if (feed_.needs_connect()) return engine_.now();
+    return feed_.next_deadline();
+  }
   StageRun run(EngineTime now) override;
 
   // Outputs: the position changed (wall time and the current fix, if any) ...
@@ -142,6 +158,25 @@ class DeviceInfoStage final : public Stage {
  private:
   DeviceInfoReporter& reporter_;
   const node::NodeRegistry& registry_;
+};
+
+class TransportStage final : public Stage {
+ public:
+  explicit TransportStage(can::TimedWork& work) : work_(work) {}
+  std::string_view name() const override { return "transport"; }
+  std::optional<EngineTime> next_deadline() const override { return work_.next_deadline(); }
+  StageRun run(EngineTime now) override {
+    auto failed = work_.poll(now);
+    if (!failed) return {};
+    return {.produced = 0, .status = Status::error(StatusCode::kUnavailable, std::move(*failed))};
+  }
+  Backoff::Options backoff() const {
+    const auto s = work_.retry_spacing();
+    return {.initial = s.initial, .max = s.max};
+  }
+
+ private:
+  can::TimedWork& work_;
 };
 
 class TimerStage final : public Stage {

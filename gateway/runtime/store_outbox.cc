@@ -88,26 +88,42 @@ std::vector<uplink::OutgoingRecord> StoreOutbox::peek(std::size_t max_entries,
 }
 
 void StoreOutbox::ack(std::span<const std::uint64_t> seqs) {
-  const auto failures_before = store_.health().failed_writes;
-  store_.ack(seqs);
-  if (store_.health().failed_writes != failures_before) {
-    undeleted_.insert(seqs.begin(), seqs.end());
-    while (undeleted_.size() > kMaxUndeleted) undeleted_.erase(undeleted_.begin());
-    next_delete_retry_ = env_.steady_now() + std::chrono::seconds(1);
+  if (seqs.empty()) return;
+  // A failing disk is not asked again before the back-off allows: the rows wait with the
+  // others for the next retry.
+  if (!undeleted_.empty() && retry_.waiting(env_.steady_now())) {
+    remember(seqs);
+    return;
   }
+  if (undeleted_.empty()) {
+    if (!delete_rows(seqs)) remember(seqs);
+    return;
+  }
+  // The retry is due: one attempt for the waiting rows and these.
+  remember(seqs);
   retry_deletes();
 }
 
-void StoreOutbox::retry_deletes() {
-  if (undeleted_.empty() || env_.steady_now() < next_delete_retry_) return;
-  const std::vector<std::uint64_t> seqs(undeleted_.begin(), undeleted_.end());
+void StoreOutbox::remember(std::span<const std::uint64_t> seqs) {
+  undeleted_.insert(seqs.begin(), seqs.end());
+  while (undeleted_.size() > kMaxUndeleted) undeleted_.erase(undeleted_.begin());
+}
+
+bool StoreOutbox::delete_rows(std::span<const std::uint64_t> seqs) {
   const auto failures_before = store_.health().failed_writes;
   store_.ack(seqs);
   if (store_.health().failed_writes == failures_before) {
-    undeleted_.clear();
-  } else {
-    next_delete_retry_ = env_.steady_now() + std::chrono::seconds(1);
+    retry_.succeeded();
+    return true;
   }
+  retry_.failed(env_.steady_now());
+  return false;
+}
+
+void StoreOutbox::retry_deletes() {
+  if (undeleted_.empty() || retry_.waiting(env_.steady_now())) return;
+  const std::vector<std::uint64_t> seqs(undeleted_.begin(), undeleted_.end());
+  if (delete_rows(seqs)) undeleted_.clear();
 }
 
 uplink::OutboxStats StoreOutbox::stats() const {

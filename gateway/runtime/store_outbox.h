@@ -12,16 +12,22 @@
 //    converted on the way out.
 //  * ack() deletes exactly the acknowledged rows. Nothing here throws (storage contract B). A
 //    failed ack (full disk) is remembered: those rows are no longer offered by peek() (the
-//    broker has them; re-sending them in a loop would only burn CPU and bandwidth) and their
-//    deletion is retried at the next ack()/peek(), at most once a second. The memory for that
-//    is bounded (kMaxUndeleted); past it the oldest are forgotten and simply sent again later
-//    (the backend deduplicates by sequence number). Failures show in Store::health().
+//    broker has them; re-sending them in a loop would only burn CPU and bandwidth), and their
+//    deletion is retried, with the acks arriving meanwhile, when the engine's one retry schedule
+//    allows (env/backoff.h: 1 s after the first failure, doubling up to 30 s, reset by a
+//    success), timed on the Env's steady clock (env/env.h), never the machine's: a failing disk
+//    is not asked again before then. next_retry() says when; the uplink's stage wakes for it
+//    (UplinkStage), so the rows are deleted on time even when nothing else makes the uplink
+//    poll. The memory for that is bounded (kMaxUndeleted); past it the oldest are forgotten
+//    and simply sent again later (the backend deduplicates by sequence number). Failures show
+//    in Store::health().
 #pragma once
 
-#include <chrono>
+#include <optional>
 #include <set>
 
 #include "env/env.h"
+#include "gateway/runtime/backoff.h"
 #include "gateway/uplink/outbox_source.h"
 #include "storage/store.h"
 
@@ -31,7 +37,7 @@ class StoreOutbox final : public uplink::OutboxSource {
  public:
   static constexpr std::size_t kMaxUndeleted = 100'000;
 
-  // `env`: the steady clock of the delete retry (the pipeline passes its one Env).
+  // `env` (its steady clock times the delete retries) must outlive the outbox.
   explicit StoreOutbox(storage::Store& store, Env& env = Env::system())
       : store_(store), env_(env) {}
 
@@ -43,14 +49,25 @@ class StoreOutbox final : public uplink::OutboxSource {
   uplink::OutboxStats stats() const override;
   // Acknowledged entries whose deletion failed and is still to be retried.
   std::size_t undeleted() const { return undeleted_.size(); }
+  // Deletes the rows waiting for a retry if the retry is due at Env::steady_now() (peek() and
+  // ack() call it too).
+  void retry_deletes();
+  // When the next delete retry is due (Env::steady_now() time); nullopt when none is waiting.
+  std::optional<EngineTime> next_retry() const {
+    if (undeleted_.empty()) return std::nullopt;
+    return retry_.retry_at();
+  }
 
  private:
-  void retry_deletes();
+  void remember(std::span<const std::uint64_t> seqs);
+
+  // One attempt to delete `seqs`; a failure keeps them undeleted and backs the retry off.
+  bool delete_rows(std::span<const std::uint64_t> seqs);
 
   storage::Store& store_;
-  std::set<std::uint64_t> undeleted_;
   Env& env_;
-  std::chrono::steady_clock::time_point next_delete_retry_{};
+  std::set<std::uint64_t> undeleted_;
+  Backoff retry_;
 };
 
 // Exposed for tests: storage kind -> uplink kind (its stored name), and the legacy eviction

@@ -4,6 +4,7 @@
 #include <csignal>
 #include <fstream>
 #include <iostream>
+#include <optional>
 #include <vector>
 
 #include <spdlog/spdlog.h>
@@ -11,6 +12,7 @@
 #include <asio/steady_timer.hpp>
 
 #include "gateway/can/socketcan_transport.h"
+#include "gateway/can/timed_work_timer.h"
 #include "gateway/can/udp_transport.h"
 #include "gateway/sim/bus_log_writer.h"
 #include "gateway/sim/scenario.h"
@@ -161,8 +163,13 @@ int run_sim(const SimCliOptions& options) {
   uint64_t tx_failures = 0;
   asio::steady_timer end_check(io);
 
+  // A SocketCAN bus re-opens and retries a full driver queue when polled: without the
+  // gateway's engine here, a timer of the transport's own kind does it.
+  std::optional<can::TimedWorkTimer> timed;
+  if (auto* work = transport->timed_work()) timed.emplace(io, *work).start();
   auto shutdown = [&] {
     driver.stop();
+    if (timed) timed->stop();
     transport->stop();
     signals.cancel();
     end_check.cancel();

@@ -116,8 +116,8 @@ bool Watchdog::loop_alive(Clock::time_point now) {
 }
 
 LoopWatchdog::LoopWatchdog(asio::io_context& io, Notifier& notifier,
-                           std::chrono::microseconds timeout)
-    : watchdog_(notifier, timeout), timer_(io) {}
+                           std::chrono::microseconds timeout, Env& env)
+    : watchdog_(notifier, timeout), timer_(io), env_(env) {}
 
 LoopWatchdog::~LoopWatchdog() {
   stop();
@@ -139,7 +139,7 @@ void LoopWatchdog::arm() {
   timer_.async_wait([this](const std::error_code& ec) {
     // Cancelled (stop() or destruction): `this` may be gone, touch nothing.
     if (ec || !running_) return;
-    watchdog_.loop_alive(Watchdog::Clock::now());
+    watchdog_.loop_alive(env_.steady_now());
     timer_.expires_after(watchdog_.check_period());
     arm();
   });

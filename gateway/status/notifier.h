@@ -11,13 +11,18 @@
 //    passed since the last one. Because the call comes from the loop itself, a stalled or
 //    dead-locked loop stops pinging and systemd restarts the service (Restart=on-failure).
 //  * LoopWatchdog is that timer: it re-arms itself on an asio::io_context every quarter of the
-//    timeout. It must be destroyed before its io_context; stop() cancels it.
-//  * Time is passed in (steady clock); nothing here reads a clock except LoopWatchdog's timer.
+//    timeout. It must be destroyed before its io_context; stop() cancels it. It stays a timer
+//    of its own, outside the engine, on purpose: it proves that the loop turns, whatever the
+//    engine's stages do (and it is no part of the data's road).
+//  * Time is passed in (steady clock); LoopWatchdog reads it from the Env it is given
+//    (env/env.h), nothing here reads a clock of its own.
 #pragma once
 
 #include <asio/io_context.hpp>
 #include <asio/steady_timer.hpp>
 #include <chrono>
+
+#include "env/env.h"
 #include <optional>
 #include <string>
 #include <string_view>
@@ -81,7 +86,9 @@ class Watchdog {
 // The asio timer that feeds a Watchdog from the event loop it guards.
 class LoopWatchdog {
  public:
-  LoopWatchdog(asio::io_context& io, Notifier& notifier, std::chrono::microseconds timeout);
+  // `env` must outlive the watchdog.
+  LoopWatchdog(asio::io_context& io, Notifier& notifier, std::chrono::microseconds timeout,
+               Env& env = Env::system());
   ~LoopWatchdog();
   LoopWatchdog(const LoopWatchdog&) = delete;
   LoopWatchdog& operator=(const LoopWatchdog&) = delete;
@@ -94,6 +101,7 @@ class LoopWatchdog {
   void arm();
   Watchdog watchdog_;
   asio::steady_timer timer_;
+  Env& env_;
   bool running_ = false;
 };
 

@@ -1,7 +1,6 @@
-// GnssFeed reads time only from the Env it is given: with a ManualEnv standing still, its
-// reconnect back-off, its deadlines and the ageing of what it knows are decided on the test's
-// clock, without sleeping (a feed that read the machine's clocks would miss every exact value
-// below: the ManualEnv's steady clock is at 1 s, the machine's at its uptime).
+// GnssFeed reads time only from the Env it is given and never times its own reconnects: it
+// connects when its owner asks (the engine's back-off decides when: tests/runtime
+// test_gnss_stage.cc), however far the clock moves and however often its timer fires.
 #include "gateway/gnss/gnss_feed.h"
 
 #include <gtest/gtest.h>
@@ -17,39 +16,38 @@ namespace {
 
 using namespace std::chrono_literals;
 
-TEST(GnssFeed, BackOffAndAgeingRunOnTheInjectedClock) {
+TEST(GnssFeed, ConnectsOnlyWhenAskedAndKeepsNoRetryTimerOfItsOwn) {
   asio::io_context io;
   ManualEnv env;
   GnssFeedOptions o;
   o.host = "127.0.0.1";
   o.port = std::to_string(fleetgw::testing::free_loopback_port());  // nothing listens: refused
-  o.reconnect_min = 1000ms;
-  o.reconnect_max = 4000ms;
   int events = 0;
   GnssFeed feed(io, o, env, [&] { ++events; });
   EXPECT_EQ(feed.wall_now(), env.wall_now());
+  EXPECT_TRUE(feed.needs_connect());
+  EXPECT_EQ(feed.connect_attempts(), 0u) << "constructing a feed connects nothing";
 
-  feed.start();  // refused: unknown since now, retried after reconnect_min
-  ASSERT_FALSE(feed.connected());
+  const auto error = feed.connect();  // refused: the reason is the owner's to report
+  ASSERT_TRUE(error.has_value());
+  EXPECT_NE(error->find("127.0.0.1:" + o.port), std::string::npos) << *error;
+  EXPECT_FALSE(feed.connected());
+  EXPECT_TRUE(feed.needs_connect());
   EXPECT_EQ(feed.state().reason(env.wall_now()), "gpsd unreachable");
-  const auto t0 = env.steady_now();
-  EXPECT_EQ(feed.next_deadline(), t0 + 1000ms);
+  EXPECT_EQ(feed.take_loss(), std::nullopt) << "a refusal is not a loss";
 
-  // The timer fires early (the owner's timer is shared): nothing is retried before its time.
-  env.advance(999ms);
-  feed.on_timer();
-  EXPECT_EQ(feed.next_deadline(), t0 + 1000ms);
+  // No deadline of its own for the retry, and its timer never reconnects.
+  EXPECT_EQ(feed.next_deadline(), std::nullopt);
+  for (int i = 0; i < 5; ++i) {
+    env.advance(60s);
+    feed.on_timer();
+  }
+  EXPECT_EQ(feed.connect_attempts(), 1u);
 
-  // At its time the retry happens, fails again and the back-off doubles, up to reconnect_max.
-  env.advance(1ms);
-  feed.on_timer();
-  EXPECT_EQ(feed.next_deadline(), t0 + 1000ms + 2000ms);
-  env.advance(2000ms);
-  feed.on_timer();
-  EXPECT_EQ(feed.next_deadline(), t0 + 3000ms + 4000ms);
-  env.advance(4000ms);
-  feed.on_timer();
-  EXPECT_EQ(feed.next_deadline(), t0 + 7000ms + 4000ms) << "capped at reconnect_max";
+  feed.stop();
+  EXPECT_FALSE(feed.needs_connect());
+  EXPECT_EQ(feed.connect(), std::nullopt);
+  EXPECT_EQ(feed.connect_attempts(), 1u) << "a stopped feed does not connect";
 }
 
 }  // namespace

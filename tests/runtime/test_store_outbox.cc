@@ -4,10 +4,14 @@
 //    earlier versions gave.
 //  * A JSON report left by an earlier version still leaves as that EvictionReport.
 //  * A kind this version does not know reaches the uplink under its stored name (it refuses it).
+//  * Acknowledged rows a failing disk could not delete are not offered again, and their deletion
+//    is retried on the engine's one back-off, timed by the injected Env: not before 1 s, then
+//    2 s, acks arriving meanwhile waiting with them instead of asking the failing disk again.
 #include <gtest/gtest.h>
 
 #include <optional>
 
+#include "env/env.h"
 #include "fleetgw/v1/eviction.pb.h"
 #include "gateway/domain/payloads.h"
 #include "gateway/runtime/store_outbox.h"
@@ -116,6 +120,57 @@ TEST(StoreOutbox, AnUnknownStoredKindReachesTheUplinkByItsStoredName) {
   ASSERT_EQ(records.size(), 2u);
   EXPECT_EQ(records[0].kind, "teleport");
   EXPECT_EQ(records[1].kind, uplink::kind::kLock);
+}
+
+TEST(StoreOutbox, ADeleteAFailingDiskRefusedIsRetriedOnTheEnginesBackOff) {
+  using namespace std::chrono_literals;
+  fleetgw::testing::TempDir dir;
+  Store store(StoreOptions{.path = dir.file("o.db")});
+  Batch b;
+  b.now_us = 5;
+  for (int i = 0; i < 4; ++i) b.faults.push_back({fault_at(i + 1, i), payload_of("fault")});
+  ASSERT_TRUE(store.write(b).ok());
+  ManualEnv env;
+  StoreOutbox outbox(store, env);
+  const auto records = outbox.peek(10, 1 << 20, {});
+  ASSERT_EQ(records.size(), 4u);
+  const std::uint64_t s0 = records[0].seq, s1 = records[1].seq, s2 = records[2].seq;
+  Database raw(store.path());
+  raw.exec("CREATE TRIGGER full BEFORE DELETE ON outbox BEGIN SELECT RAISE(ABORT, 'full'); END");
+  const auto failures = [&] { return store.health().failed_writes; };
+  const auto t0 = env.steady_now();
+
+  const std::uint64_t first[] = {s0, s1};
+  outbox.ack(first);
+  EXPECT_EQ(failures(), 1u);
+  EXPECT_EQ(outbox.undeleted(), 2u);
+  EXPECT_EQ(outbox.next_retry(), t0 + 1s);
+  EXPECT_EQ(outbox.peek(10, 1 << 20, {}).size(), 2u) << "the broker has them: not offered again";
+
+  // An ack during the back-off waits with the others: the failing disk is not asked.
+  const std::uint64_t second[] = {s2};
+  outbox.ack(second);
+  EXPECT_EQ(failures(), 1u);
+  EXPECT_EQ(outbox.undeleted(), 3u);
+  env.advance(999ms);
+  outbox.retry_deletes();
+  EXPECT_EQ(failures(), 1u) << "not before its time on the injected clock";
+
+  // At its time it is retried; a second failure doubles the wait.
+  env.advance(1ms);
+  outbox.retry_deletes();
+  EXPECT_EQ(failures(), 2u);
+  EXPECT_EQ(outbox.next_retry(), t0 + 1s + 2s);
+
+  raw.exec("DROP TRIGGER full");
+  env.advance(1999ms);
+  outbox.peek(10, 1 << 20, {});
+  EXPECT_EQ(outbox.undeleted(), 3u);
+  env.advance(1ms);
+  ASSERT_EQ(outbox.peek(10, 1 << 20, {}).size(), 1u);
+  EXPECT_EQ(outbox.undeleted(), 0u);
+  EXPECT_EQ(outbox.next_retry(), std::nullopt);
+  EXPECT_EQ(outbox.stats().depth, 1u) << "the three acknowledged rows are gone from SQLite";
 }
 
 }  // namespace

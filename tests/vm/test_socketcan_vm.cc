@@ -25,8 +25,10 @@
 #include <gtest/gtest.h>
 #include <asio/io_context.hpp>
 
+#include "env/env.h"
 #include "gateway/can/candump.h"
 #include "gateway/can/socketcan_transport.h"
+#include "gateway/can/timed_work_timer.h"
 #include "tests/support/wait.h"
 
 namespace fleetgw::can {
@@ -144,6 +146,7 @@ class SocketCanVm : public ::testing::Test {
     SocketCanOptions o;
     o.interface = kIf;
     o.reopen_interval = 50ms;
+    o.reopen_max = 50ms;  // a fixed spacing: the tests count attempts in real time
     return o;
   }
 
@@ -288,6 +291,8 @@ TEST_F(SocketCanVm, ErrorFramesDriveHealth) {
 
 TEST_F(SocketCanVm, RecoversWhenTheInterfaceGoesDownAndUp) {
   SocketCanTransport t(io, options());
+  TimedWorkTimer timed(io, *t.timed_work());  // the engine's part, without the engine
+  timed.start();
   t.start(on_frame(), on_health());
   Peer peer;
   peer.send(0x711, {1});
@@ -327,6 +332,8 @@ TEST_F(SocketCanVm, RecoversWhenTheInterfaceGoesDownAndUp) {
 TEST_F(SocketCanVm, StartsDownWhenTheInterfaceIsDownAndComesUpLater) {
   sh(std::string("ip link set ") + kIf + " down");
   SocketCanTransport t(io, options());
+  TimedWorkTimer timed(io, *t.timed_work());
+  timed.start();
   t.start(on_frame(), on_health());
   EXPECT_EQ(t.health().state, ControllerState::kDown);
   EXPECT_NE(t.health().detail.find("is down"), std::string::npos) << t.health().detail;
@@ -337,6 +344,35 @@ TEST_F(SocketCanVm, StartsDownWhenTheInterfaceIsDownAndComesUpLater) {
   Peer peer;
   peer.send(0x713, {9});
   ASSERT_TRUE(run_until(io, [&] { return rx.size() == 1; }));
+}
+
+// The transport keeps no timer: a lost link is reported by the next poll(), and re-opened only
+// when its owner polls again (the gateway's engine, whose back-off spaces the attempts).
+TEST_F(SocketCanVm, ReopensOnlyWhenPolledAndReportsTheLossFirst) {
+  sh(std::string("ip link set ") + kIf + " down");
+  ManualEnv env;
+  SocketCanTransport t(io, options(), env);
+  TimedWork& work = *t.timed_work();
+  int wakes = 0;
+  work.set_wake([&] { ++wakes; });
+  t.start(on_frame(), on_health());
+  EXPECT_EQ(wakes, 1) << "the owner is told a re-open is due";
+  EXPECT_EQ(work.next_deadline(), env.steady_now());
+  const auto loss = work.poll(env.steady_now());
+  ASSERT_TRUE(loss.has_value()) << "the loss is the first poll's failure (the back-off waits)";
+  EXPECT_NE(loss->find("is down"), std::string::npos) << *loss;
+  EXPECT_EQ(t.stats().reopen_attempts, 0U);
+  run_until(
+      io, [] { return false; }, 200ms);
+  EXPECT_EQ(t.stats().reopen_attempts, 0U) << "no timer of its own";
+  const auto failed = work.poll(env.steady_now());
+  ASSERT_TRUE(failed.has_value());
+  EXPECT_EQ(t.stats().reopen_attempts, 1U);
+  sh(std::string("ip link set ") + kIf + " up");
+  EXPECT_EQ(work.poll(env.steady_now()), std::nullopt);
+  EXPECT_EQ(t.health().state, ControllerState::kUp);
+  EXPECT_EQ(t.health().reopens, 1U);
+  EXPECT_EQ(work.next_deadline(), std::nullopt) << "nothing due while the link is up";
 }
 
 TEST_F(SocketCanVm, MissingInterfaceIsAClearConfigurationError) {
