@@ -42,6 +42,7 @@ GatewayCore::GatewayCore(const config::Config& config, node::FrameSender& sender
       reassembler_(motinova::ReassemblerOptions{.gap_timeout = ms(config.can.reassembly_gap_ms),
                                                 .crc_order = config.protocol.crc_order}),
       echo_(sender, *this),
+      own_(motinova::Catalogue::standard(), options_),
       node_(std::make_unique<node::IotNode>(make_node_config(config), options_, echo_,
                                             std::move(hooks))) {
   live_.settings_limit_is_factory = config.command.mc_settings_limit == "factory";
@@ -49,7 +50,10 @@ GatewayCore::GatewayCore(const config::Config& config, node::FrameSender& sender
 
 bool GatewayCore::EchoSender::send(const motinova::AppFrame& frame) {
   if (!inner_.send(frame)) return false;
-  core_.echoes_.push_back(frame);
+  // Nothing refers to the table between deliveries: the only moment it may be trimmed.
+  if (core_.echoes_.empty()) core_.own_.trim();
+  core_.echoes_.push_back(&core_.own_.intern(frame));
+  core_.stats_.echo_decodes = core_.own_.decodes();
   return true;
 }
 
@@ -57,10 +61,11 @@ void GatewayCore::deliver_echoes() {
   if (delivering_echoes_) return;  // the outer delivery loop picks up what was added
   delivering_echoes_ = true;
   // Index loop: a listener's reaction to an echo may transmit (and so append) again.
+  // Entries stay put while echoes are pending (OwnMessages::trim only runs on an empty queue).
   for (std::size_t i = 0; i < echoes_.size(); ++i) {
-    const motinova::AppFrame frame = echoes_[i];
-    motinova::decode(frame, motinova::Catalogue::standard(), options_, echo_decoded_);
-    for (auto* l : listeners_) l->on_message(echo_decoded_, now_);
+    const motinova::DecodedMessage& message = echoes_[i]->decoded;
+    ++stats_.echoes;
+    for (auto* l : listeners_) l->on_message(message, now_);
   }
   echoes_.clear();
   delivering_echoes_ = false;

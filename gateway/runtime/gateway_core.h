@@ -19,6 +19,10 @@
 //    being handled, in transmit order. A caller that makes the node send from outside the core
 //    (the command service) calls deliver_echoes() when that call has returned. So a listener is
 //    never re-entered and always sees a frame before the gateway's reaction to it.
+//  * An echo is the message as the bus carries it, decoded once per distinct message the node
+//    sends (OwnMessages, own_messages.h), not once per transmission: the frame is encoded once,
+//    for the bus, and a message sent again is shown from what was decoded the first time
+//    (CoreStats::echoes, echo_decodes).
 //  * Listeners and the FrameSender must outlive the core.
 #pragma once
 
@@ -30,6 +34,7 @@
 #include "gateway/node/frame_sender.h"
 #include "gateway/node/iot_node.h"
 #include "gateway/runtime/live_state.h"
+#include "gateway/runtime/own_messages.h"
 #include "motinova/codec.h"
 #include "motinova/reassembler.h"
 
@@ -51,6 +56,8 @@ struct CoreStats {
   uint64_t messages = 0;
   uint64_t unknown_messages = 0;
   uint64_t length_mismatches = 0;
+  uint64_t echoes = 0;        // own messages shown to the listeners
+  uint64_t echo_decodes = 0;  // of those, decoded (first sight of a distinct message)
 };
 
 class GatewayCore final : private motinova::FrameSink {
@@ -108,9 +115,9 @@ class GatewayCore final : private motinova::FrameSink {
   motinova::DecodeOptions options_;
   motinova::Reassembler reassembler_;
   EchoSender echo_;
-  std::vector<motinova::AppFrame> echoes_;  // transmitted, not yet shown to the listeners
+  OwnMessages own_;  // what the node transmits, decoded once per distinct message
+  std::vector<const OwnMessages::Entry*> echoes_;  // transmitted, not yet shown to the listeners
   bool delivering_echoes_ = false;
-  motinova::DecodedMessage echo_decoded_;
   Micros now_{0};
   std::unique_ptr<node::IotNode> node_;
   motinova::DecodedMessage decoded_;

@@ -1,11 +1,15 @@
 // GatewayCore's echoes: what the gateway transmits reaches the listeners (trackers, recorder,
 // command service) AFTER the frame being handled, in transmit order, and never from inside a
-// listener's own call (no re-entrance). Deterministic: no clock, no event loop.
+// listener's own call (no re-entrance); each is the message the bus saw, decoded once per
+// distinct message the node sends, never per transmission (encoded once, for the bus).
+// Deterministic: no clock, no event loop.
 #include <gtest/gtest.h>
 
 #include <vector>
 
+#include "gateway/can/transport.h"
 #include "gateway/node/messages.h"
+#include "gateway/node/transport_sender.h"
 #include "motinova/segmenter.h"
 #include "runtime_test_util.h"
 
@@ -105,6 +109,89 @@ TEST(EchoOrder, SendsFromOutsideTheCoreWaitForDeliverEchoes) {
   EXPECT_EQ(observer.seen[0].can_id, kVehicleLockId);
   EXPECT_EQ(observer.seen[1].can_id, kVehicleLockId);
   EXPECT_FALSE(core.echoes_pending());
+}
+
+// The CAN frames the transport was given: what the bus saw.
+struct CapturingTransport final : can::Transport {
+  std::vector<motinova::CanFrame> wire;
+  can::BusHealth h;
+  void start(FrameHandler, HealthHandler) override {}
+  bool send(const motinova::CanFrame& f) override {
+    wire.push_back(f);
+    return true;
+  }
+  void stop() override {}
+  const can::BusHealth& health() const override { return h; }
+  std::string_view name() const override { return "capture"; }
+};
+
+// A decoded message by value (a DecodedMessage only holds views).
+struct Seen {
+  uint16_t can_id = 0;
+  uint8_t function = 0;
+  std::string name;
+  std::vector<std::pair<std::string, int64_t>> raw;
+  friend bool operator==(const Seen&, const Seen&) = default;
+};
+Seen seen_of(const motinova::DecodedMessage& m) {
+  Seen s{m.frame->can_id, m.frame->function, std::string(m.name()), {}};
+  for (const auto& v : m.values()) s.raw.emplace_back(std::string(v.field->name), v.raw);
+  return s;
+}
+
+struct Keeping final : MessageListener {
+  std::vector<Seen> seen;
+  void on_message(const motinova::DecodedMessage& m, Micros) override {
+    seen.push_back(seen_of(m));
+  }
+};
+
+// The bus's frames reassembled and decoded, as a peer on the bus would see them.
+struct BusDecoder final : motinova::FrameSink {
+  explicit BusDecoder(const motinova::DecodeOptions& o) : options(o) {}
+  const motinova::DecodeOptions& options;
+  std::vector<Seen> seen;
+  void on_frame(const motinova::AppFrame& f, Micros) override {
+    motinova::DecodedMessage m;
+    motinova::decode(f, motinova::Catalogue::standard(), options, m);
+    seen.push_back(seen_of(m));
+  }
+  void on_error(const motinova::ReassemblyErrorEvent&) override { ADD_FAILURE() << "bad frame"; }
+};
+
+TEST(EchoOrder, ListenersGetWhatTheBusSawDecodedOncePerDistinctMessageNotPerTransmission) {
+  const auto cfg = make_config();
+  CapturingTransport bus;
+  node::TransportSender sender(bus, cfg.protocol.crc_order);
+  GatewayCore core(cfg, sender);
+  Keeping listener;
+  core.add_listener(listener);
+  const Micros t0 = sec(1'717'228'800);
+  core.start(t0);
+  core.node().vehicle_lock(t0);
+  core.node().vehicle_unlock(t0);
+  core.deliver_echoes();
+  const auto decodes = core.stats().echo_decodes;
+  const auto echoes = core.stats().echoes;
+  EXPECT_EQ(echoes, listener.seen.size());
+
+  for (int i = 0; i < 10; ++i) {
+    core.node().vehicle_lock(t0 + ms(i));
+    core.node().vehicle_unlock(t0 + ms(i));
+    core.deliver_echoes();
+  }
+  EXPECT_EQ(core.stats().echoes, echoes + 20);
+  EXPECT_EQ(core.stats().echo_decodes, decodes) << "a message already sent is not decoded again";
+  EXPECT_LE(decodes, echoes);
+
+  // Every message the listener got is the message the bus carried, in the same order.
+  motinova::Reassembler reassembler;
+  BusDecoder peer(core.options());
+  for (const auto& f : bus.wire) reassembler.push(f, t0, peer);
+  ASSERT_EQ(peer.seen.size(), listener.seen.size());
+  EXPECT_EQ(peer.seen, listener.seen);
+  EXPECT_EQ(listener.seen.back().can_id, kVehicleLockId);
+  EXPECT_EQ(listener.seen.back().name, peer.seen.back().name);
 }
 
 }  // namespace
