@@ -75,9 +75,9 @@ void BM_TransmittedMessage(benchmark::State& state) {
   }
   benchmark::DoNotOptimize(trackers.seen);
   state.SetItemsProcessed(state.iterations() * 2);
-  state.counters["ns_per_message"] = benchmark::Counter(
-      static_cast<double>(state.iterations() * 2),
-      benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
+  state.counters["ns_per_message"] =
+      benchmark::Counter(static_cast<double>(state.iterations() * 2),
+                         benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
 }
 BENCHMARK(BM_TransmittedMessage);
 

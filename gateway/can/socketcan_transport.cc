@@ -262,8 +262,7 @@ void SocketCanTransport::on_readable() {
     if (ts.count() < 0) {
       // Should not happen with SO_TIMESTAMPNS set; the wall clock is the best remaining guess.
       ++stats_.rx_no_timestamp;
-      ts = std::chrono::duration_cast<motinova::Micros>(
-          std::chrono::system_clock::now().time_since_epoch());
+      ts = env_.wall_now();
     }
 
     ts = ts_guard_.apply(ts);

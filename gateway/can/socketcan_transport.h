@@ -118,7 +118,7 @@ class SocketCanTransport final : public Transport, private TimedWork {
   asio::posix::stream_descriptor sock_;
   TxQueue tx_;  // held while a write-readiness wait or ENOBUFS retry is pending
   std::optional<TimedWork::Time> tx_retry_at_;  // ENOBUFS: when to write again
-  std::optional<std::string> loss_;  // the link went down: the next poll() reports it
+  std::optional<std::string> loss_;             // the link went down: the next poll() reports it
 
   FrameHandler on_frame_;
   HealthHandler on_health_;

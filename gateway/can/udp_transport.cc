@@ -114,8 +114,9 @@ asio::ip::udp::endpoint make_endpoint(const std::string& address, uint16_t port,
 
 }  // namespace
 
-UdpTransport::UdpTransport(asio::io_context& io, UdpOptions options)
+UdpTransport::UdpTransport(asio::io_context& io, UdpOptions options, Env& env)
     : options_(std::move(options)),
+      env_(env),
       socket_(io),
       rx_buffer_(65536),
       tx_(io, options_.tx_queue_limit, [this] { send_next(); }) {
@@ -261,8 +262,7 @@ void UdpTransport::handle_datagram(std::size_t size) {
   }
   rx_sequence_ = d->sequence;
 
-  const auto now = std::chrono::duration_cast<motinova::Micros>(
-      std::chrono::system_clock::now().time_since_epoch());
+  const motinova::Micros now = env_.wall_now();
   const std::weak_ptr<int> token = alive_;
   for (const cannelloni::WireFrame& w : d->frames) {
     if (w.fd) {

@@ -18,7 +18,7 @@
 //    datagrams from any endpoint other than the configured remote are rejected the same way.
 //  * Like the SocketCAN acceptance filter, only standard data frames 0x700-0x7FF are delivered;
 //    extended/remote frames and CAN FD frames are counted and skipped, error frames update
-//    health() as on a live bus. The frame timestamp is the receive time (system clock).
+//    health() as on a live bus. The frame timestamp is the receive time (the Env's wall clock).
 //  * Single-threaded: call everything on the io_context's thread.
 #pragma once
 
@@ -34,6 +34,7 @@
 #include <asio/io_context.hpp>
 #include <asio/ip/udp.hpp>
 
+#include "env/env.h"
 #include "gateway/can/transport.h"
 #include "gateway/can/tx_queue.h"
 
@@ -91,7 +92,8 @@ class UdpTransport final : public Transport {
 
   // Binds the local socket; throws std::runtime_error naming the address/port on failure
   // (invalid address, port in use).
-  UdpTransport(asio::io_context& io, UdpOptions options);
+  // `env` (the wall clock that stamps received frames) must outlive the transport.
+  UdpTransport(asio::io_context& io, UdpOptions options, Env& env = Env::system());
   ~UdpTransport() override;
 
   UdpTransport(const UdpTransport&) = delete;
@@ -114,6 +116,7 @@ class UdpTransport final : public Transport {
   void send_next();
 
   UdpOptions options_;
+  Env& env_;
   std::string name_;
   asio::ip::udp::socket socket_;
   std::optional<asio::ip::udp::endpoint> remote_;

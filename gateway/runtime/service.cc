@@ -54,7 +54,7 @@ BusTransport make_bus(asio::io_context& io, const config::Config& c, const SimBu
     can::UdpOptions o;
     std::tie(o.local_address, o.local_port) = endpoint(c.can.udp_local, "udp_local");
     std::tie(o.remote_address, o.remote_port) = endpoint(c.can.udp_remote, "udp_remote");
-    bus.transport = std::make_unique<can::UdpTransport>(io, o);
+    bus.transport = std::make_unique<can::UdpTransport>(io, o, env);
   } else {
     can::SocketCanOptions o;
     o.interface = c.can.interface;

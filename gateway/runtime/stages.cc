@@ -78,8 +78,8 @@ fleetgw::v1::BusState bus_state(const can::Transport& transport, const BusClock&
 std::optional<EngineTime> UplinkStage::next_deadline() const {
   if (publish_due_) return engine_.now();
   auto at = uplink_.next_deadline();
-  if (const auto retry = outbox_ ? outbox_->next_retry() : std::nullopt) {
-    if (!at || *retry < *at) at = retry;
+  if (outbox_) {
+    if (const auto retry = outbox_->next_retry(); retry && (!at || *retry < *at)) at = retry;
   }
   return at;
 }

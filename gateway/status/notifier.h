@@ -21,11 +21,11 @@
 #include <asio/io_context.hpp>
 #include <asio/steady_timer.hpp>
 #include <chrono>
-
-#include "env/env.h"
 #include <optional>
 #include <string>
 #include <string_view>
+
+#include "env/env.h"
 
 namespace fleetgw::status {
 

@@ -60,8 +60,7 @@ struct Rig {
     o.reconnect_max = 4000ms;
     feed = std::make_unique<gnss::GnssFeed>(io, o, env, [this] { engine.request_settle(); });
     stage = std::make_unique<GnssStage>(*feed, engine);
-    engine.add(*stage, {},
-               Backoff::Options{.initial = o.reconnect_min, .max = o.reconnect_max});
+    engine.add(*stage, {}, Backoff::Options{.initial = o.reconnect_min, .max = o.reconnect_max});
   }
   ~Rig() { engine.stop(); }
   void settle() {
