@@ -16,6 +16,7 @@
 #include "gateway/gnss/gnss_feed.h"
 #include "gateway/runtime/engine.h"
 #include "gateway/runtime/stages.h"
+#include "tests/support/process.h"
 #include "tests/support/wait.h"
 
 namespace fleetgw::runtime {
@@ -23,30 +24,26 @@ namespace {
 
 using namespace std::chrono_literals;
 
-// A loopback TCP socket: listening (a gpsd that accepts) or bound and released (refusing).
-struct LocalPort {
-  explicit LocalPort(bool listen) {
+// A listening loopback TCP socket: a gpsd that accepts (a refusing one is tests/support
+// free_loopback_port()).
+struct ListeningPort {
+  ListeningPort() {
     fd = ::socket(AF_INET, SOCK_STREAM, 0);
     sockaddr_in addr{};
     addr.sin_family = AF_INET;
     addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
     socklen_t len = sizeof addr;
     if (fd < 0 || ::bind(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr) != 0 ||
-        ::getsockname(fd, reinterpret_cast<sockaddr*>(&addr), &len) != 0 ||
-        (listen && ::listen(fd, 4) != 0)) {
+        ::getsockname(fd, reinterpret_cast<sockaddr*>(&addr), &len) != 0 || ::listen(fd, 4) != 0) {
       ADD_FAILURE() << "no local port";
     }
     port = std::to_string(ntohs(addr.sin_port));
-    if (!listen) {
-      ::close(fd);
-      fd = -1;
-    }
   }
-  ~LocalPort() {
+  ~ListeningPort() {
     if (fd >= 0) ::close(fd);
   }
-  LocalPort(const LocalPort&) = delete;
-  LocalPort& operator=(const LocalPort&) = delete;
+  ListeningPort(const ListeningPort&) = delete;
+  ListeningPort& operator=(const ListeningPort&) = delete;
   int fd = -1;
   std::string port;
 };
@@ -77,8 +74,7 @@ struct Rig {
 };
 
 TEST(GnssStage, ReconnectsAreTimedByTheEnginesBackOffNeverEarlier) {
-  LocalPort refusing(false);
-  Rig rig(refusing.port);
+  Rig rig(std::to_string(fleetgw::testing::free_loopback_port()));  // nothing listens: refused
   const auto t0 = rig.env.steady_now();
   rig.settle();
   EXPECT_EQ(rig.feed->connect_attempts(), 1u) << "the first attempt is the first settle's";
@@ -102,7 +98,7 @@ TEST(GnssStage, ReconnectsAreTimedByTheEnginesBackOffNeverEarlier) {
 }
 
 TEST(GnssStage, ALostConnectionWaitsTheBackOffBeforeItsFirstReconnect) {
-  LocalPort gpsd(true);
+  ListeningPort gpsd;
   Rig rig(gpsd.port);
   rig.settle();
   ASSERT_TRUE(rig.feed->connected());
