@@ -110,9 +110,7 @@ void StoreOutbox::remember(std::span<const std::uint64_t> seqs) {
 }
 
 bool StoreOutbox::delete_rows(std::span<const std::uint64_t> seqs) {
-  const auto failures_before = store_.health().failed_writes;
-  store_.ack(seqs);
-  if (store_.health().failed_writes == failures_before) {
+  if (store_.ack(seqs).ok()) {
     retry_.succeeded();
     return true;
   }
