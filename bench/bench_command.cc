@@ -133,10 +133,15 @@ struct Gateway {
     core = std::make_unique<runtime::GatewayCore>(cfg, sender);
     sim::VirtualBus::Participant p;
     p.name = "gateway";
-    p.on_frame = [this](const motinova::CanFrame& f, Micros ts) { core->on_can_frame(f, ts); };
+    // After the core, the pipeline's command stage: results concluded on the bus are written.
+    p.on_frame = [this](const motinova::CanFrame& f, Micros ts) {
+      core->on_can_frame(f, ts);
+      if (service && service->writes_pending()) service->run(ts);
+    };
     p.tick = [this](Micros now) {
       core->tick(now);
       service->tick(now);
+      service->run(now);
     };
     p.next_event = [this] { return core->next_event(); };
     sender.id = bus.add(std::move(p));
@@ -147,9 +152,7 @@ struct Gateway {
                                 .store = *store,
                                 .trackers = nullptr,
                                 .clock_synchronised = command::default_clock_synchronised,
-                                .wall_clock = {},
-                                .result_stored = {},
-                                .publish_unstored = {}});
+                                .wall_clock = {}});
     service->set_result_observer([this](const v1::CommandResult& r, bool) { last = r; });
     bus.run_for(2s);  // the lock is heard: online
   }

@@ -15,9 +15,6 @@
 namespace fleetgw::command {
 namespace {
 
-// The operator's cap in km/h as decimal text; absent until the first successful command.
-constexpr std::string_view kSpeedCapKey = "command.speed_cap_kmh";
-
 // The stored cap, read once per process before the authority is first used (the store is
 // opened before the service; a read error leaves no cap and is logged).
 geofence::SpeedAuthority& restored_authority(McActionRunner& mc, storage::Store& store) {
@@ -39,14 +36,6 @@ geofence::SpeedAuthority& restored_authority(McActionRunner& mc, storage::Store&
     spdlog::error("command: reading the stored speed cap failed: {}", e.what());
   }
   return speed;
-}
-
-// Records a confirmed cap; the reason when the store refused it (the cap holds until restart).
-std::optional<std::string> store_cap(storage::Store& store, int kmh, Micros now) {
-  storage::Batch b;
-  b.now_us = now.count();
-  b.meta.emplace_back(std::string(kSpeedCapKey), std::to_string(kmh));
-  return write_batch(store, b);
 }
 
 }  // namespace
@@ -91,22 +80,19 @@ void CommandService::Impl::finish_mc(McOutcome outcome, Micros now) {
   out.set_operator_id(run.cmd.operator_id);
   out.set_result(outcome.code);
   out.set_reason(std::move(outcome.reason));
+  std::optional<int> confirmed_cap;
   if (run.cmd.mc.kind == McActionKind::kSpeedLimit) {
     auto& speed = mc.speed();
-    std::string unstored;
     if (outcome.code == v1::COMMAND_RESULT_CODE_SUCCEEDED) {
-      const int cap = static_cast<int>(run.cmd.mc.speed_limit_kmh);
-      speed.set_operator_cap(cap);
-      if (const auto error = store_cap(context.store, cap, now)) {
-        spdlog::error("command {}: speed cap {} km/h in force but not stored: {}",
-                      run.cmd.command_id, cap, *error);
-        unstored = " (cap not stored: lost at a restart)";
-      }
+      // In force at once; stored with the result, in its transaction (store_result notes in
+      // limit_in_force when the store refuses it).
+      confirmed_cap = static_cast<int>(run.cmd.mc.speed_limit_kmh);
+      speed.set_operator_cap(*confirmed_cap);
     }
     if (const auto cap = speed.operator_cap()) {
       outcome.details.set_operator_cap_kmh(static_cast<std::uint32_t>(*cap));
     }
-    outcome.details.set_limit_in_force(speed.explain() + unstored);
+    outcome.details.set_limit_in_force(speed.explain());
   }
   *out.mutable_mc() = std::move(outcome.details);
   out.set_duration_ms(static_cast<std::uint64_t>(to_ms(now - run.received)));
@@ -115,7 +101,7 @@ void CommandService::Impl::finish_mc(McOutcome outcome, Micros now) {
                command_result_name(out.result()), out.duration_ms(),
                out.reason().empty() ? "" : ": " + out.reason());
   store_result(std::move(out), now, std::max(run.cmd.expires_at, now + config.rejected_retention),
-               run.received);
+               run.received, confirmed_cap);
 }
 
 std::optional<Rejection> CommandService::start_own_mc_action(const McRequest& request, Micros now,

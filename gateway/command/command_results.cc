@@ -42,8 +42,7 @@ storage::CommandResultRow row_of(const v1::CommandResult& r, Micros at) {
   return row;
 }
 
-storage::CommandJournalRow journal_of(const v1::CommandResult& r, Micros received,
-                                        Micros expires) {
+storage::CommandJournalRow journal_of(const v1::CommandResult& r, Micros received, Micros expires) {
   return {r.command_id(), received.count(), std::string(command_result_name(r.result())),
           expires.count(), r.command_sha256()};
 }
@@ -51,11 +50,18 @@ storage::CommandJournalRow journal_of(const v1::CommandResult& r, Micros receive
 }  // namespace
 
 // Stores the result -- with the journal's final state when `journal_expires` is set (a row in
-// command_results, keyed by the id), else as an outbox message only -- in one transaction, and
-// tells the observer and result_stored(). When the store refuses, answers unstored instead.
-bool CommandService::Impl::store_result(v1::CommandResult r, Micros now,
+// command_results, keyed by the id), else as an outbox message only -- in one transaction, tells
+// the observer and counts it for take_stored(). When the store refuses, answers unstored
+// instead. Outside a WriteScope (the bus side: a confirmation inside the transport's read
+// handler) the result only waits in `pending` for the next scope.
+void CommandService::Impl::store_result(v1::CommandResult r, Micros now,
                                         std::optional<Micros> journal_expires,
-                                        std::optional<Micros> received) {
+                                        std::optional<Micros> received,
+                                        std::optional<int> speed_cap) {
+  if (!writing) {
+    pending.push_back({std::move(r), now, journal_expires, received, speed_cap});
+    return;
+  }
   ensure_utf8(r);
   r.set_stored(true);
   const std::string payload = r.SerializeAsString();
@@ -72,17 +78,43 @@ bool CommandService::Impl::store_result(v1::CommandResult r, Micros now,
                           static_cast<int>(storage::OutboxPriority::kCommandResult),
                           to_bytes(payload)});
   }
+  // The operator's cap is recorded with the result that confirms it (command_mc.cc).
+  if (speed_cap) b.meta.emplace_back(std::string(kSpeedCapKey), std::to_string(*speed_cap));
   if (const auto error = write_batch(context.store, b)) {
     ++stats.storage_errors;
     spdlog::error("command {}: result {} could not be stored: {}",
                   r.command_id().empty() ? "<no id>" : r.command_id(),
                   command_result_name(r.result()), *error);
+    if (speed_cap) {
+      spdlog::error("command {}: speed cap {} km/h in force but not stored", r.command_id(),
+                    *speed_cap);
+      r.mutable_mc()->set_limit_in_force(r.mc().limit_in_force() +
+                                         " (cap not stored: lost at a restart)");
+    }
     answer_unstored(std::move(r), now, journal ? journal_expires : std::nullopt, received);
-    return false;
+    return;
   }
+  ++stored_count;
   if (observer) observer(r, false);
-  if (context.result_stored) context.result_stored();
-  return true;
+}
+
+CommandService::Impl::WriteScope::WriteScope(Impl& impl) : impl_(impl), outer_(impl.writing) {
+  impl_.writing = true;
+  if (!outer_) impl_.write_pending();
+}
+
+// What the bus side concluded, oldest first. One at a time: an observer may hand in the next
+// command, whose scope must not write these again.
+void CommandService::Impl::write_pending() {
+  while (!pending.empty()) {
+    Pending p = std::move(pending.front());
+    pending.erase(pending.begin());
+    store_result(std::move(p.result), p.at, p.journal_expires, p.received, p.speed_cap);
+  }
+}
+
+void CommandService::Impl::emit_unstored(const v1::CommandResult& r) {
+  unstored_out.push_back({r.command_id(), r.SerializeAsString()});
 }
 
 // The store refused: publish directly (stored = false) and keep the journal write for later.
@@ -91,14 +123,7 @@ void CommandService::Impl::answer_unstored(v1::CommandResult r, Micros now,
                                            std::optional<Micros> received) {
   r.set_stored(false);
   ++stats.results_unstored;
-  const bool published =
-      context.publish_unstored && context.publish_unstored(r.SerializeAsString());
-  if (!published) {
-    ++stats.unstored_not_published;
-    spdlog::warn("command {}: unstored result could not be handed to the uplink{}",
-                 r.command_id().empty() ? "<no id>" : r.command_id(),
-                 journal_expires ? "; it goes out once the store accepts it" : "");
-  }
+  emit_unstored(r);
   if (journal_expires) {
     if (unjournaled.size() >= config.max_unjournaled && !unjournaled.contains(r.command_id())) {
       const auto oldest =
@@ -109,17 +134,33 @@ void CommandService::Impl::answer_unstored(v1::CommandResult r, Micros now,
       unjournaled.erase(oldest);
       ++stats.unjournaled_dropped;
     }
-    unjournaled[r.command_id()] = {r, journal_expires, received.value_or(now), now, published};
+    unjournaled[r.command_id()] = {r, journal_expires, received.value_or(now), now, false, true};
   }
   if (observer) observer(r, false);
 }
 
-// Writes the journal rows the store refused earlier, oldest first, until one fails.
+void CommandService::Impl::unstored_handed(std::string_view command_id, bool handed) {
+  if (!handed) {
+    ++stats.unstored_not_published;
+    spdlog::warn("command {}: unstored result could not be handed to the uplink{}",
+                 command_id.empty() ? "<no id>" : command_id,
+                 unjournaled.contains(command_id) ? "; it goes out once the store accepts it" : "");
+  }
+  const auto it = unjournaled.find(command_id);
+  if (it == unjournaled.end() || !it->second.awaiting) return;  // a re-sent answer
+  it->second.awaiting = false;
+  it->second.published = handed;
+}
+
+// Writes the journal rows the store refused earlier, oldest first, until one fails. An entry
+// whose direct publish was not reported yet waits: whether the outbox must send it is unknown.
 void CommandService::Impl::retry_unjournaled(Micros now) {
   if (now < next_journal_retry) return;
   next_journal_retry = now + kJournalRetryInterval;
   std::vector<std::string> order;
-  for (const auto& [id, u] : unjournaled) order.push_back(id);
+  for (const auto& [id, u] : unjournaled) {
+    if (!u.awaiting) order.push_back(id);
+  }
   std::stable_sort(order.begin(), order.end(), [&](const auto& a, const auto& b) {
     return unjournaled.at(a).at < unjournaled.at(b).at;
   });
@@ -142,7 +183,7 @@ void CommandService::Impl::retry_unjournaled(Micros now) {
     spdlog::info("command {}: result journaled after the store recovered", id);
     const bool queued = !u.published;
     unjournaled.erase(id);
-    if (queued && context.result_stored) context.result_stored();
+    if (queued) ++stored_count;
   }
 }
 
@@ -265,7 +306,7 @@ Disposition CommandService::Impl::duplicate(const storage::CommandJournalRow& en
     answer_unstored(std::move(r), now, std::nullopt, std::nullopt);  // journaled already
     return Disposition::kDuplicateAnswered;
   }
-  if (context.result_stored) context.result_stored();
+  ++stored_count;
   if (observer) observer(r, true);
   return Disposition::kDuplicateAnswered;
 }
@@ -279,9 +320,7 @@ Disposition CommandService::Impl::duplicate_unjournaled(const Unjournaled& u, Mi
   }
   spdlog::info("command {}: duplicate delivery; unstored result '{}' published again",
                u.result.command_id(), command_result_name(u.result.result()));
-  if (!context.publish_unstored || !context.publish_unstored(u.result.SerializeAsString())) {
-    ++stats.unstored_not_published;
-  }
+  emit_unstored(u.result);
   if (observer) observer(u.result, true);
   return Disposition::kDuplicateAnswered;
 }

@@ -192,6 +192,7 @@ CommandService::CommandService(CommandServiceConfig config, CommandContext conte
 CommandService::~CommandService() = default;
 
 std::size_t CommandService::recover(Micros now) {
+  const Impl::WriteScope scope(*impl_);
   std::vector<storage::CommandJournalRow> stuck;
   try {
     std::vector<std::string> ids;
@@ -212,16 +213,17 @@ std::size_t CommandService::recover(Micros now) {
 }
 
 Disposition CommandService::on_payload(std::span<const std::uint8_t> payload, Micros now) {
+  const Impl::WriteScope scope(*impl_);
   return impl_->on_payload(payload, now);
 }
 
 Disposition CommandService::on_payload(std::string_view payload, Micros now) {
-  return impl_->on_payload({reinterpret_cast<const std::uint8_t*>(payload.data()), payload.size()},
-                           now);
+  return on_payload({reinterpret_cast<const std::uint8_t*>(payload.data()), payload.size()}, now);
 }
 
 Disposition CommandService::answer_busy(std::string_view command_id,
                                         std::string_view command_sha256, Micros now) {
+  const Impl::WriteScope scope(*impl_);
   VerifiedCommand cmd;
   cmd.command_id = std::string(command_id);
   cmd.command_sha256 = std::string(command_sha256);
@@ -229,6 +231,7 @@ Disposition CommandService::answer_busy(std::string_view command_id,
 }
 
 Disposition CommandService::answer_stopping(std::span<const std::uint8_t> payload, Micros now) {
+  const Impl::WriteScope scope(*impl_);
   return impl_->answer_stopping(payload, now);
 }
 
@@ -262,21 +265,59 @@ void CommandService::on_message(const motinova::DecodedMessage& msg, Micros now)
 }
 
 void CommandService::tick(Micros now) {
+  // Timeouts and retries on the bus (CAN writes, results concluded): no SQLite here.
+  impl_->mc.tick(now);
+  impl_->diag.tick(now);
+}
+
+void CommandService::run(Micros now) {
   Impl& s = *impl_;
+  const Impl::WriteScope scope(s);  // writes what the bus side concluded
   if (!s.unjournaled.empty()) s.retry_unjournaled(now);
-  s.mc.tick(now);
-  s.diag.tick(now);
   s.capture.tick(now);
-  const Micros wall_now = s.wall(now);
-  if (now < s.next_purge || !s.context.clock_synchronised(wall_now)) return;
-  s.next_purge = now + s.config.purge_interval;
-  std::erase_if(s.known, [wall_now](const auto& kv) { return kv.second.second <= wall_now; });
+  s.purge(now);
+}
+
+void CommandService::Impl::purge(Micros now) {
+  if (now < next_purge) return;
+  // Also while the clock is not synchronised: checked again after the interval, not at once.
+  next_purge = now + config.purge_interval;
+  const Micros wall_now = wall(now);
+  if (!context.clock_synchronised(wall_now)) return;
+  std::erase_if(known, [wall_now](const auto& kv) { return kv.second.second <= wall_now; });
   try {
-    const std::size_t n = s.context.store.purge_expired_commands(wall_now.count());
+    const std::size_t n = context.store.purge_expired_commands(wall_now.count());
     if (n > 0) spdlog::debug("command: forgot {} expired command id(s)", n);
   } catch (const std::exception& e) {
     spdlog::error("command: purging expired command ids failed: {}", e.what());
   }
+}
+
+std::optional<Micros> CommandService::next_due(Micros now) const {
+  const Impl& s = *impl_;
+  if (!s.pending.empty()) return now;
+  Micros due = s.next_purge;
+  const bool retry = std::any_of(s.unjournaled.begin(), s.unjournaled.end(),
+                                 [](const auto& kv) { return !kv.second.awaiting; });
+  if (retry) due = std::min(due, s.next_journal_retry);
+  if (const auto c = s.capture.next_due()) due = std::min(due, *c);
+  return due;
+}
+
+bool CommandService::writes_pending() const {
+  return !impl_->pending.empty();
+}
+
+std::size_t CommandService::take_stored() {
+  return std::exchange(impl_->stored_count, 0);
+}
+
+std::vector<UnstoredResult> CommandService::take_unstored() {
+  return std::exchange(impl_->unstored_out, {});
+}
+
+void CommandService::unstored_handed(std::string_view command_id, bool handed) {
+  impl_->unstored_handed(command_id, handed);
 }
 
 void CommandService::set_result_observer(ResultObserver observer) {
@@ -302,6 +343,7 @@ RevocationVerdict CommandService::on_revocations(std::span<const std::uint8_t> p
     return verdict;
   }
   spdlog::info("command: revocation list {}", verdict.detail);
+  const Impl::WriteScope scope(s);
   storage::Batch b;
   b.now_us = now.count();
   b.meta.emplace_back(std::string(kRevocationsKey), s.verifier.revocations().persisted());

@@ -5,8 +5,22 @@
 //  * Clock-free and single-threaded: the runtime calls recover(now) once at start-up (before the
 //    first payload), on_payload(bytes, now) for every message on <prefix>/<vehicle>/cmd (from
 //    Uplink's command handler, on its loop thread), on_message(msg, now) with every decoded bus
-//    message (motion interlock), and tick(now) with the node's tick. Lock confirmations arrive
-//    through IotNode::actuate_lock callbacks inside the node's on_frame()/tick().
+//    message (motion interlock, MC and diagnostic answers), tick(now) with the node's tick, and
+//    run(now) when next_due() says (runtime/command_stage.h: the command service as a stage of
+//    the engine). Lock confirmations arrive through IotNode::actuate_lock callbacks inside the
+//    node's on_frame()/tick().
+//  * SQLite is written only from the entry points that handle a command or a document --
+//    recover(), on_payload(), answer_busy(), answer_stopping(), on_revocations() -- and from
+//    run(). The bus side (on_message(), tick() and the node's callbacks, which run inside the
+//    CAN transport's read handler) never writes: a result concluded there (a lock confirmed or
+//    timed out, an MC action or a diagnostic read answered) waits in memory (at most one per
+//    running command: the locks, one MC action, one diagnostic read) until the next run() or
+//    the next writing entry point, which writes it first; writes_pending() says so. The
+//    journal's "executing" entry keeps a kill in between safe: recover() answers it.
+//  * Outputs, taken by the runtime after each entry point: take_stored() (results queued in the
+//    outbox since the last call: the uplink has something to publish) and take_unstored() (the
+//    results the store refused, to publish directly; the runtime reports each hand-over with
+//    unstored_handed()). The service never calls the uplink.
 //  * Nothing touches the bus for a rejected command: verification (CommandVerifier), the
 //    busy/shutdown checks, the lock-online check (NodeRegistry) and the interlocks all run
 //    before the first CAN write.
@@ -24,8 +38,8 @@
 //    queue was full): it says "not taken, nothing happened", is not journaled, and the same
 //    command sent again gets its one real result. A result is written with the journal's final
 //    state in ONE transaction, at outbox priority 0 (kind command_result, topic cmd/result) with
-//    the serialized fleetgw.v1.CommandResult as payload, so it survives outages and restarts; after
-//    each stored result CommandContext::result_stored() runs (the pipeline publishes at once).
+//    the serialized fleetgw.v1.CommandResult as payload, so it survives outages and restarts; each
+//    stored result is counted for take_stored() (the pipeline publishes in the same settle).
 //  * Every result carries command_sha256, the SHA-256 of the exact SignedCommand.command bytes
 //    it answers, and `stored`. A payload that fails authentication never touches the journal,
 //    the seen ids or the result table: its (rate limited) rejection goes to the outbox only,
@@ -34,10 +48,11 @@
 //    Results for payloads that were not authentic (and re-sent results of duplicates) are rate
 //    limited (`unauthenticated_results_per_minute`) so a flood of junk cannot fill the disk.
 //  * A result the store refuses (disk full, I/O error) is still answered: it goes, serialized
-//    with stored=false, to CommandContext::publish_unstored. Its journal row and result row are
-//    kept in memory (bounded, `max_unjournaled`) and written at a later tick once the store
-//    accepts them (with the outbox payload only if publish_unstored could not hand it to MQTT);
-//    until then a redelivery of that id gets the same answer again, never a second execution.
+//    with stored=false, to take_unstored(), which the pipeline publishes directly. Its journal
+//    row and result row are kept in memory (bounded, `max_unjournaled`) and written by a later
+//    run() (once a second) once the store accepts them -- with the outbox payload only if
+//    unstored_handed() said it could not be handed to MQTT, and not before that report; until
+//    then a redelivery of that id gets the same answer again, never a second execution.
 //    A command whose "executing" entry cannot be journaled is rejected (storage_error) and
 //    answered that way; nothing moves.
 //  * Received strings quoted in reasons and logs are escaped and cut on code-point boundaries
@@ -158,14 +173,6 @@ struct CommandContext {
   // timeline is simulated faster than real time or replayed from a log; timeouts and the
   // interlocks follow the `now` of the calls (the bus timeline). Empty: `now` is the wall clock.
   std::function<Micros()> wall_clock;
-  // Called after a result row (and its outbox entry) was written to the store: the pipeline
-  // publishes at once instead of waiting for a timer. May be empty.
-  std::function<void()> result_stored;
-  // Called with a serialized fleetgw.v1.CommandResult (stored = false) that could NOT be stored;
-  // the pipeline publishes it directly on the command-result topic. Returns false when it could
-  // not be handed to MQTT (the result then goes to the outbox once the store accepts it). May be
-  // empty (treated as "not handed over").
-  std::function<bool(std::string serialized_result)> publish_unstored;
 };
 
 enum class Disposition : std::uint8_t {
@@ -189,8 +196,8 @@ struct CommandStats {
   std::uint64_t recovered = 0;
   std::uint64_t results_dropped = 0;  // rate limit
   std::uint64_t storage_errors = 0;
-  std::uint64_t results_unstored = 0;               // handed to publish_unstored (or attempted)
-  std::uint64_t unstored_not_published = 0;         // publish_unstored returned false / missing
+  std::uint64_t results_unstored = 0;               // put in take_unstored()'s output
+  std::uint64_t unstored_not_published = 0;         // unstored_handed(..., false)
   std::uint64_t unjournaled_dropped = 0;            // given up: max_unjournaled exceeded
   std::map<std::string, std::uint64_t> rejections;  // by reason name
 };
@@ -206,10 +213,17 @@ struct PayloadAuthentication {
 };
 using PayloadAuthenticator = std::function<PayloadAuthentication(std::span<const std::uint8_t>)>;
 
+// A result the store refused (CommandService::take_unstored()), to be published directly on the
+// command-result topic.
+struct UnstoredResult {
+  std::string command_id;  // empty for a result not about a journaled command
+  std::string serialized;  // fleetgw.v1.CommandResult, stored = false
+};
+
 class CommandService {
  public:
-  // Called with every result produced or re-sent, after it was stored (stored() true) or handed
-  // to publish_unstored (stored() false). For tests, live view.
+  // Called with every result produced or re-sent, after it was stored (stored() true) or put
+  // in take_unstored()'s output (stored() false). For tests, live view.
   using ResultObserver = std::function<void(const v1::CommandResult& result, bool resent)>;
 
   // Throws std::invalid_argument for a bad configuration (trusted keys, vehicle id).
@@ -239,8 +253,26 @@ class CommandService {
   // shares nothing with this service and may outlive it): for the uplink's Paho thread. One
   // SignedCommand and one Command parse and at most one Ed25519 verification per call.
   PayloadAuthenticator authenticator() const;
+  // The bus side (see the contract): in memory only, never SQLite.
   void on_message(const motinova::DecodedMessage& msg, Micros now);
   void tick(Micros now);
+
+  // The due work: the results concluded on the bus written (each with its journal's final
+  // state, in one transaction), the journal rows the store refused retried (once a second),
+  // expired ids purged (once a minute), the captured lifetime records persisted.
+  void run(Micros now);
+  // The earliest bus time at which run() has work (`now` itself while writes_pending()); nullopt
+  // when only new input can give it work.
+  std::optional<Micros> next_due(Micros now) const;
+  // Results concluded on the bus wait for their write.
+  bool writes_pending() const;
+  // Outputs. Results queued in the outbox since the last call.
+  std::size_t take_stored();
+  // Results the store refused, to publish directly, oldest first.
+  std::vector<UnstoredResult> take_unstored();
+  // Whether the unstored result of `command_id` reached MQTT: if not, it is queued in the outbox
+  // with its journal row once the store accepts writes.
+  void unstored_handed(std::string_view command_id, bool handed);
 
   void set_result_observer(ResultObserver observer);
   // Issue 14: asked before a lock command that locks touches the bus (after the interlocks),

@@ -12,7 +12,9 @@
 //   mc_actions.cc         MC actions on the bus and their confirmation (McActionRunner)
 //   diag_service.cc       diagnostic reads (issue 29): pre-flight, journal-first start, result
 // Contract: single-threaded; every function runs on the caller's thread inside one of the
-// CommandService entry points. Nothing here throws to the caller for a storage failure.
+// CommandService entry points. Nothing here throws to the caller for a storage failure. SQLite
+// is written only inside a WriteScope (the writing entry points and run()); store_result()
+// outside one -- the bus side -- keeps the result in `pending` for the next scope.
 #pragma once
 
 #include <map>
@@ -32,6 +34,9 @@
 namespace fleetgw::command {
 
 inline constexpr std::string_view kExecuting = "executing";
+// The operator's cap in km/h as decimal text in the store's meta table; absent until the first
+// successful speed-limit command (command_mc.cc).
+inline constexpr std::string_view kSpeedCapKey = "command.speed_cap_kmh";
 
 // Millisecond count of a duration, never negative.
 std::int64_t to_ms(Micros d);
@@ -62,7 +67,29 @@ struct CommandService::Impl : std::enable_shared_from_this<CommandService::Impl>
     std::optional<Micros> journal_expires;  // set: the journal gets the final state too
     Micros received{0};
     Micros at{0};
-    bool published = false;  // handed to publish_unstored; else it goes through the outbox
+    bool published = false;  // handed to MQTT directly; else it goes through the outbox
+    bool awaiting = true;    // in take_unstored()'s output, unstored_handed() not yet called
+  };
+  // A result concluded on the bus, waiting for its write (store_result's arguments).
+  struct Pending {
+    v1::CommandResult result;
+    Micros at{0};
+    std::optional<Micros> journal_expires;
+    std::optional<Micros> received;
+    std::optional<int> speed_cap;  // a confirmed speed limit: the cap, in the same transaction
+  };
+  // Marks an entry point that may write SQLite; the outermost one first writes what the bus
+  // side concluded meanwhile, so results keep their order.
+  class WriteScope {
+   public:
+    explicit WriteScope(Impl& impl);
+    ~WriteScope() { impl_.writing = outer_; }
+    WriteScope(const WriteScope&) = delete;
+    WriteScope& operator=(const WriteScope&) = delete;
+
+   private:
+    Impl& impl_;
+    bool outer_;
   };
 
   Impl(CommandServiceConfig c, CommandContext ctx);
@@ -101,6 +128,11 @@ struct CommandService::Impl : std::enable_shared_from_this<CommandService::Impl>
   std::map<std::string, Unjournaled, std::less<>> unjournaled;
   Micros next_journal_retry{0};
   static constexpr Micros kJournalRetryInterval = 1s;
+  bool writing = false;          // inside a WriteScope
+  std::vector<Pending> pending;  // concluded on the bus, not yet written (bounded, see .h)
+  // Outputs (CommandService::take_stored / take_unstored).
+  std::size_t stored_count = 0;
+  std::vector<UnstoredResult> unstored_out;
 
   Micros wall(Micros now) const { return context.wall_clock ? context.wall_clock() : now; }
   void remember(const VerifiedCommand& c, Micros keep_until);
@@ -147,15 +179,22 @@ struct CommandService::Impl : std::enable_shared_from_this<CommandService::Impl>
   DiagOutcome read_captured(const DiagBlockSpec& spec) const;
 
   // command_results.cc
-  bool store_result(v1::CommandResult r, Micros now, std::optional<Micros> journal_expires,
-                    std::optional<Micros> received);
+  // Outside a WriteScope: kept in `pending` (written by the next scope). `speed_cap`: a
+  // confirmed speed limit, stored in the same transaction.
+  void store_result(v1::CommandResult r, Micros now, std::optional<Micros> journal_expires,
+                    std::optional<Micros> received, std::optional<int> speed_cap = std::nullopt);
+  void write_pending();
+  // A result the store refused, for the runtime to publish directly.
+  void emit_unstored(const v1::CommandResult& r);
+  void unstored_handed(std::string_view command_id, bool handed);
   void answer_unstored(v1::CommandResult r, Micros now, std::optional<Micros> journal_expires,
                        std::optional<Micros> received);
   void retry_unjournaled(Micros now);
+  void purge(Micros now);
   Disposition reject(const Rejection& rej, Micros now, std::optional<Micros> expires,
                      bool always_answer = false);
-  Disposition duplicate(const storage::CommandJournalRow& entry, const std::string& sha,
-                        Micros now, const std::string& operator_id = {});
+  Disposition duplicate(const storage::CommandJournalRow& entry, const std::string& sha, Micros now,
+                        const std::string& operator_id = {});
   Disposition duplicate_unjournaled(const Unjournaled& u, Micros now);
   // Answers a command a previous run left "executing"; bound to `sha` (the digest of the bytes
   // just received again) or, when empty, to the digest the journal kept.

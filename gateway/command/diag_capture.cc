@@ -102,6 +102,16 @@ void DiagCapture::tick(Micros now) {
   }
 }
 
+std::optional<Micros> DiagCapture::next_due() const {
+  std::optional<Micros> due;
+  for (const auto& [name, slot] : slots_) {
+    if (!slot.dirty) continue;
+    const Micros at = slot.written ? *slot.written + persist_interval_ : Micros{0};
+    if (!due || at < *due) due = at;
+  }
+  return due;
+}
+
 void DiagCapture::persist(const std::string& name, Slot& slot, Micros now) {
   storage::Batch b;
   b.now_us = now.count();

@@ -5,7 +5,8 @@
 //
 // Contract:
 //  * Single-threaded; fed every decoded message (on_message) and ticked (tick).
-//  * Each record is kept in memory at once and written, at the next tick(), to the store's meta
+//  * Each record is kept in memory at once and written, at the next tick() (called from the
+//    command service's run(), never from the frame handler), to the store's meta
 //    table (`diag.captured.<message>` = "<heard wall µs> <data hex>") when its bytes changed, at
 //    most once per `persist_interval` per record (the pack statistics arrive every minute and their
 //    run time changes each time: a minute's write, not a write per frame) -- so a restart keeps
@@ -45,6 +46,8 @@ class DiagCapture {
 
   void on_message(const motinova::DecodedMessage& msg, std::int64_t wall_us);
   void tick(Micros now);
+  // The earliest bus time at which tick() writes a changed record; nullopt: nothing to write.
+  std::optional<Micros> next_due() const;
   // The last record of this catalogue message ("mc_lifetime_1", "mc_lifetime_2",
   // "pack_stats"), or nullptr.
   const Record* latest(std::string_view message) const;

@@ -35,8 +35,9 @@ BusClock make_bus_clock(const Env& env, const BusTransport& bus) {
 
 }  // namespace
 
-// The command service sees every decoded bus message (motion interlock, lock confirmations)
-// and the core's tick (timeouts, retries).
+// The bus side of the command service: every decoded bus message (motion interlock, MC and
+// diagnostic answers) and the core's tick (timeouts, retries). It runs inside the transport's
+// read handler and only notes in memory; the command stage writes (command_stage.h).
 class Pipeline::CommandFeed final : public MessageListener {
  public:
   explicit CommandFeed(command::CommandService& service) : service_(service) {}
@@ -92,18 +93,6 @@ Pipeline::Pipeline(asio::io_context& io, const config::Config& config, BusTransp
       .trackers = &recorder_->trackers(),
       .clock_synchronised = command::default_clock_synchronised,
       .wall_clock = [this] { return env_.wall_now(); },
-      // A stored result is published in the next settle, not at a timer.
-      .result_stored =
-          [this] {
-            if (!uplink_stage_) return;
-            uplink_stage_->stored();
-            request_settle();
-          },
-      .publish_unstored =
-          [this](std::string serialized) {
-            return uplink_ && uplink_->publish_direct(uplink::kind::kCommandResult,
-                                                      std::move(serialized), env_.wall_now());
-          },
   };
   try {
     commands_ = std::make_unique<command::CommandService>(
@@ -213,7 +202,7 @@ PipelineCounters Pipeline::counters() const {
   c.timer_wakeups = engine_.counters().timer_wakeups;
   c.uplink_polls = uplink_stage_ ? uplink_stage_->polls() : 0;
   c.urgent_flushes = recorder_stage_ ? recorder_stage_->urgent_flushes() : 0;
-  c.commands = commands_handled_;
+  c.commands = commands_handled_ + (command_stage_ ? command_stage_->handled() : 0);
   return c;
 }
 
@@ -276,6 +265,9 @@ void Pipeline::add_stages() {
   }
   if (zones_stage_) engine_.add(*zones_stage_, [this] { return route_zones(); });
   engine_.add(*state_stage_, [this] { return route_state(); });
+  // Before the recorder and the uplink: a result written here is published in the same round.
+  command_stage_ = std::make_unique<CommandStage>(*commands_, clock_, bus_.sim, engine_);
+  engine_.add(*command_stage_, [this] { return route_commands(); });
   recorder_stage_ = std::make_unique<RecorderStage>(*recorder_, clock_, engine_);
   engine_.add(
       *recorder_stage_,
@@ -306,6 +298,8 @@ void Pipeline::on_frame(const motinova::CanFrame& frame, Micros ts) {
     stop("bus duration reached");
     return;
   }
+  // A result concluded on the bus (a lock confirmed) is written by the command stage, not here.
+  if (command_stage_ && command_stage_->due()) request_settle();
   if (recorder_->urgent()) {
     // A failing store is retried at the engine's back-off, not at every frame.
     if (!recorder_backoff_->waiting(env_.steady_now())) request_settle();
@@ -335,27 +329,22 @@ bool Pipeline::route_uplink() {
   UplinkStage& up = *uplink_stage_;
   want_status();
   bool moved = false;
-  // A command acts on the bus as it is now, not as of the last batch.
-  if (!up.commands.empty() && bus_.sim) bus_.sim->flush();
-  for (auto& payload : std::exchange(up.commands, {})) {
-    ++commands_handled_;
-    const auto d = commands_->on_payload(payload, bus_now());
-    spdlog::info("command received: {}", command::disposition_name(d));
-    core_.deliver_echoes();  // the LOCK/UNLOCK it sent, after the command's own work
+  // Commands, busy notices and the revocation list: the command stage's inputs (next round).
+  CommandStage& cs = *command_stage_;
+  auto append = [&moved](auto& to, auto& from) {
+    for (auto& x : std::exchange(from, {})) to.push_back(std::move(x));
     moved = true;
-  }
-  // What the full queue could not take: each answered `busy`, none silently lost.
-  for (const auto& busy : std::exchange(up.busy, {})) {
-    ++commands_handled_;
-    commands_->answer_busy(busy.command_id, busy.command_sha256, bus_now());
+  };
+  if (!up.commands.empty()) append(cs.payloads, up.commands);
+  if (!up.busy.empty()) append(cs.busy, up.busy);
+  for (auto& [tag, ok] : std::exchange(up.direct_handed, {})) {
+    cs.handed.push_back({std::move(tag), ok});
     moved = true;
   }
   // Zone bundles: judged here, on the loop, like commands (Paho only queued them).
   for (auto& bundle : std::exchange(up.bundles, {})) {
     if (!revocations_topic_.empty() && bundle.topic == revocations_topic_) {
-      commands_->on_revocations(
-          {reinterpret_cast<const std::uint8_t*>(bundle.payload.data()), bundle.payload.size()},
-          env_.wall_now());
+      cs.revocations.push_back(std::move(bundle.payload));
     } else if (campaigns_ && campaigns_->handles(bundle.topic)) {
       campaigns_->on_payload(bundle.topic, bundle.payload, bundle.oversized_bytes, bus_now(),
                              bus_now());
@@ -367,6 +356,26 @@ bool Pipeline::route_uplink() {
   // Records the commands produced are stored in the next round (a failing store: at its retry).
   if (up.publish_due() || (recorder_->urgent() && !recorder_backoff_->waiting(env_.steady_now()))) {
     moved = true;
+  }
+  return moved;
+}
+
+bool Pipeline::route_commands() {
+  CommandStage& cs = *command_stage_;
+  // The LOCK/UNLOCK a command sent reach the trackers after the command's own work.
+  if (core_.echoes_pending()) core_.deliver_echoes();
+  bool moved = false;
+  // Stored results: the uplink (later in this round) publishes them.
+  if (std::exchange(cs.stored, 0) > 0 && uplink_stage_) uplink_stage_->stored();
+  // Results the store refused: published directly by the uplink stage, or not at all.
+  for (auto& u : std::exchange(cs.unstored, {})) {
+    if (uplink_stage_) {
+      uplink_stage_->direct.push_back(
+          {uplink::kind::kCommandResult, std::move(u.serialized), std::move(u.command_id)});
+    } else {
+      cs.handed.push_back({std::move(u.command_id), false});
+      moved = true;
+    }
   }
   return moved;
 }
@@ -406,14 +415,47 @@ fleetgw::v1::BusState Pipeline::bus_state() const {
 }
 
 void Pipeline::answer_commands_at_stop() {
-  for (const auto& payload : uplink_->take_commands()) {
+  // Outside the engine (it stopped): what waits in the stages' queues, then what the uplink
+  // holds -- every command answered shutting_down or busy.
+  CommandStage& cs = *command_stage_;
+  std::vector<std::string> payloads = std::exchange(cs.payloads, {});
+  std::vector<uplink::BusyCommand> busy = std::exchange(cs.busy, {});
+  std::vector<command::UnstoredResult> unstored = std::exchange(cs.unstored, {});
+  if (uplink_stage_) {
+    for (auto& p : std::exchange(uplink_stage_->commands, {})) payloads.push_back(std::move(p));
+    for (auto& b : std::exchange(uplink_stage_->busy, {})) busy.push_back(std::move(b));
+    for (auto& d : std::exchange(uplink_stage_->direct, {})) {
+      unstored.push_back({std::move(d.tag), std::move(d.payload)});
+    }
+    for (auto& [tag, ok] : std::exchange(uplink_stage_->direct_handed, {})) {
+      cs.handed.push_back({std::move(tag), ok});
+    }
+  }
+  if (uplink_) {
+    for (auto& p : uplink_->take_commands()) payloads.push_back(std::move(p));
+    for (auto& b : uplink_->take_busy_commands()) busy.push_back(std::move(b));
+  }
+  for (const auto& h : std::exchange(cs.handed, {})) {
+    commands_->unstored_handed(h.command_id, h.handed);
+  }
+  for (const auto& payload : payloads) {
     ++commands_handled_;
     commands_->answer_stopping(
         {reinterpret_cast<const std::uint8_t*>(payload.data()), payload.size()}, bus_now());
   }
-  for (const auto& busy : uplink_->take_busy_commands()) {
+  for (const auto& b : busy) {
     ++commands_handled_;
-    commands_->answer_busy(busy.command_id, busy.command_sha256, bus_now());
+    commands_->answer_busy(b.command_id, b.command_sha256, bus_now());
+  }
+  // Results concluded on the bus since the last settle written (the drain publishes the
+  // outbox); the unstored ones published directly.
+  commands_->run(bus_now());
+  commands_->take_stored();
+  for (auto& u : commands_->take_unstored()) unstored.push_back(std::move(u));
+  for (auto& u : unstored) {
+    const bool ok = uplink_ && uplink_->publish_direct(uplink::kind::kCommandResult,
+                                                       std::move(u.serialized), env_.wall_now());
+    commands_->unstored_handed(u.command_id, ok);
   }
 }
 
@@ -423,7 +465,10 @@ void Pipeline::finish() {
   // grace, before the retained offline status.
   if (device_info_.due()) queue_device_info();
   recorder_->flush(bus_now());
-  if (!uplink_) return;
+  if (!uplink_) {
+    answer_commands_at_stop();  // results concluded on the bus still written
+    return;
+  }
   // The state the clean stop leaves retained (online = false) is the current one, not the last
   // one the throttle let through.
   if (state_stage_->check_now()) route_state();

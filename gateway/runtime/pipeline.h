@@ -57,6 +57,7 @@
 #include "gateway/gnss/gnss_feed.h"
 #include "gateway/node/transport_sender.h"
 #include "gateway/runtime/bus_clock.h"
+#include "gateway/runtime/command_stage.h"
 #include "gateway/runtime/device_info_reporter.h"
 #include "gateway/runtime/engine.h"
 #include "gateway/runtime/gateway_core.h"
@@ -162,6 +163,7 @@ class Pipeline {
   // The wiring: the stages in their order and the routes between their outputs and inputs.
   void add_stages();
   bool route_uplink();
+  bool route_commands();
   bool route_gnss();
   void after_settle();
   void queue_device_info();
@@ -219,6 +221,7 @@ class Pipeline {
   std::unique_ptr<GnssStage> gnss_stage_;
   std::unique_ptr<ZonesStage> zones_stage_;  // nullptr when [geofence] is disabled
   std::unique_ptr<StateStage> state_stage_;  // always (parked mode); the state needs [mqtt]
+  std::unique_ptr<CommandStage> command_stage_;
   std::unique_ptr<RecorderStage> recorder_stage_;
   std::unique_ptr<UplinkStage> uplink_stage_;
   std::unique_ptr<StatusStage> status_stage_;  // after the uplink: what it wants is built

@@ -76,7 +76,7 @@ fleetgw::v1::BusState bus_state(const can::Transport& transport, const BusClock&
 }
 
 std::optional<EngineTime> UplinkStage::next_deadline() const {
-  if (publish_due_) return engine_.now();
+  if (publish_due_ || !direct.empty()) return engine_.now();
   auto at = uplink_.next_deadline();
   if (outbox_) {
     if (const auto retry = outbox_->next_retry(); retry && (!at || *retry < *at)) at = retry;
@@ -86,9 +86,15 @@ std::optional<EngineTime> UplinkStage::next_deadline() const {
 
 StageRun UplinkStage::run(EngineTime now) {
   if (outbox_) outbox_->retry_deletes();  // a no-op unless a retry is due
+  for (auto& d : std::exchange(direct, {})) {
+    const bool ok = uplink_.publish_direct(d.kind, std::move(d.payload), engine_.env().wall_now());
+    direct_handed.emplace_back(std::move(d.tag), ok);
+  }
   const auto poll_at = uplink_.next_deadline();
   const bool woken = woken_.exchange(false);
-  if (!publish_due_ && !woken && !(poll_at && now >= *poll_at)) return {};
+  if (!publish_due_ && !woken && !(poll_at && now >= *poll_at)) {
+    return {.produced = direct_handed.size(), .status = {}};
+  }
   publish_due_ = false;
   ++polls_;
   uplink_.poll(engine_.env().wall_now());
@@ -103,7 +109,8 @@ StageRun UplinkStage::run(EngineTime now) {
   append(commands, uplink_.take_commands());
   append(busy, uplink_.take_busy_commands());
   append(bundles, uplink_.take_zone_bundles());
-  return {.produced = commands.size() + busy.size() + bundles.size(), .status = {}};
+  return {.produced = commands.size() + busy.size() + bundles.size() + direct_handed.size(),
+          .status = {}};
 }
 
 StageRun GnssStage::run(EngineTime) {

@@ -10,6 +10,8 @@
 //  * UplinkStage: polls the uplink when something was stored, Paho woke it, or its deadline is
 //    due; the commands, busy notices and retained documents it took wait in its outputs. The
 //    StoreOutbox's delete retries (acknowledged rows a failing disk kept) are due work of it too.
+//    Records handed in to be published directly (an answer the store refused) are published in
+//    its run, whether each reached MQTT an output.
 //  * GnssStage: gpsd's feed; owns the GNSS fault-bit policy (IoT fault 0x0004 set while the
 //    position is unknown), reported as an output for the node. A refused connection or a lost
 //    one is the stage's error: the engine's back-off times the reconnects (add the stage with
@@ -101,8 +103,17 @@ class UplinkStage final : public Stage {
     woken_.store(true);
     engine_.wake();
   }
+  // Records to publish directly, without the outbox (Uplink::publish_direct): a command result
+  // the store refused. `tag` comes back in `direct_handed`.
+  struct Direct {
+    std::string kind;
+    std::string payload;
+    std::string tag;
+  };
+  std::vector<Direct> direct;
 
   // Outputs, taken by the routes.
+  std::vector<std::pair<std::string, bool>> direct_handed;  // tag, reached MQTT
   std::vector<std::string> commands;
   std::vector<uplink::BusyCommand> busy;
   std::vector<uplink::ZoneBundleMessage> bundles;

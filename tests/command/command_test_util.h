@@ -1,7 +1,9 @@
 // Test rig for the command service: the simulated bike on a VirtualBus, the real GatewayCore
 // (reassembler -> decode -> IotNode) sending through a recording FrameSender onto the bus, a real
 // SQLite Store on a temp file, DomainTrackers for lock-event causes, and a CommandService whose
-// results are collected. Everything runs in lockstep on the bus's virtual timeline.
+// results are collected. Everything runs in lockstep on the bus's virtual timeline. After every
+// frame and tick the rig does what the engine's command stage and its route do (settle()): the
+// service's run(), its stored count and its unstored results taken.
 #pragma once
 
 #include <gtest/gtest.h>
@@ -9,6 +11,7 @@
 #include <chrono>
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
@@ -146,10 +149,18 @@ struct Rig {
     sim::VirtualBus::Participant p;
     p.name = "gateway";
     p.on_frame = [this](const motinova::CanFrame& f, Micros ts) {
-      if (core) core->on_can_frame(f, ts);
+      if (!core) return;
+      if (inside_core) inside_core(true);
+      core->on_can_frame(f, ts);
+      if (inside_core) inside_core(false);
+      settle(ts);
     };
     p.tick = [this](Micros now) {
-      if (core) core->tick(now);
+      if (!core) return;
+      if (inside_core) inside_core(true);
+      core->tick(now);
+      if (inside_core) inside_core(false);
+      settle(now);
     };
     p.next_event = [this] { return core ? core->next_event() : Micros::max(); };
     sender.set_id(bus.add(std::move(p)));
@@ -180,12 +191,7 @@ struct Rig {
     return c;
   }
   void make_service() {
-    CommandContext context{core->node(), *store, trackers.get(), clock_synced, wall_clock, {}, {}};
-    context.result_stored = [this] { ++stored_calls; };
-    context.publish_unstored = [this](std::string serialized) {
-      unstored.push_back(std::move(serialized));
-      return publish_unstored_ok;
-    };
+    CommandContext context{core->node(), *store, trackers.get(), clock_synced, wall_clock};
     service = std::make_unique<CommandService>(service_config(), std::move(context));
     service->set_result_observer([this](const v1::CommandResult& r, bool resent) {
       results.push_back(r);
@@ -193,6 +199,23 @@ struct Rig {
     });
     forwarder.service = service.get();
   }
+  // The command stage's turn and its route, as the pipeline runs them after the core: the due
+  // writes, then the outputs taken (the stored count; each unstored result "published" as
+  // publish_unstored_ok says).
+  void settle(std::optional<Micros> now = std::nullopt) {
+    if (!service) return;
+    const Micros t = now.value_or(bus.now());
+    if (const auto due = service->next_due(t); due && *due <= t) service->run(t);
+    take_outputs();
+  }
+  void take_outputs() {
+    stored_calls += static_cast<int>(service->take_stored());
+    for (auto& u : service->take_unstored()) {
+      unstored.push_back(std::move(u.serialized));
+      service->unstored_handed(u.command_id, publish_unstored_ok);
+    }
+  }
+
   // A crash: service, node and store gone; then everything is built again on the same file.
   void restart() {
     forwarder.service = nullptr;
@@ -244,6 +267,7 @@ struct Rig {
     const std::string id = id_of(signed_payload);
     const std::size_t before = results.size();
     last_disposition = service->on_payload(signed_payload, bus.now());
+    take_outputs();
     const Micros until = bus.now() + max_wait;
     while (bus.now() < until) {
       for (std::size_t i = before; i < results.size(); ++i) {
@@ -279,10 +303,13 @@ struct Rig {
   std::function<void(CommandServiceConfig&)> tweak;
   std::vector<v1::CommandResult> results;
   std::vector<bool> resent_flags;
-  // CommandContext::result_stored calls, and what went to CommandContext::publish_unstored.
+  // Results the service reported stored (take_stored), and its unstored results (take_unstored).
   int stored_calls = 0;
   std::vector<std::string> unstored;
   bool publish_unstored_ok = true;
+  // Called with true before the core handles a frame or a tick and with false after (tests that
+  // check what happens inside the transport's read handler).
+  std::function<void(bool)> inside_core;
   Disposition last_disposition = Disposition::kRejected;
 };
 

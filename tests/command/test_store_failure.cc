@@ -1,5 +1,5 @@
 // A store that refuses writes (disk full) never silences a command: the result reaches
-// CommandContext::publish_unstored with stored = false, nothing moves for a command that could
+// CommandService::take_unstored() with stored = false, nothing moves for a command that could
 // not be journaled, a redelivery gets the same answer, and once the store accepts writes again
 // the journal catches up without a second result. The disk is filled for real: the process's
 // file-size limit (RLIMIT_FSIZE) makes SQLite's next write fail with SQLITE_FULL, on the real
@@ -77,6 +77,7 @@ TEST(StoreFailure, CommandThatCannotBeJournaledIsAnsweredUnstoredAndNothingMoves
     EXPECT_EQ(rig.service->unjournaled(), 1u);
     // A redelivery while still full: the same answer again, still nothing on the bus.
     EXPECT_EQ(rig.service->on_payload(cmd, rig.bus.now()), Disposition::kDuplicateAnswered);
+    rig.take_outputs();
     ASSERT_EQ(rig.unstored.size(), 2u);
     EXPECT_EQ(parse(rig.unstored[1]).reason(), r.reason());
     EXPECT_EQ(rig.sender.command_frames_since(t0), 0u);
@@ -133,12 +134,13 @@ TEST(StoreFailure, UnstoredResultTheUplinkCouldNotTakeGoesToTheOutboxLater) {
   {
     DiskFull full;
     rig.service->on_payload(rig.payload("seat", "unlock", "cmd-full-3"), rig.bus.now());
+    rig.take_outputs();
     ASSERT_EQ(rig.unstored.size(), 1u);
     EXPECT_EQ(rig.service->stats().unstored_not_published, 1u);
   }
   rig.bus.run_for(3s);
   EXPECT_EQ(rig.service->unjournaled(), 0u);
-  EXPECT_EQ(rig.stored_calls, 1);  // queued: the pipeline is told to publish
+  EXPECT_EQ(rig.stored_calls, 1);  // queued: reported, the pipeline publishes it
   bool queued = false;
   for (const auto& e : rig.store->peek_outbox(100, 1 << 20)) {
     v1::CommandResult r;
@@ -152,7 +154,7 @@ TEST(StoreFailure, UnstoredResultTheUplinkCouldNotTakeGoesToTheOutboxLater) {
   EXPECT_TRUE(queued);
 }
 
-TEST(StoreFailure, ResultStoredIsCalledAfterEachStoredResult) {
+TEST(StoreFailure, EachStoredResultIsReportedAsTheStagesOutput) {
   Rig rig;
   rig.bus.run_for(2s);
   const auto* ok = rig.run(rig.payload("seat", "unlock"));
@@ -163,6 +165,7 @@ TEST(StoreFailure, ResultStoredIsCalledAfterEachStoredResult) {
   ASSERT_NE(rejected, nullptr);
   EXPECT_EQ(rig.stored_calls, 2);
   rig.service->on_payload(std::string("junk"), rig.bus.now());  // outbox-only result
+  rig.take_outputs();
   EXPECT_EQ(rig.stored_calls, 3);
   EXPECT_TRUE(rig.unstored.empty());
 }

@@ -92,22 +92,23 @@ struct Harness {
     cfg.protocol.lock_kinds = bus.bike().scenario().lock_kinds;
     sim::VirtualBus::Participant p;
     p.name = "gateway";
-    p.on_frame = [this](const motinova::CanFrame& f, Micros ts) { core->on_can_frame(f, ts); };
-    p.tick = [this](Micros now) { core->tick(now); };
+    // After the core, what the pipeline's command stage and its route do.
+    p.on_frame = [this](const motinova::CanFrame& f, Micros ts) {
+      core->on_can_frame(f, ts);
+      settle(ts);
+    };
+    p.tick = [this](Micros now) {
+      core->tick(now);
+      settle(now);
+    };
     p.next_event = [this] { return core->next_event(); };
     sender.set_id(bus.add(std::move(p)));
     store = std::make_unique<storage::Store>(storage::StoreOptions{.path = dir / "fuzz.db"});
     core = std::make_unique<runtime::GatewayCore>(cfg, sender);
     core->add_listener(forwarder);
     core->start(bus.now());
-    command::CommandContext ctx{core->node(), *store, nullptr, {}, {}, {}, {}};
+    command::CommandContext ctx{core->node(), *store, nullptr, {}, {}};
     ctx.clock_synchronised = [](Micros) { return true; };
-    ctx.publish_unstored = [](std::string bytes) {
-      v1::CommandResult r;
-      if (!r.ParseFromString(bytes)) std::abort();
-      check(r);
-      return true;
-    };
     auto sc = command::make_command_service_config(cfg);
     sc.unauthenticated_results_per_minute = 1'000'000;  // reach the result path every time
     service = std::make_unique<command::CommandService>(sc, std::move(ctx));
@@ -115,6 +116,17 @@ struct Harness {
     forwarder.service = service.get();
     service->recover(bus.now());
     bus.run_for(2s);  // locks and MC heard
+  }
+  void settle(Micros now) {
+    if (!service) return;
+    if (const auto due = service->next_due(now); due && *due <= now) service->run(now);
+    service->take_stored();
+    for (const auto& u : service->take_unstored()) {
+      v1::CommandResult r;
+      if (!r.ParseFromString(u.serialized)) std::abort();
+      check(r);
+      service->unstored_handed(u.command_id, true);
+    }
   }
   ~Harness() {
     forwarder.service = nullptr;
