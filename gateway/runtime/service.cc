@@ -4,6 +4,7 @@
 
 #include <asio/io_context.hpp>
 #include <asio/signal_set.hpp>
+#include <csignal>
 
 #include "gateway/can/replay_transport.h"
 #include "gateway/can/socketcan_transport.h"
@@ -107,6 +108,13 @@ int run_service(const config::Config& config, const ServiceOptions& options,
   // First: from here a SIGTERM is a clean stop (delivered once the loop runs), never the default
   // action halfway through opening the bus, the store or a simulator's pty link.
   asio::signal_set signals(io, SIGINT, SIGTERM);
+  // A peer that resets its socket must be an error on that socket, never the end of the bike's
+  // service: libgps's gps_close() writes to gpsd's socket after gpsd reset it (EPIPE), and a
+  // plain write() there raises SIGPIPE, whose default action kills the process. Ignored for the
+  // whole process, as every network daemon does; asio, Paho and libpq already expect it.
+  struct sigaction ignore_pipe {};
+  ignore_pipe.sa_handler = SIG_IGN;
+  ::sigaction(SIGPIPE, &ignore_pipe, nullptr);
   BusTransport bus;
   try {
     bus = make_bus(io, config, options.open_sim, env);
@@ -186,8 +194,7 @@ int run_service(const config::Config& config, const ServiceOptions& options,
 
   GatewayCore& core = pipeline->core();
   const auto& stats = core.bus_stats();
-  const double wall =
-      std::chrono::duration<double>(env.steady_now() - wall_start).count();
+  const double wall = std::chrono::duration<double>(env.steady_now() - wall_start).count();
   const double virt = pipeline->bus_seconds();
   const auto& c = pipeline->counters();
   spdlog::info(

@@ -3,12 +3,18 @@
 // reports (issue 24); gpsd unreachable at start, gpsd gone mid-run and its return drive the IoT
 // node's GNSS fault bit (0x0004) and "position unknown". The store is read with SQLite itself;
 // every wait is for a condition with a deadline.
+#include <arpa/inet.h>
 #include <gtest/gtest.h>
+#include <netinet/in.h>
+#include <poll.h>
 #include <sqlite3.h>
+#include <sys/socket.h>
+#include <unistd.h>
 
 #include <chrono>
 #include <filesystem>
 #include <optional>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -211,3 +217,63 @@ TEST(GnssEndToEnd, PositionReachesTelemetryAndTheFaultBitFollowsGpsd) {
 }
 
 }  // namespace
+
+namespace {
+
+// A "gpsd" that accepts and goes away without reading what the gateway sent (its WATCH
+// request): the kernel answers the unread data with a reset, so the gateway's next write on
+// that socket (libgps's gps_close() sends "?WATCH" to disable the stream) fails with EPIPE.
+// Without SIGPIPE ignored, that write kills the process.
+class ResettingGpsd {
+ public:
+  ResettingGpsd() {
+    fd_ = ::socket(AF_INET, SOCK_STREAM, 0);
+    sockaddr_in a{};
+    a.sin_family = AF_INET;
+    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    const int one = 1;
+    ::setsockopt(fd_, SOL_SOCKET, SO_REUSEADDR, &one, sizeof one);
+    if (::bind(fd_, reinterpret_cast<sockaddr*>(&a), sizeof a) != 0 || ::listen(fd_, 8) != 0) {
+      throw std::runtime_error("ResettingGpsd: cannot listen");
+    }
+    socklen_t len = sizeof a;
+    ::getsockname(fd_, reinterpret_cast<sockaddr*>(&a), &len);
+    port_ = ntohs(a.sin_port);
+  }
+  ~ResettingGpsd() { ::close(fd_); }
+  std::uint16_t port() const { return port_; }
+  // Accepts one connection (waiting at most `timeout`), waits until the client's request has
+  // arrived, and closes with it unread: a reset. False when nobody connected.
+  bool accept_and_reset(std::chrono::milliseconds timeout) {
+    pollfd p{fd_, POLLIN, 0};
+    if (::poll(&p, 1, static_cast<int>(timeout.count())) != 1) return false;
+    const int c = ::accept(fd_, nullptr, nullptr);
+    if (c < 0) return false;
+    pollfd q{c, POLLIN, 0};
+    ::poll(&q, 1, 10'000);  // the WATCH request (libgps sends it right after connecting)
+    const linger hard{1, 0};
+    ::setsockopt(c, SOL_SOCKET, SO_LINGER, &hard, sizeof hard);
+    ::close(c);
+    return true;
+  }
+
+ private:
+  int fd_ = -1;
+  std::uint16_t port_ = 0;
+};
+
+}  // namespace
+
+// gpsd resetting its connections (a crash, a restart with data in flight) is a lost position,
+// never a dead service: the gateway reconnects with its back-off and still stops cleanly.
+TEST(GnssEndToEnd, AGpsdThatResetsItsConnectionsNeverKillsTheService) {
+  TempDir dir("fleetgw-gnss-reset");
+  ResettingGpsd gpsd;
+  GatewayProcess gw(FLEETGW_BINARY, write_config(dir, gpsd.port()), {"--duration", "120"});
+  // Each reconnect after a reset proves the service survived the write that followed it.
+  int connections = 0;
+  while (connections < 4 && gpsd.accept_and_reset(60s)) ++connections;
+  EXPECT_EQ(connections, 4) << gw.log();
+  EXPECT_TRUE(gw.running()) << "killed (exit " << gw.exit_code().value_or(-1) << ")\n" << gw.log();
+  EXPECT_EQ(gw.stop(), 0) << gw.log();
+}
