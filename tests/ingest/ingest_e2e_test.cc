@@ -218,8 +218,10 @@ TEST_F(IngestE2E, DatabaseOutageHoldsMessagesUntilItEnds) {
   EXPECT_TRUE(wait_until(
       [&] {
         try {
+          // The rows and the worker's report of it: the log line follows the commit.
           return pg_count("SELECT count(*) FROM fault_events WHERE vehicle_id = 'outage-bike'") ==
-                 5;
+                     5 &&
+                 w->log_contains("writes succeed again");
         } catch (const fleetgw::PgError&) {
           return false;
         }
