@@ -99,8 +99,8 @@ void RealtimeDriver::rebase(Micros bus_now) {
   real_start_ = std::chrono::steady_clock::now() - behind_by;
 }
 
-void RealtimeDriver::receive(const motinova::CanFrame& frame) {
-  if (!running_) return;
+void RealtimeDriver::receive(std::span<const motinova::CanFrame> frames) {
+  if (!running_ || frames.empty()) return;
   if (lockstep_) {
     // At the bus time the gateway sent it (held since send()); nothing of the bike's is due
     // before that (virtual_now() stops short of its next event).
@@ -111,11 +111,11 @@ void RealtimeDriver::receive(const motinova::CanFrame& frame) {
     delivering_ = false;
     if (!running_) return;
     if (on_advanced_) on_advanced_(at);
-    bike_.receive(frame, at);
+    for (const auto& frame : frames) bike_.receive(frame, at);
     if (!held_at_) arm();  // held: release() re-arms once the whole batch is in
     return;
   }
-  // What the bike sent before this frame reached it goes first (a batch may hold it back):
+  // What the bike sent before these frames reached it goes first (a batch may hold it back):
   // the bike's timeline never runs backwards. More than a step of it is fire()'s work, within
   // its budget; while that leaves the bike behind (until the timer's next turn), frames reach
   // the bike at the time it has reached, so a burst of frames costs no more bus time than one.
@@ -125,8 +125,9 @@ void RealtimeDriver::receive(const motinova::CanFrame& frame) {
   const Micros at = behind_ ? delivered_to_ : std::max(delivered_to_, virtual_now());
   delivered_to_ = at;
   bike_.advance_to(at, bike_emit_);
+  if (!running_) return;  // the handler stopped us
   if (on_advanced_) on_advanced_(at);
-  bike_.receive(frame, at);
+  for (const auto& frame : frames) bike_.receive(frame, at);
   arm();  // the reaction may be due before the event the timer waits for
 }
 
@@ -255,12 +256,11 @@ bool SimTransport::send(const motinova::CanFrame& frame) {
     if (token.expired() || stopped_) return;
     delivery_posted_ = false;
     // What the bike's answers make the gateway send meanwhile waits for the next turn.
+    // All at one bus time: they left back to back (RealtimeDriver::receive).
     std::vector<motinova::CanFrame> frames;
     frames.swap(outgoing_);
-    for (const auto& f : frames) {
-      if (stopped_) return;
-      driver_.receive(f);
-    }
+    driver_.receive(frames);
+    if (stopped_) return;
     // What the bike's answers made the gateway send meanwhile is held again by its send().
     if (!delivery_posted_) driver_.release();
   });

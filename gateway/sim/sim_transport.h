@@ -39,6 +39,7 @@
 #include <functional>
 #include <memory>
 #include <optional>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -70,7 +71,13 @@ class RealtimeDriver {
   // Delivers the frames due by virtual_now() (within one work budget) and re-arms.
   void flush();
   // A frame from the outside bus, delivered to the bike at virtual_now().
-  void receive(const motinova::CanFrame& frame);
+  void receive(const motinova::CanFrame& frame) { receive(std::span(&frame, 1)); }
+  // Frames sent together (back to back, e.g. the segments of one message), delivered to the
+  // bike at ONE bus time: on a real bus they are microseconds apart, so the bike's reassembler
+  // (gap_timeout 100 ms of bus time) never sees a gap between them. Delivered one by one at
+  // virtual_now(), a stall of 1 ms of wall time between two of them was 100 ms of bus time at
+  // x100, and a loaded machine's bike dropped the gateway's two-segment requests unanswered.
+  void receive(std::span<const motinova::CanFrame> frames);
   Micros virtual_now() const;
   bool running() const { return running_; }
   // Lock-step pacing (see the top of this file); before start().
