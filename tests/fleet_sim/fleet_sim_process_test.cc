@@ -16,6 +16,7 @@
 #include <nlohmann/json.hpp>
 #include <set>
 #include <string>
+#include <string_view>
 #include <thread>
 #include <vector>
 
@@ -99,6 +100,12 @@ bool ramp_done(const ChildProcess& sim) {
     ++n;
   }
   return n == 2;
+}
+
+std::size_t occurrences(const std::string& text, std::string_view what) {
+  std::size_t n = 0;
+  for (auto p = text.find(what); p != std::string::npos; p = text.find(what, p + 1)) ++n;
+  return n;
 }
 
 nlohmann::json read_report(const std::filesystem::path& p) {
@@ -188,12 +195,20 @@ TEST(FleetSimProcess, ResendsWhatWasNotAcknowledgedAfterTheBrokerRestarts) {
   ChildProcess sim(sim_args(broker, 200, 20, dir.path() / "report.json"), dir.path() / "sim.log");
   ASSERT_TRUE(wait_until([&] { return ramp_done(sim); }, 30s)) << sim.log();
   ASSERT_TRUE(wait_until([&] { return !collector.sequences().empty(); }, 30s));
-  // Frozen: publishes pile up unacknowledged; then stopped (it saves what it acknowledged; a
-  // SIGKILL would lose acknowledged messages, the broker's loss, not the sender's) and started
-  // again: every session is lost, what was not acknowledged must come again.
+  // Every session accepted (the collector's and the 200 vehicles'): "sessions started" is
+  // only their CONNECTs, and a session still waiting for its CONNACK when the broker goes down
+  // is no lost session (under load a third of them were, and the stop below no longer gives
+  // the broker a turn to answer them).
+  ASSERT_TRUE(
+      wait_until([&] { return occurrences(broker.log(), "New client connected") >= 201; }, 30s))
+      << broker.log();
+  // Frozen: publishes pile up unacknowledged; then stopped while frozen (it saves what it
+  // acknowledged; a SIGKILL would lose acknowledged messages, the broker's loss, not the
+  // sender's) and started again: every session is lost, what was not acknowledged must come
+  // again. No resume() before stop(): it gave the broker a turn to acknowledge the whole
+  // backlog before the SIGTERM, and under load it took it (nothing left to resend).
   broker.pause();
   std::this_thread::sleep_for(2s);  // no condition to wait for: nothing is acknowledged
-  broker.resume();
   broker.stop();
   broker.start();
   const auto code = sim.wait_exit(120s);
@@ -201,8 +216,8 @@ TEST(FleetSimProcess, ResendsWhatWasNotAcknowledgedAfterTheBrokerRestarts) {
   const nlohmann::json r = read_report(dir.path() / "report.json");
   ASSERT_FALSE(r.is_discarded()) << sim.log();
   EXPECT_EQ(r["unacknowledged"], 0) << sim.log();
-  EXPECT_GE(r["disconnects"].get<int>(), 200);  // every session was lost once
-  EXPECT_GT(r["resent"].get<int>(), 0);
+  EXPECT_GE(r["disconnects"].get<int>(), 200) << sim.log();  // every session was lost once
+  EXPECT_GT(r["resent"].get<int>(), 0) << sim.log();
   // Not compared with the collector here: after this restart it misses about 1.5 % of the
   // records (23 of 1,544) although the fleet-sim had every one acknowledged; not yet explained
   // (the broker's or the collector's side): an open item of issue 25.

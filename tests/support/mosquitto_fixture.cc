@@ -200,7 +200,11 @@ void MosquittoBroker::start() {
 
 void MosquittoBroker::stop() {
   if (!running()) return;
-  process_->signal(SIGCONT);  // a paused broker cannot act on SIGTERM
+  // SIGTERM before SIGCONT: a paused broker then stops on waking, before it reads what its
+  // clients sent meanwhile (SIGCONT first left it a turn to acknowledge all of it, and a loaded
+  // machine gave it that turn before the SIGTERM came).
+  process_->signal(SIGTERM);
+  process_->signal(SIGCONT);
   process_->stop(std::chrono::seconds(30));
   process_.reset();
 }

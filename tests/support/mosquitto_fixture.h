@@ -7,7 +7,8 @@
 //    once the port accepts connections, or throws std::runtime_error quoting the broker log.
 //  * stop()/kill() end the process (SIGTERM / SIGKILL); start() again reuses the same port and
 //    directory, so "broker outage, then back" is one stop() + start(). pause()/resume() freeze the
-//    broker (SIGSTOP/SIGCONT): connections stay open but nothing is acknowledged.
+//    broker (SIGSTOP/SIGCONT): connections stay open but nothing is acknowledged. stop() of a
+//    paused broker acknowledges nothing more either (call it without resume() first).
 //  * TestPki generates, with the openssl CLI, a CA, a server certificate for 127.0.0.1/localhost,
 //    a server certificate for a different host name (to test host-name verification), and client
 //    certificates whose common name is the given identity.
