@@ -35,11 +35,9 @@
 
 namespace {
 
-using fleetgw::PgConnection;
 using fleetgw::testing::ChildProcess;
 using fleetgw::testing::MosquittoBroker;
 using fleetgw::testing::MosquittoOptions;
-using fleetgw::testing::PostgresCluster;
 using fleetgw::testing::TempDir;
 using fleetgw::testing::wait_until;
 using namespace std::chrono_literals;
@@ -72,35 +70,25 @@ class MessageCounter {
   std::atomic<std::size_t> count_{0};
 };
 
-class IngestBrokerRestart : public ::testing::Test {
+// The cluster comes once per suite; each test starts from an empty database (pg_fixture.h).
+class IngestBrokerRestart : public fleetgw::testing::PgDatabaseTest {
  protected:
-  void SetUp() override {
-    if (fleetgw::testing::postgres_bin_dir().empty()) {
-      GTEST_SKIP() << "PostgreSQL server binaries not installed";
-    }
-    pg_ = std::make_unique<PostgresCluster>();
-  }
-
-  std::int64_t pg_count(const std::string& sql) {
+  // -1 until the worker has made the schema.
+  static std::int64_t accounted() {
     try {
-      PgConnection c(pg_->conninfo());
-      return c.exec(sql, "test query").int64(0, 0);
+      return int64("SELECT coalesce(sum(last_seq - first_seq + 1), 0) FROM sequence_ranges");
     } catch (const fleetgw::PgError&) {
       return -1;
     }
   }
-  std::int64_t accounted() {
-    return pg_count("SELECT coalesce(sum(last_seq - first_seq + 1), 0) FROM sequence_ranges");
-  }
-  std::int64_t rows() {
-    return pg_count(
+  static std::int64_t rows() {
+    return int64(
         "SELECT (SELECT count(*) FROM telemetry_samples) + (SELECT count(*) FROM rides) + "
         "(SELECT count(*) FROM lock_events) + (SELECT count(*) FROM pack_snapshots) + "
         "(SELECT count(*) FROM device_info)");
   }
 
   TempDir dir_;
-  std::unique_ptr<PostgresCluster> pg_;
 };
 
 TEST_F(IngestBrokerRestart, EveryRecordLandsOnceThroughAGracefulBrokerRestart) {
@@ -112,7 +100,7 @@ TEST_F(IngestBrokerRestart, EveryRecordLandsOnceThroughAGracefulBrokerRestart) {
   broker.start();
   ChildProcess worker({FLEETGW_INGEST_BINARY, "--broker", broker.uri(), "--group", "backend",
                        "--client-id", "restart-worker", "--sessions", "4", "--batch-delay-ms", "50",
-                       "--inflight", "5", "--pg", pg_->conninfo()},
+                       "--inflight", "5", "--pg", conninfo()},
                       dir_.path() / "worker.log");
   ASSERT_TRUE(wait_until([&] { return occurrences(worker.log(), "subscribed to") >= 1; }, 30s))
       << worker.log();
@@ -158,10 +146,9 @@ TEST_F(IngestBrokerRestart, EveryRecordLandsOnceThroughAGracefulBrokerRestart) {
       << worker.log();
   EXPECT_EQ(accounted(), expected);
   EXPECT_EQ(rows(), expected) << "each record exactly once";
-  EXPECT_EQ(
-      fleetgw::testing::run_for_exit_code(
-          {FLEETGW_INGEST_BINARY, "--gaps", "--pg", pg_->conninfo()}, dir_.path() / "gaps.log"),
-      0)
+  EXPECT_EQ(fleetgw::testing::run_for_exit_code(
+                {FLEETGW_INGEST_BINARY, "--gaps", "--pg", conninfo()}, dir_.path() / "gaps.log"),
+            0)
       << "gap report not empty";
   EXPECT_EQ(worker.stop(20s), 0) << worker.log();
 }
