@@ -56,6 +56,10 @@ void add_ingest_options(CLI::App& app, ingest::IngestOptions& o) {
       ->check(CLI::NonNegativeNumber);
   app.add_flag("--gaps", o.gaps,
                "print the sequence gaps (vehicle, store, missing range) and exit: 0 when none");
+  app.add_flag("--leave", o.leave,
+               "leave the group for good: with the stopped worker's --client-id, --group and "
+               "--sessions, unsubscribe, commit what the broker still queued for it, then end its "
+               "sessions on the broker and exit 0 (a running worker does the same on SIGUSR1)");
   app.add_option("--log-level", o.log_level, "trace, debug, info, warn, error")
       ->check(CLI::IsMember({"trace", "debug", "info", "warn", "error"}))
       ->capture_default_str();

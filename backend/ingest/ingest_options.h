@@ -35,6 +35,9 @@ struct IngestOptions {
   std::string password;   // never logged
   double duration_s = 0;  // 0 = until SIGINT/SIGTERM
   bool gaps = false;      // print the gap report and exit
+  // Leave the group for good: connect the sessions of client_id, unsubscribe, drain what the
+  // broker still queued for them, then end them (session expiry 0) and exit.
+  bool leave = false;
   std::string log_level = "info";
 };
 

@@ -280,7 +280,10 @@ class Worker {
         sigfd_(sigfd),
         writer_(store, o) {}
 
-  bool connect(std::string& error) { return sessions_.connect(error); }
+  bool connect(std::string& error) {
+    if (o_.leave) start_leave();
+    return sessions_.connect(error);
+  }
 
   int run(const std::string& client_id, const std::string& filter) {
     const auto start = Clock::now();
@@ -305,6 +308,7 @@ class Worker {
         signalfd_siginfo info{};
         while (::read(sigfd_, &info, sizeof info) == sizeof info) {
           if (info.ssi_signo == SIGINT || info.ssi_signo == SIGTERM) stopping_ = true;
+          if (info.ssi_signo == SIGUSR1 && !stopping_ && !leaving_) start_leave();
         }
       }
       if ((ready & 2u) != 0) {
@@ -312,7 +316,8 @@ class Worker {
           if (!finish(*job)) given_up = true;
         }
       }
-      if (!announced && sessions_.subscribed() == sessions_.size()) {
+      if (leaving_ && !stopping_ && left()) stopping_ = true;
+      if (!announced && !leaving_ && sessions_.subscribed() == sessions_.size()) {
         announced = true;
         const auto resumed = static_cast<long>(sessions_.resumed());
         spdlog::info(
@@ -351,7 +356,20 @@ class Worker {
     }
     const bool committed = batch_.empty() && !given_up;
     not_committed_ += static_cast<std::int64_t>(batch_.size());
-    sessions_.close(committed);
+    const bool forget = committed && leaving_ && left();
+    sessions_.close(committed, forget);
+    if (forget) {
+      spdlog::info(
+          "ingest: left group {} for good: {} message(s) drained from {}-s1..s{} and committed; "
+          "the broker forgot the sessions",
+          o_.group, counters_.messages - messages_at_leave_, client_id, k);
+    } else if (leaving_) {
+      spdlog::warn(
+          "ingest: the leave of {}-s1..s{} did not finish: the sessions stay on the broker "
+          "(unsubscribed, if the broker confirmed it); run fleetgw ingest --leave again",
+          client_id, k);
+      if (status == 0) status = 3;
+    }
     if (not_committed_ > 0) {
       spdlog::warn(
           "ingest: stopped with {} uncommitted message(s): not acknowledged, the broker "
@@ -367,6 +385,20 @@ class Worker {
 
  private:
   std::chrono::milliseconds delay() const { return std::chrono::milliseconds(o_.batch_delay_ms); }
+
+  // Leaving the group for good (--leave, SIGUSR1; docs/backend.md "Scale-out"): the sessions
+  // unsubscribe and drain what the broker queued for them through the usual batches; once
+  // every one is drained the worker stops and its sessions end with session expiry 0.
+  void start_leave() {
+    leaving_ = true;
+    messages_at_leave_ = counters_.messages;
+    sessions_.leave();
+    spdlog::info("ingest: leaving group {}: unsubscribing, draining what the broker holds",
+                 o_.group);
+  }
+  bool left() const {
+    return sessions_.drained() == sessions_.size() && batch_.empty() && !writer_.busy();
+  }
 
   bool full() const { return rows_ >= o_.batch_rows || bytes_ >= kBatchMaxBytes; }
 
@@ -446,6 +478,8 @@ class Worker {
   bool large_ = false;
   Clock::time_point first_at_{};
   bool stopping_ = false;
+  bool leaving_ = false;
+  std::int64_t messages_at_leave_ = 0;
   std::uint64_t generation_ = 0;
   std::int64_t not_committed_ = 0;
   Counters counters_;
@@ -476,6 +510,7 @@ int run_ingest(const IngestOptions& o) {
   sigemptyset(&signals);
   sigaddset(&signals, SIGINT);
   sigaddset(&signals, SIGTERM);
+  sigaddset(&signals, SIGUSR1);  // leave the group for good (Worker::start_leave)
   if (!o.gaps) ::sigprocmask(SIG_BLOCK, &signals, nullptr);
   IngestStore store(o.pg);
   try {

@@ -20,6 +20,12 @@
 //    cannot be reached at start or the broker refuses a session (named on stderr), 2 for bad
 //    options; with `gaps` it prints the gap report (one line per hole) and returns 0 when it
 //    is empty, 1 otherwise.
+//  * Leaving the group for good (`leave`, or SIGUSR1 to a running worker; docs/backend.md
+//    "Scale-out"): the sessions unsubscribe, what the broker still queued for them is
+//    committed and acknowledged as usual, and once a round trip shows every session's queue
+//    empty they DISCONNECT with session expiry 0 (the broker forgets them) and it returns 0;
+//    stopped before that (SIGTERM, a crash) the sessions stay, unsubscribed: a new leave
+//    finishes the job (status 3 after a SIGTERM).
 //  * A malformed message (decode_message() Reject) or one the database refuses is
 //    acknowledged (it would come back for ever otherwise) once stored in rejected_messages in
 //    the batch's transaction, counted by reason, and logged once per reason with its topic

@@ -33,9 +33,16 @@ struct MqttSessions::Session {
   bool ever_connected = false;
   bool resumed = false;
   std::size_t held = 0;
-  std::size_t delivered = 0;  // messages handed to the sink, ever (the read loop's progress)
+  std::size_t delivered = 0;     // messages handed to the sink, ever (the read loop's progress)
   std::uint64_t generation = 0;  // sealed with a batch being written (0: not sealed)
   bool closing = false;          // its DISCONNECT is ours: not a lost connection
+  // Leaving the group (leave()): the drain probe in flight (its packet id, -1: none), the
+  // messages delivered when it was sent, and whether its answer found the queue empty.
+  bool leaving = false;
+  int probe_mid = -1;
+  std::size_t probe_delivered = 0;
+  bool drained = false;
+  bool flush = false;  // its queue holds the first UNSUBSCRIBE only: write it before reading on
   std::string refused;
   Clock::time_point retry_at{};
   Clock::time_point next_misc{};
@@ -87,6 +94,37 @@ bool parse_broker(const std::string& uri, BrokerAddress& out, std::string& error
   return true;
 }
 
+// A leaving session's drain probe: an UNSUBSCRIBE of the shared filter (the first one ends
+// the membership: nothing new is queued for the session; the later ones find no subscription,
+// which the broker answers all the same), queued once the session holds nothing, i.e. behind
+// the PUBACKs of everything it received (written by poll()). mosquitto handles a client's packets
+// in order and, handling a PUBACK, queues at once the messages it releases
+// (db__message_delete_outgoing), so they precede the UNSUBACK on the wire: an answer with no
+// message delivered since the probe means the broker holds nothing more for the session
+// (docs/backend.md "Scale-out").
+void probe(MqttSessions::Session& s) {
+  if (!s.leaving || !s.connected || s.drained || s.probe_mid >= 0 || s.held > 0 ||
+      s.generation != 0) {
+    return;
+  }
+  int mid = 0;
+  if (const int rc = mosquitto_unsubscribe_v5(s.mosq.get(), &mid, s.filter.c_str(), nullptr);
+      rc != MOSQ_ERR_SUCCESS) {
+    spdlog::error("ingest: {} unsubscribe {} failed: {}", s.id, s.filter, mosquitto_strerror(rc));
+    return;
+  }
+  s.probe_mid = mid;
+  s.probe_delivered = s.delivered;
+}
+
+void session_unsubscribed(mosquitto*, void* obj, int mid, const mosquitto_property*) {
+  auto& s = *static_cast<MqttSessions::Session*>(obj);
+  if (mid != s.probe_mid) return;
+  s.probe_mid = -1;
+  s.subscribed = false;
+  if (s.delivered == s.probe_delivered) s.drained = true;
+}
+
 void session_connected(mosquitto* m, void* obj, int rc, int flags, const mosquitto_property*) {
   auto& s = *static_cast<MqttSessions::Session*>(obj);
   s.connecting = false;
@@ -99,6 +137,17 @@ void session_connected(mosquitto* m, void* obj, int rc, int flags, const mosquit
   s.backoff = 1000ms;
   if (!s.ever_connected) s.resumed = (flags & 1) != 0;  // CONNACK "session present"
   s.ever_connected = true;
+  if (s.leaving) {
+    // A leaving session never subscribes again: it unsubscribes at once, on every connection
+    // (what the broker still holds for it is found anew). Its queue holds nothing else yet
+    // (a new library object each connection): poll() writes it before reading on (flush), so
+    // no new message is queued for the session while the first batch is being committed.
+    s.probe_mid = -1;
+    s.drained = false;
+    probe(s);
+    s.flush = true;
+    return;
+  }
   // (Re)subscribe on every connection: a no-op on a resumed session, needed after it expired.
   // Retained messages (every vehicle's latest status and state) go to session 1 only, and
   // only on a new subscription: every session of every restart receiving them again cost more
@@ -178,6 +227,7 @@ void new_client(MqttSessions::Session& s) {
   mosquitto_connect_v5_callback_set(m, &session_connected);
   mosquitto_disconnect_v5_callback_set(m, &session_lost);
   mosquitto_subscribe_v5_callback_set(m, &session_subscribed);
+  mosquitto_unsubscribe_v5_callback_set(m, &session_unsubscribed);
   mosquitto_message_v5_callback_set(m, &session_message);
 }
 
@@ -300,7 +350,7 @@ unsigned MqttSessions::poll(std::chrono::milliseconds timeout, std::span<const i
       // instead of a FIONREAD per message (issue 25: a system call per message less). A call
       // that delivered a message may leave EAGAIN too (the library's wake-up write of each
       // queued PUBACK fails once its socket pair is full): it does not end the turn.
-      for (int k = 0; k < 4096 && want_more(); ++k) {
+      for (int k = 0; k < 4096 && want_more() && !s.flush; ++k) {
         const std::size_t delivered = s.delivered;
         errno = 0;
         if (mosquitto_loop_read(m, 1) != MOSQ_ERR_SUCCESS || mosquitto_socket(m) < 0) break;
@@ -308,7 +358,9 @@ unsigned MqttSessions::poll(std::chrono::milliseconds timeout, std::span<const i
       }
     }
     if (s.held == 0) write_queue(s);  // e.g. the SUBSCRIBE after a CONNACK
+    s.flush = false;
   }
+  for (auto& s : sessions_) probe(*s);
   unsigned ready = 0;
   for (std::size_t i = 0; i < extra.size(); ++i) {
     if ((fds[sessions_.size() + i].revents & POLLIN) != 0) ready |= 1u << i;
@@ -349,7 +401,16 @@ bool MqttSessions::saturated() const {
                      [&](const auto& s) { return s->generation != 0 || s->held >= o_.inflight; });
 }
 
-void MqttSessions::close(bool committed) {
+void MqttSessions::leave() {
+  for (auto& s : sessions_) s->leaving = true;
+}
+
+std::size_t MqttSessions::drained() const {
+  return static_cast<std::size_t>(
+      std::count_if(sessions_.begin(), sessions_.end(), [](const auto& s) { return s->drained; }));
+}
+
+void MqttSessions::close(bool committed, bool forget) {
   closing_ = true;
   if (!committed) {
     // Nothing more is written: the held messages stay unacknowledged in the broker's sessions.
@@ -360,7 +421,11 @@ void MqttSessions::close(bool committed) {
   for (auto& s : sessions_) {
     s->closing = true;
     if (s->mosq && mosquitto_socket(s->mosq.get()) >= 0) {
-      mosquitto_disconnect_v5(s->mosq.get(), MQTT_RC_NORMAL_DISCONNECTION, nullptr);
+      // Session expiry 0 at a leave's end: the broker forgets the session at this DISCONNECT.
+      mosquitto_property* props = nullptr;
+      if (forget) mosquitto_property_add_int32(&props, MQTT_PROP_SESSION_EXPIRY_INTERVAL, 0);
+      mosquitto_disconnect_v5(s->mosq.get(), MQTT_RC_NORMAL_DISCONNECTION, props);
+      mosquitto_property_free_all(&props);
     }
   }
   // Write the DISCONNECTs (and any PUBACK still queued), a few seconds at most.

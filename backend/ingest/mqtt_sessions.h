@@ -27,7 +27,12 @@
 //    (The reconnect's TCP connect blocks the loop, as the first one does.)
 //  * close(true): DISCONNECT every session (the broker keeps the sessions) after writing what
 //    is queued; close(false): the sockets are closed without writing anything (nothing held is
-//    acknowledged).
+//    acknowledged). close(true, forget = true): the DISCONNECT sets session expiry 0, so the
+//    broker forgets the sessions (a leave's end, once drained() == size()).
+//  * leave(): the permanent leave (docs/backend.md "Scale-out"): every session unsubscribes
+//    from the shared filter instead of subscribing (on every later connection too) and goes on
+//    delivering what the broker still queued for it; drained() counts the sessions whose queue
+//    a round trip showed empty (see probe in mqtt_sessions.cc).
 //  * Not thread-safe: one thread drives it.
 #pragma once
 
@@ -77,7 +82,10 @@ class MqttSessions {
   void acknowledge(std::uint64_t generation);
   // Every message received so far is committed: write every session's PUBACKs.
   void acknowledge();
-  void close(bool committed);
+  void close(bool committed, bool forget = false);
+  // Leaving the group for good: unsubscribe, drain, then close(true, true) (see Contract).
+  void leave();
+  std::size_t drained() const;  // leaving sessions whose queue the broker showed empty
 
   std::size_t size() const;
   std::size_t subscribed() const;  // sessions whose subscription the broker confirmed
