@@ -28,6 +28,7 @@
 
 #include "backend/common/pg.h"
 #include "tests/ingest/pg_fixture.h"
+#include "tests/support/files.h"
 #include "tests/support/mosquitto_fixture.h"
 #include "tests/support/process.h"
 #include "tests/support/temp_dir.h"
@@ -149,7 +150,10 @@ TEST_F(IngestBrokerRestart, EveryRecordLandsOnceThroughAGracefulBrokerRestart) {
   EXPECT_EQ(fleetgw::testing::run_for_exit_code(
                 {FLEETGW_INGEST_BINARY, "--gaps", "--pg", conninfo()}, dir_.path() / "gaps.log"),
             0)
-      << "gap report not empty";
+      << "gap report not empty:\n"
+      << fleetgw::testing::read_text_file(dir_.path() / "gaps.log") << "\nfleet-sim:\n"
+      << sim.log() << "\nbroker:\n"
+      << broker.log();
   EXPECT_EQ(worker.stop(20s), 0) << worker.log();
 }
 
