@@ -29,7 +29,13 @@
 # Environment: FLEETGW (default build/bin/fleetgw; fleetgw-ingest and fleetgw-fleet-sim
 #   beside it), VEHICLES (1000), DURATION_S (120; 600 is the issue's 10 minutes), RIDING_SHARE
 #   (0.3), WORKERS (2), CONNECT_RATE (1000 sessions/s), PER_BROKER (18000), INGEST_ARGS, KEEP=1
-#   keeps the work directory.
+#   keeps the work directory, CHURN_EVERY_S (0: off; LEAVE_TIMEOUT_S, 300, bounds each leave).
+# Churn (CHURN_EVERY_S > 0; docs/backend.md "Scale-out"): one more worker of the group, client id
+# bench-worker-churn, joins at the start; every CHURN_EVERY_S it in turn is SIGKILLed and
+# restarted at once with its client id (its sessions resumed), leaves for good (SIGTERM, then
+# `fleetgw ingest --leave`: what the broker queued for it is committed, its sessions end), and
+# joins again as a new member. At the fleet's end it leaves (nothing stays queued for it) before
+# the settle. Its CPU is not in the workers' figure; joins, SIGKILLs and leaves are counted.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 FLEETGW=$(realpath -m "${FLEETGW:-build/bin/fleetgw}")
@@ -54,6 +60,68 @@ if [[ $EDGES -gt 1 ]]; then
   BROKER_PIDS+=("${EDGE_PIDS[@]}")
 fi
 start_workers "$NWORKERS"
+
+# The churning worker (CHURN_EVERY_S): a background loop; its events go to $WORK/churn-events.
+CHURN_EVERY_S=${CHURN_EVERY_S:-0}
+INGEST_BIN=$(dirname "$FLEETGW")/fleetgw-ingest
+churn_start() {  # joins (a restart with the same client id resumes its sessions); waits for it
+  # shellcheck disable=SC2086 # INGEST_ARGS: word-split on purpose
+  "$INGEST_BIN" --broker "$BROKER_URI" --group bench --client-id bench-worker-churn \
+    --pg "$CONNINFO" ${INGEST_ARGS:-} >>"$WORK/churn.log" 2>&1 &
+  CHURN_PID=$!
+  echo "$CHURN_PID" >"$WORK/churn.pid"
+  local n=$1 deadline=$((SECONDS + ${STARTUP_TIMEOUT_S:-300}))
+  until [[ $(grep -c "subscribed to" "$WORK/churn.log") -ge $n ]]; do
+    if [[ $SECONDS -ge $deadline ]] || ! kill -0 "$CHURN_PID" 2>/dev/null; then
+      echo "churn worker: not subscribed"
+      tail -5 "$WORK/churn.log"
+      return 1
+    fi
+    sleep 0.1
+  done
+  echo join >>"$WORK/churn-events"
+}
+churn_leave() {  # SIGTERM (a clean stop: the sessions stay), then the leave for good
+  kill -TERM "$CHURN_PID" || true
+  wait "$CHURN_PID" || true
+  # shellcheck disable=SC2086
+  timeout -k 10 "${LEAVE_TIMEOUT_S:-300}" "$INGEST_BIN" --leave --broker "$BROKER_URI" --group bench \
+    --client-id bench-worker-churn --pg "$CONNINFO" ${INGEST_ARGS:-} >>"$WORK/churn.log" 2>&1 ||
+    echo "churn worker: the leave failed (exit $?)"
+  echo leave >>"$WORK/churn-events"
+}
+churn_loop() {
+  local joined=1 up=1 step=0
+  churn_start "$joined" || return 1
+  while :; do
+    local until=$((SECONDS + CHURN_EVERY_S))
+    while [[ $SECONDS -lt $until && ! -e $WORK/churn-stop ]]; do sleep 0.2; done
+    [[ -e $WORK/churn-stop ]] && break
+    if [[ $up == 0 ]]; then  # joins again, a new member (its sessions were forgotten)
+      churn_start $((++joined)) || return 1
+      up=1
+    elif [[ $((step++ % 2)) == 0 ]]; then  # SIGKILL, restarted at once on its sessions
+      kill -KILL "$CHURN_PID" || true
+      wait "$CHURN_PID" 2>/dev/null || true
+      echo sigkill >>"$WORK/churn-events"
+      churn_start $((++joined)) || return 1
+    else
+      churn_leave
+      up=0
+    fi
+  done
+  if [[ $up == 1 ]]; then churn_leave; fi
+}
+if [[ $CHURN_EVERY_S != 0 ]]; then
+  churn_cleanup() {  # (a failing command here would end the trap before cleanup: set -e)
+    if [[ -f $WORK/churn.pid ]]; then kill -KILL "$(cat "$WORK/churn.pid")" 2>/dev/null || true; fi
+    cleanup
+  }
+  trap churn_cleanup EXIT
+  : >"$WORK/churn-events"
+  churn_loop &
+  CHURN_LOOP=$!
+fi
 brokers_cpu_s() {
   local total=0 b
   for b in "${BROKER_PIDS[@]}"; do total=$(echo "$total + $(cpu_s "$b")" | bc -l); done
@@ -95,6 +163,11 @@ for k in "${!SIM_PIDS[@]}"; do
   [[ $rc == 0 ]] || { SIM_OK=0; echo "fleet-sim $k: exit $rc"; tail -1 "$WORK/sim-$k.log"; }
 done
 children_cpu_s >"$WORK/sim-cpu-1"
+if [[ $CHURN_EVERY_S != 0 ]]; then
+  # The fleet ended: the churn worker leaves (if it is in the group) before the settle.
+  touch "$WORK/churn-stop"
+  wait "$CHURN_LOOP" || echo "churn worker: the loop failed (exit $?)"
+fi
 SIM_CPU=$(echo "$(cat "$WORK/sim-cpu-1") - $(cat "$WORK/sim-cpu-0")" | bc -l)
 # The fleet's report: the sims' reports merged (sums; stores concatenated).
 /usr/bin/python3 - "$WORK" "$N_SIMS" >"$WORK/sim.json" <<'EOF'
@@ -165,6 +238,13 @@ echo "connects                    last CONNACK $LAST_CONNACK s after the start, 
 echo "records created / in PG     $EXPECTED / $ROWS rows ($GOT accounted), gaps: $GAPS"
 echo "messages published          $MESSAGES (each once), re-sent after a reconnect $RESENT, sessions lost $DROPS"
 echo "workers' counters           $WORKER_COUNTS"
+if [[ $CHURN_EVERY_S != 0 ]]; then
+  CHURN_DRAINED=$({ grep -o '[0-9]* message(s) drained' "$WORK/churn.log" || true; } | awk '{ n += $1 } END { print n + 0 }')
+  printf '%-28s%s joins, %s SIGKILLs, %s leaves (%s completed, %s messages drained by them)\n' \
+    "churn (every $CHURN_EVERY_S s)" "$(grep -c '^join$' "$WORK/churn-events")" \
+    "$(grep -c '^sigkill$' "$WORK/churn-events")" "$(grep -c '^leave$' "$WORK/churn-events")" \
+    "$(grep -c 'left group bench for good' "$WORK/churn.log")" "$CHURN_DRAINED"
+fi
 printf 'records committed           %.0f /s over %.0f s (first record to last commit)\n' "$(echo "$EXPECTED / $WALL_S" | bc -l)" "$WALL_S"
 echo "delay record -> row         $RECORD_DELAY (rides, locks, packs, info; whole run)"
 echo "  after the ramp + 60 s     $STEADY_DELAY"

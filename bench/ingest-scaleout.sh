@@ -5,11 +5,13 @@
 # while fleetgw-fleet-sim plays VEHICLES vehicles for DURATION_S. Every KILL_EVERY_S one worker
 # (in turn) is SIGKILLed and started again in its namespace. Then the exactly-once check: the
 # fleet-sim's own count of records per store (all acknowledged) against the rows in PostgreSQL,
-# and the gap report, which must be empty. Exit 0 only then.
+# and the gap report, which must be empty. Exit 0 only then. LEAVE=1: every other turn the worker
+# instead leaves the group for good (SIGUSR1: it unsubscribes, commits what the broker queued for
+# it, ends its sessions, exits 0) and a new member with its client id joins in its place.
 # Root (namespaces, PostgreSQL as `postgres`). Every step has a timeout (see ingest-lib.sh).
 # Environment: FLEETGW (default build/bin/fleetgw, fleetgw-ingest and fleetgw-fleet-sim
 #   beside it), VEHICLES (2000), DURATION_S (90), RIDING_SHARE (0.3), WORKERS (3),
-#   KILL_EVERY_S (15), INGEST_ARGS, KEEP=1.
+#   KILL_EVERY_S (15), LEAVE (0), INGEST_ARGS, KEEP=1.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 FLEETGW=$(realpath -m "${FLEETGW:-build/bin/fleetgw}")
@@ -80,13 +82,24 @@ timeout -k 10 $((DURATION_S + 180)) "$SIM" --vehicles "$VEHICLES" --broker "$BRO
   2>"$WORK/sim.log" &
 SIM_PID=$!
 KILLS=0
+LEAVES=0
+LEAVE_FAILS=0
+turn=0
 next=1
 while kill -0 "$SIM_PID" 2>/dev/null; do
   for _ in $(seq $((KILL_EVERY_S * 10))); do kill -0 "$SIM_PID" 2>/dev/null && sleep 0.1; done
   kill -0 "$SIM_PID" 2>/dev/null || break
-  kill -KILL "${WORKERS[$((next - 1))]}" 2>/dev/null || true
-  wait "${WORKERS[$((next - 1))]}" 2>/dev/null || true
-  KILLS=$((KILLS + 1))
+  if [[ ${LEAVE:-0} == 1 && $((turn++ % 2)) == 1 ]]; then
+    kill -USR1 "${WORKERS[$((next - 1))]}" 2>/dev/null || true
+    rc=0
+    wait "${WORKERS[$((next - 1))]}" || rc=$?
+    [[ $rc == 0 ]] || { LEAVE_FAILS=$((LEAVE_FAILS + 1)); echo "worker $next: the leave exited $rc"; }
+    LEAVES=$((LEAVES + 1))
+  else
+    kill -KILL "${WORKERS[$((next - 1))]}" 2>/dev/null || true
+    wait "${WORKERS[$((next - 1))]}" 2>/dev/null || true
+    KILLS=$((KILLS + 1))
+  fi
   start_worker "$next"
   STARTS[$next]=$((STARTS[$next] + 1))
   wait_subscribed "$next" "${STARTS[$next]}"
@@ -113,6 +126,7 @@ r = json.load(open(sys.argv[1]))
 print(r["connected"], r["unacknowledged"] + r["failed_processes"], r["resent"], r["disconnects"])' "$WORK/sim.json")
 echo "vehicles connected          $CONNECTED of $VEHICLES, unacknowledged publishes $UNACKED, re-sent $RESENT, sessions lost $DROPS"
 echo "workers SIGKILLed/restarted $KILLS (each in its own network namespace)"
+[[ ${LEAVE:-0} == 1 ]] && echo "workers left/new member     $LEAVES (SIGUSR1; $LEAVE_FAILS leaves failed)"
 echo "records created / in PG     $EXPECTED / $ROWS rows ($GOT accounted), gaps: $GAPS"
-[[ $SIM_OK == 1 && $GAPS == 0 && $ROWS == "$EXPECTED" && $UNACKED == 0 ]] || { echo "ingest-scaleout: NOT exactly once"; exit 1; }
+[[ $SIM_OK == 1 && $GAPS == 0 && $ROWS == "$EXPECTED" && $UNACKED == 0 && $LEAVE_FAILS == 0 ]] || { echo "ingest-scaleout: NOT exactly once"; exit 1; }
 echo "ingest-scaleout: exactly once"

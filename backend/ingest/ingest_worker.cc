@@ -386,9 +386,9 @@ class Worker {
  private:
   std::chrono::milliseconds delay() const { return std::chrono::milliseconds(o_.batch_delay_ms); }
 
-  // Leaving the group for good (--leave, SIGUSR1; docs/backend.md "Scale-out"): the sessions
-  // unsubscribe and drain what the broker queued for them through the usual batches; once
-  // every one is drained the worker stops and its sessions end with session expiry 0.
+  // Leaving the group for good (--leave, SIGUSR1; docs/backend.md "Leaving for good"): the
+  // sessions unsubscribe and drain what the broker queued for them through the usual batches;
+  // once every one is drained the worker stops and its sessions end with session expiry 0.
   void start_leave() {
     leaving_ = true;
     messages_at_leave_ = counters_.messages;

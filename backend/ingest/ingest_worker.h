@@ -21,7 +21,7 @@
 //    options; with `gaps` it prints the gap report (one line per hole) and returns 0 when it
 //    is empty, 1 otherwise.
 //  * Leaving the group for good (`leave`, or SIGUSR1 to a running worker; docs/backend.md
-//    "Scale-out"): the sessions unsubscribe, what the broker still queued for them is
+//    "Leaving for good"): the sessions unsubscribe, what the broker still queued for them is
 //    committed and acknowledged as usual, and once a round trip shows every session's queue
 //    empty they DISCONNECT with session expiry 0 (the broker forgets them) and it returns 0;
 //    stopped before that (SIGTERM, a crash) the sessions stay, unsubscribed: a new leave

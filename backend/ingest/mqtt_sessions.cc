@@ -101,7 +101,7 @@ bool parse_broker(const std::string& uri, BrokerAddress& out, std::string& error
 // in order and, handling a PUBACK, queues at once the messages it releases
 // (db__message_delete_outgoing), so they precede the UNSUBACK on the wire: an answer with no
 // message delivered since the probe means the broker holds nothing more for the session
-// (docs/backend.md "Scale-out").
+// (docs/backend.md "Leaving for good").
 void probe(MqttSessions::Session& s) {
   if (!s.leaving || !s.connected || s.drained || s.probe_mid >= 0 || s.held > 0 ||
       s.generation != 0) {

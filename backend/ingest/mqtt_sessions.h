@@ -29,10 +29,10 @@
 //    is queued; close(false): the sockets are closed without writing anything (nothing held is
 //    acknowledged). close(true, forget = true): the DISCONNECT sets session expiry 0, so the
 //    broker forgets the sessions (a leave's end, once drained() == size()).
-//  * leave(): the permanent leave (docs/backend.md "Scale-out"): every session unsubscribes
-//    from the shared filter instead of subscribing (on every later connection too) and goes on
-//    delivering what the broker still queued for it; drained() counts the sessions whose queue
-//    a round trip showed empty (see probe in mqtt_sessions.cc).
+//  * leave(): the permanent leave (docs/backend.md "Leaving for good"): every session
+//    unsubscribes from the shared filter instead of subscribing (on every later connection
+//    too) and goes on delivering what the broker still queued for it; drained() counts the
+//    sessions whose queue a round trip showed empty (see probe in mqtt_sessions.cc).
 //  * Not thread-safe: one thread drives it.
 #pragma once
 

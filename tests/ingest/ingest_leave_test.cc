@@ -1,6 +1,6 @@
-// A worker leaving its group for good (issue 25, docs/backend.md "Scale-out"), every component
-// real: a publisher → mosquitto (MQTT 5 shared subscription) → two `fleetgw ingest` workers of
-// one group → PostgreSQL (a private cluster).
+// A worker leaving its group for good (issue 25, docs/backend.md "Leaving for good"), every
+// component real: a publisher → mosquitto (MQTT 5 shared subscription) → two `fleetgw ingest`
+// workers of one group → PostgreSQL (a private cluster).
 //
 // Why it needs a procedure: mosquitto 2.0 goes on giving a shared subscription's messages
 // round-robin to a member whose persistent session is offline (they wait in its queue), and
