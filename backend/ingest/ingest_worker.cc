@@ -363,6 +363,14 @@ class Worker {
           "ingest: left group {} for good: {} message(s) drained from {}-s1..s{} and committed; "
           "the broker forgot the sessions",
           o_.group, counters_.messages - messages_at_leave_, client_id, k);
+      // A mistyped --client-id makes a leave of sessions that never were: say so (a leave run
+      // again after it finished finds none either).
+      if (const auto present = static_cast<long>(sessions_.resumed()); o_.leave && present < k) {
+        spdlog::warn(
+            "ingest: only {} of the {} sessions {}-s1..s{} were on the broker (a wrong "
+            "--client-id or --sessions, or a leave that had finished?)",
+            present, k, client_id, k);
+      }
     } else if (leaving_) {
       spdlog::warn(
           "ingest: the leave of {}-s1..s{} did not finish: the sessions stay on the broker "

@@ -13,7 +13,8 @@
 //    the wait for them fails.)
 //  * A leave SIGKILLed after a batch committed but before its acknowledgements, then the leave
 //    again: every message exactly once (the redelivered ones counted as duplicates).
-//  * SIGUSR1 to a running worker while messages flow: it drains, exits 0, loses nothing.
+//  * SIGUSR1 to a running worker while messages flow: it drains, exits 0, loses nothing. A
+//    leave of a client id with no session on the broker (mistyped) says so.
 #include <gtest/gtest.h>
 #include <mqtt/async_client.h>
 
@@ -170,6 +171,7 @@ TEST_F(IngestLeave, StoppedWorkerLeavesWhileMessagesFlowAndNothingIsStranded) {
   EXPECT_TRUE(leave->log_contains("left group backend for good")) << log;
   // What the broker queued for the stopped worker came through the leave.
   EXPECT_GT(number_before(log, " message(s) drained"), 0) << log;
+  EXPECT_FALSE(leave->log_contains("were on the broker")) << "both sessions were there\n" << log;
   EXPECT_EQ(stay->stop(20s), 0) << stay->log();
   EXPECT_FALSE(broker_has_session("go-s1"));
   EXPECT_FALSE(broker_has_session("go-s2"));
@@ -224,6 +226,13 @@ TEST_F(IngestLeave, RunningWorkerLeavesOnSigusr1WhileMessagesFlow) {
                                                                    << stay->log() << go->log();
   EXPECT_EQ(rows(), 600) << "each message exactly once";
   EXPECT_EQ(gaps_exit_code(), 0);
+  // A leave of a client id that has no session (mistyped) says so.
+  auto typo = worker("og", {"--leave"});
+  const auto typo_rc = typo->wait_exit(30s);
+  ASSERT_TRUE(typo_rc.has_value()) << typo->log();
+  EXPECT_EQ(*typo_rc, 0) << typo->log();
+  EXPECT_TRUE(typo->log_contains("only 0 of the 2 sessions og-s1..s2 were on the broker"))
+      << typo->log();
   EXPECT_EQ(stay->stop(20s), 0) << stay->log();
   EXPECT_FALSE(broker_has_session("go-s1"));
   EXPECT_FALSE(broker_has_session("go-s2"));
