@@ -1,5 +1,5 @@
 // PostgreSQL writes of the ingest (ingest_store.h): one INSERT ... SELECT FROM unnest(arrays)
-// per table, ranges merged in one statement, one transaction per batch.
+// per table, ranges appended by one COPY, one transaction per batch; ranges compacted later.
 #include "backend/ingest/ingest_store.h"
 
 #include <fmt/format.h>
@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <array>
 #include <charconv>
+#include <chrono>
 #include <map>
 #include <utility>
 
@@ -83,34 +84,6 @@ std::map<RangeKey, std::vector<SequenceRange>> merged_ranges(
   return all;
 }
 
-// Existing ranges touching or adjacent to a staged one are deleted and merged with the staged
-// ones (gaps and islands over first_seq); written without `+ 1` so 2^63-1 cannot overflow.
-constexpr std::string_view kMergeRanges = R"sql(
-WITH n AS (
-  SELECT * FROM unnest($1::text[], $2::text[], $3::bigint[], $4::bigint[])
-    AS n(vehicle_id, store_id, first_seq, last_seq)),
-gone AS (
-  DELETE FROM sequence_ranges r USING n
-  WHERE r.vehicle_id = n.vehicle_id AND r.store_id = n.store_id
-    AND r.first_seq - 1 <= n.last_seq AND r.last_seq >= n.first_seq - 1
-  RETURNING r.vehicle_id, r.store_id, r.first_seq, r.last_seq),
-alls AS (
-  SELECT DISTINCT vehicle_id, store_id, first_seq, last_seq FROM gone
-  UNION ALL SELECT vehicle_id, store_id, first_seq, last_seq FROM n),
-marked AS (
-  SELECT *, CASE WHEN first_seq - 1 <= max(last_seq) OVER (PARTITION BY vehicle_id, store_id
-              ORDER BY first_seq, last_seq ROWS BETWEEN UNBOUNDED PRECEDING AND 1 PRECEDING)
-            THEN 0 ELSE 1 END AS starts
-  FROM alls),
-grouped AS (
-  SELECT *, sum(starts) OVER (PARTITION BY vehicle_id, store_id ORDER BY first_seq, last_seq
-                              ROWS UNBOUNDED PRECEDING) AS island
-  FROM marked)
-INSERT INTO sequence_ranges (vehicle_id, store_id, first_seq, last_seq)
-SELECT vehicle_id, store_id, min(first_seq), max(last_seq) FROM grouped
-GROUP BY vehicle_id, store_id, island
-)sql";
-
 }  // namespace
 
 bool is_transient(const PgError& e) {
@@ -127,7 +100,6 @@ IngestStore::IngestStore(std::string conninfo, std::size_t /*unused_rows_per_sta
 int IngestStore::connect() {
   conn_.reset();
   insert_sql_.clear();
-  merge_prepared_ = false;
   conn_.emplace(conninfo_);
   return migrate(*conn_);
 }
@@ -275,27 +247,24 @@ WriteStats IngestStore::write_all(std::span<const Decoded* const> messages,
     }
   }
   if (!ranges.empty()) {
-    std::vector<PgParam> columns(4, std::string("{"));
-    std::string scratch;
+    // One row per (vehicle, store) and range of the batch, appended (migration 11: merged
+    // later by a compaction, read merged through the view sequence_ranges). No index on the
+    // table, so nothing here waits for another worker or conflicts with a redelivery.
+    std::string& data = copy_buffer_;
+    data.clear();
+    std::int64_t appended = 0;
     for (const auto& [key, v] : ranges) {
       for (const SequenceRange& r : v) {
-        // The ids as COPY text (the element writer's input), the numbers as they are.
-        scratch.clear();
-        append_copy_text(scratch, key.first);
-        append_array_element(*columns[0], scratch);
-        scratch.clear();
-        append_copy_text(scratch, key.second);
-        append_array_element(*columns[1], scratch);
-        *columns[2] += fmt::format("{}{}", columns[2]->size() > 1 ? "," : "", r.first);
-        *columns[3] += fmt::format("{}{}", columns[3]->size() > 1 ? "," : "", r.last);
+        append_copy_text(data, key.first);
+        data += '\t';
+        append_copy_text(data, key.second);
+        data += fmt::format("\t{}\t{}\n", r.first, r.last);
+        ++appended;
       }
     }
-    for (PgParam& column : columns) *column += '}';
-    if (!merge_prepared_) {
-      c.prepare("merge_ranges", kMergeRanges, 4, "sequence_ranges");
-      merge_prepared_ = true;
-    }
-    c.exec_prepared("merge_ranges", columns, "sequence_ranges");
+    c.copy_in("COPY sequence_ranges_new (vehicle_id, store_id, first_seq, last_seq) FROM STDIN",
+              data, "sequence_ranges_new");
+    ranges_appended_ += appended;
   }
   for (const RejectRow& r : rejects) insert_reject(c, r);
   if (hook_) hook_(BatchPoint::kAfterCopy);
@@ -336,6 +305,7 @@ BatchResult IngestStore::write_batch(std::span<const Decoded* const> messages,
   result.refused.resize(messages.size());
   try {
     result.stats = write_all(messages, rejects);
+    maybe_compact();
     return result;
   } catch (const PgError& e) {
     if (is_transient(e) || messages.empty()) throw;
@@ -350,7 +320,31 @@ BatchResult IngestStore::write_batch(std::span<const Decoded* const> messages,
     }
   }
   if (!rejects.empty()) write_all({}, rejects);
+  maybe_compact();
   return result;
+}
+
+std::int64_t IngestStore::compact_ranges() {
+  const std::int64_t moved =
+      conn().exec("SELECT fleet_compact_sequence_ranges()", "range compaction").int64(0, 0);
+  ranges_appended_ = 0;
+  last_compaction_ = std::chrono::steady_clock::now();
+  return moved;
+}
+
+void IngestStore::maybe_compact() {
+  if (ranges_appended_ == 0) return;
+  if (ranges_appended_ < compact_after_ranges_ &&
+      std::chrono::steady_clock::now() - last_compaction_ < compact_every_) {
+    return;
+  }
+  try {
+    compact_ranges();
+  } catch (const PgError&) {
+    // The batch is committed: a failed compaction only leaves its ranges appended (the view
+    // reads them merged); a later batch tries again. Not the caller's to retry.
+    last_compaction_ = std::chrono::steady_clock::now();
+  }
 }
 
 WriteStats IngestStore::write(const Decoded& d) {

@@ -10,11 +10,14 @@
 //    one `INSERT ... SELECT ... FROM unnest($1::text[], ...) ON CONFLICT`
 //    with every column of the batch's rows as one array parameter (records: DO NOTHING on
 //    their key; latest values: an upsert, the batch's newest row per vehicle only); then the
-//    batch's sequence ranges, merged per (vehicle, store) in memory and merged into
-//    sequence_ranges by one statement. Per-(vehicle, store) advisory locks, taken first and in
-//    one fixed order, only when the batch has ranges to merge (two workers writing one vehicle
-//    serialise instead of deadlocking). It returns only after the commit succeeded (WAL
-//    flushed, except for batches of latest-value rows only: synchronous_commit off).
+//    batch's sequence ranges, merged per (vehicle, store) in memory and appended to
+//    sequence_ranges_new by one COPY (migration 11: compact_ranges() merges them into the
+//    stored ranges later; the view sequence_ranges reads both merged). Per-(vehicle, store)
+//    advisory locks, taken first and in one fixed order, only when the batch has ranges (two
+//    workers writing one vehicle serialise instead of deadlocking on its records' keys). It
+//    returns only after the commit succeeded (WAL flushed, except for batches of latest-value
+//    rows only: synchronous_commit off). After a commit, every 50,000 ranges or 30 s, it
+//    compacts the appended ranges (compact_ranges(); a failure there is not the batch's).
 //  * A batch the server refuses for a reason that is not transient (a poison row) is written
 //    again one message per transaction: the messages the server refuses are returned as
 //    rejected (reason `database_refused` with the server's message, not written), the others
@@ -29,6 +32,7 @@
 //  * Not thread-safe: one IngestStore per thread.
 #pragma once
 
+#include <chrono>
 #include <cstddef>
 #include <cstdint>
 #include <functional>
@@ -94,6 +98,16 @@ class IngestStore {
   // Creates the telemetry partitions of [now - 1 day, now + days_ahead] and drops those that
   // ended more than retention_days ago (0: keep all). Returns the partitions dropped.
   int maintain_partitions(int days_ahead, int retention_days);
+  // Merges the appended sequence ranges into the stored ones now (migration 11); returns the
+  // appended rows moved (0 when another worker's compaction runs). write_batch calls it after
+  // a commit every so many ranges or seconds; throws PgError.
+  std::int64_t compact_ranges();
+  // When write_batch compacts: after `after_ranges` appended by this store or `every` since its
+  // last compaction, whichever comes first (tests: 1).
+  void set_compaction(std::int64_t after_ranges, std::chrono::seconds every) {
+    compact_after_ranges_ = after_ranges;
+    compact_every_ = every;
+  }
 
   // Connects (and migrates) now; throws PgError. Returns the migrations applied.
   int connect();
@@ -105,6 +119,8 @@ class IngestStore {
   WriteStats write_all(std::span<const Decoded* const> messages,
                        std::span<const RejectRow> rejects);
   void insert_reject(PgConnection& c, const RejectRow& r);
+  // compact_ranges() when enough ranges or time went by since the last one; never throws.
+  void maybe_compact();
   // The fast path of a record table: the batch's rows (the messages' COPY text as it is) by
   // one COPY, under a savepoint; committed_at_us is the column's default, the batch's stamp
   // (migration 9). False (rolled back) when a row is already there.
@@ -115,9 +131,15 @@ class IngestStore {
 
   std::string conninfo_;
   std::optional<PgConnection> conn_;
-  // Prepared statements of this connection: per table, and the range merge.
+  // Prepared statements of this connection, per table.
   std::map<const TableSpec*, std::string> insert_sql_;
-  bool merge_prepared_ = false;
+  // A compaction (migration 11) every 50,000 ranges or 30 s: rarely enough that each (vehicle,
+  // store) gathers several batches' ranges per compaction (a drain's 2,000 vehicles: ~1,500
+  // ranges per 20,000-row batch), often enough that the view sequence_ranges merges few rows.
+  std::int64_t compact_after_ranges_ = 50000;
+  std::chrono::seconds compact_every_{30};
+  std::int64_t ranges_appended_ = 0;  // by this store since its last compaction
+  std::chrono::steady_clock::time_point last_compaction_ = std::chrono::steady_clock::now();
   std::string copy_buffer_;  // a table's COPY data, reused
   std::function<void(BatchPoint)> hook_;
 };

@@ -271,6 +271,7 @@ const Migration kMigrations[] = {
     {8, "telemetry heading and accuracy", migration_v8_sql()},  // issue 27 (migrations_v8_*.cc)
     {9, "committed_at_us from the batch's stamp", migration_v9_sql()},  // issue 25 (v9_*.cc)
     {10, "room on vehicle_state pages for in-place updates", migration_v10_sql()},  // issue 25
+    {11, "sequence ranges appended per batch, compacted later", migration_v11_sql()},  // issue 25
 };
 
 // Any constant: the lock only serialises ingest workers migrating the same database.

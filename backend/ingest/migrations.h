@@ -41,4 +41,8 @@ std::string_view migration_v9_sql();
 // state upserts replace each row on its own page.
 std::string_view migration_v10_sql();
 
+// Migration 11's SQL (migrations_v11_range_appends.cc): ranges appended per batch, compacted
+// later; sequence_ranges a view merging both.
+std::string_view migration_v11_sql();
+
 }  // namespace fleetgw::ingest
