@@ -29,13 +29,16 @@
 # Environment: FLEETGW (default build/bin/fleetgw; fleetgw-ingest and fleetgw-fleet-sim
 #   beside it), VEHICLES (1000), DURATION_S (120; 600 is the issue's 10 minutes), RIDING_SHARE
 #   (0.3), WORKERS (2), CONNECT_RATE (1000 sessions/s), PER_BROKER (18000), INGEST_ARGS, KEEP=1
-#   keeps the work directory, CHURN_EVERY_S (0: off; LEAVE_TIMEOUT_S, 300, bounds each leave).
+#   keeps the work directory, CHURN_EVERY_S (0: off; CHURN_AWAY_S, 5, between a leaving worker's
+#   stop and its --leave; LEAVE_TIMEOUT_S, 300, bounds each leave).
 # Churn (CHURN_EVERY_S > 0; docs/backend.md "Scale-out"): one more worker of the group, client id
 # bench-worker-churn, joins at the start; every CHURN_EVERY_S it in turn is SIGKILLed and
 # restarted at once with its client id (its sessions resumed), leaves for good (SIGTERM, then
-# `fleetgw ingest --leave`: what the broker queued for it is committed, its sessions end), and
-# joins again as a new member. At the fleet's end it leaves (nothing stays queued for it) before
-# the settle. Its CPU is not in the workers' figure; joins, SIGKILLs and leaves are counted.
+# CHURN_AWAY_S later `fleetgw ingest --leave`: what the broker queued for it meanwhile is
+# committed, its sessions end), and joins again as a new member. At the fleet's end it leaves
+# (nothing stays queued for it) before the settle. Its CPU is not in the workers' figure;
+# joins, SIGKILLs and leaves are counted; the messages queued while it is away wait up to
+# CHURN_AWAY_S (the delay lines' p99 shows it).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 FLEETGW=$(realpath -m "${FLEETGW:-build/bin/fleetgw}")
@@ -81,9 +84,13 @@ churn_start() {  # joins (a restart with the same client id resumes its sessions
   done
   echo join >>"$WORK/churn-events"
 }
-churn_leave() {  # SIGTERM (a clean stop: the sessions stay), then the leave for good
+churn_leave() {  # SIGTERM (a clean stop: the sessions stay), away a while, the leave for good
   kill -TERM "$CHURN_PID" || true
   wait "$CHURN_PID" || true
+  # Away CHURN_AWAY_S (unless the fleet ended): the broker queues the worker's share meanwhile,
+  # the backlog the leave must drain.
+  local back=$((SECONDS + ${CHURN_AWAY_S:-5}))
+  while [[ $SECONDS -lt $back && ! -e $WORK/churn-stop ]]; do sleep 0.2; done
   # shellcheck disable=SC2086
   timeout -k 10 "${LEAVE_TIMEOUT_S:-300}" "$INGEST_BIN" --leave --broker "$BROKER_URI" --group bench \
     --client-id bench-worker-churn --pg "$CONNINFO" ${INGEST_ARGS:-} >>"$WORK/churn.log" 2>&1 ||
