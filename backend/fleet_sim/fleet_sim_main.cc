@@ -139,6 +139,7 @@ nlohmann::json merge(std::vector<ShardProcess>& shards, int& failed) {
                           {"parked_packet_bytes", 0},
                           {"resent", 0},
                           {"refused", 0},
+                          {"unrouted", 0},
                           {"disconnects", 0},
                           {"connect_failures", 0},
                           {"stale_acks", 0},
@@ -283,11 +284,12 @@ int run(const FleetSimOptions& o) {
   }
   std::fprintf(stderr,
                "fleet-sim: %lld of %d connected, %lld messages, %lld records, %lld resent, "
-               "%lld disconnects, %lld unacknowledged, %d failed processes\n",
+               "%lld unrouted, %lld disconnects, %lld unacknowledged, %d failed processes\n",
                static_cast<long long>(report["connected"].get<std::int64_t>()), o.vehicles,
                static_cast<long long>(report["messages"].get<std::int64_t>()),
                static_cast<long long>(report["records"].get<std::int64_t>()),
                static_cast<long long>(report["resent"].get<std::int64_t>()),
+               static_cast<long long>(report["unrouted"].get<std::int64_t>()),
                static_cast<long long>(report["disconnects"].get<std::int64_t>()),
                static_cast<long long>(report["unacknowledged"].get<std::int64_t>()), failed);
   const bool all = report["connected"].get<std::int64_t>() == o.vehicles &&

@@ -78,6 +78,7 @@ class Shard {
     SimMessage message;
     int mid = 0;
     bool sent = false;  // handed to a session at least once
+    bool held = false;  // waits for the client's unrouted_retry_at (a 0x10 answer)
   };
   enum class Link { kOff, kConnecting, kUp, kDown };
   struct Client {
@@ -94,6 +95,10 @@ class Shard {
     bool ever_up = false;
     std::int64_t retry_at = 0;
     std::int64_t backoff = kSecond;
+    // Records the broker routed to nobody (PUBACK 0x10): held until this time (0: none held),
+    // the wait doubling while the answers go on, as the gateway's refusal lanes do.
+    std::int64_t unrouted_retry_at = 0;
+    std::int64_t unrouted_backoff = kSecond;
     std::deque<Pending> outbox;
   };
 
@@ -105,6 +110,7 @@ class Shard {
   void sync_io(Client& c);
   void lost(Client& c, std::int64_t now);
   void send(Client& c, Pending& p);
+  void retry_unrouted(Client& c, std::int64_t now);
   void enqueue(Client& c, std::vector<SimMessage> out);
   bool signalled();
   std::size_t unacknowledged() const;
@@ -116,7 +122,7 @@ class Shard {
   bool draining_ = false;
   std::minstd_rand rng_;
   // Counters of the report.
-  std::int64_t messages_ = 0, records_ = 0, bytes_ = 0, resent_ = 0, refused_ = 0;
+  std::int64_t messages_ = 0, records_ = 0, bytes_ = 0, resent_ = 0, refused_ = 0, unrouted_ = 0;
   std::int64_t disconnects_ = 0, connect_failures_ = 0, connected_ = 0, stale_acks_ = 0;
   std::int64_t riding_packet_bytes_ = 0, parked_packet_bytes_ = 0;
   std::int64_t last_first_connack_us_ = 0;
@@ -176,10 +182,13 @@ void Shard::on_connect(mosquitto*, void* self, int rc, int, const mosquitto_prop
     ++s.connected_;
     s.last_first_connack_us_ = now_us();
   }
-  // The outbox's semantics: everything not acknowledged goes out again on the new session.
+  // The outbox's semantics: everything not acknowledged goes out again on the new session
+  // (records held for a 0x10 too: the broker that routed them to nobody may have restarted).
+  c.unrouted_retry_at = 0;
   for (Pending& p : c.outbox) {
     if (p.sent) ++s.resent_;
     p.mid = 0;
+    p.held = false;
     s.send(c, p);
   }
 }
@@ -204,7 +213,37 @@ void Shard::on_publish(mosquitto*, void* self, int mid, int rc, const mosquitto_
     it->mid = 0;
     return;
   }
+  // 0x10 "No matching subscribers": taken and routed to nobody (mosquitto 2.0.11 answers it
+  // after a restart until the restored subscribers reconnect). A message with records is not
+  // delivered: it is held and sent again after the client's back-off, as a gateway's outbox
+  // should (the gateway's MQTT library hides the code: docs/uplink.md "Delivery guarantees");
+  // a retained status or state without records is done (a later subscriber gets it anyway).
+  if (rc == MQTT_RC_NO_MATCHING_SUBSCRIBERS && it->message.records > 0) {
+    ++c.shard->unrouted_;
+    it->mid = 0;
+    it->held = true;
+    if (c.unrouted_retry_at == 0) {
+      std::uniform_int_distribution<std::int64_t> jitter(0, c.unrouted_backoff / 2);
+      c.unrouted_retry_at = now_us() + c.unrouted_backoff + jitter(c.shard->rng_);
+      c.unrouted_backoff = std::min<std::int64_t>(c.unrouted_backoff * 2, 30 * kSecond);
+    }
+    return;
+  }
+  if (it->message.records > 0) c.unrouted_backoff = kSecond;  // routed: the cause is gone
   c.outbox.erase(it);
+}
+
+// The held records' back-off passed: they go out again (and the client's newer records, which
+// waited behind them, with them).
+void Shard::retry_unrouted(Client& c, std::int64_t now) {
+  if (c.unrouted_retry_at == 0 || now < c.unrouted_retry_at || c.link != Link::kUp) return;
+  c.unrouted_retry_at = 0;
+  for (Pending& p : c.outbox) {
+    if (!p.held) continue;
+    p.held = false;
+    send(c, p);
+  }
+  sync_io(c);
 }
 
 void Shard::lost(Client& c, std::int64_t now) {
@@ -240,8 +279,10 @@ void Shard::enqueue(Client& c, std::vector<SimMessage> out) {
         static_cast<std::int64_t>(1 + varint + remaining);
     records_ += static_cast<std::int64_t>(m.records);
     ++messages_;
-    c.outbox.push_back({std::move(m), 0, false});
-    send(c, c.outbox.back());
+    // Records wait behind held ones (the gateway draws no newer record of a held kind).
+    const bool hold = c.unrouted_retry_at != 0 && m.records > 0;
+    c.outbox.push_back({std::move(m), 0, false, hold});
+    if (!hold) send(c, c.outbox.back());
   }
   sync_io(c);
 }
@@ -376,6 +417,7 @@ nlohmann::json Shard::run() {
         if (now >= c.retry_at) start_session(c, now);
       } else {
         mosquitto_loop_misc(c.mosq.get());
+        retry_unrouted(c, now);
         sync_io(c);
       }
     }
@@ -383,10 +425,11 @@ nlohmann::json Shard::run() {
       last_log = now;
       std::fprintf(stderr,
                    "fleet-sim[%d]: %zu started, %lld connected once, %lld messages, %zu unacked, "
-                   "%lld disconnects, %lld resent\n",
+                   "%lld disconnects, %lld resent, %lld unrouted\n",
                    plan_.shard, ramp, static_cast<long long>(connected_),
                    static_cast<long long>(messages_), unacknowledged(),
-                   static_cast<long long>(disconnects_), static_cast<long long>(resent_));
+                   static_cast<long long>(disconnects_), static_cast<long long>(resent_),
+                   static_cast<long long>(unrouted_));
     }
     // Wait for I/O, at most until the next due traffic (and 50 ms, for the misc slices).
     std::int64_t wait_us = 50'000;
@@ -440,6 +483,7 @@ nlohmann::json Shard::run() {
           {"parked_packet_bytes", parked_packet_bytes_},
           {"resent", resent_},
           {"refused", refused_},
+          {"unrouted", unrouted_},
           {"disconnects", disconnects_},
           {"connect_failures", connect_failures_},
           {"stale_acks", stale_acks_},

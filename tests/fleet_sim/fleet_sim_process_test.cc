@@ -2,7 +2,8 @@
 // hundred vehicles on two event-loop processes and two loopback source addresses all connect,
 // every record each vehicle counts in its report reaches a subscriber (sequence 1..last_sequence
 // of every store, none missing), every publish is acknowledged; after the broker restarts the
-// vehicles re-send what was not acknowledged until all is acknowledged; and SIGTERM ends it within
+// vehicles re-send what was not acknowledged, and what the broker routed to nobody (PUBACK 0x10),
+// until every record reached the subscriber; and SIGTERM ends it within
 // its stated bound while the broker acknowledges nothing.
 #include <gtest/gtest.h>
 #include <mqtt/async_client.h>
@@ -48,8 +49,12 @@ class RecordCollector {
                     .mqtt_version(MQTTVERSION_5)
                     .clean_start(false)
                     .automatic_reconnect(100ms, 1s)
-                    .properties({{mqtt::property::SESSION_EXPIRY_INTERVAL, 3600}})
                     .finalize();
+    // Set on the finished options, as mqtt_connection.cc does: given to the Paho C++ 1.2
+    // builder (.properties(...).finalize()) the session expiry did not take effect (measured:
+    // after the broker restart its CONNACK said "session present 0", the queue was gone); set
+    // here it says 1 and the queue survives.
+    opts.set_properties(mqtt::properties{{mqtt::property::SESSION_EXPIRY_INTERVAL, 3600}});
     client_.connect(opts)->wait();
     client_.subscribe("fleet/v1/+/+", 1)->wait();
   }
@@ -136,6 +141,19 @@ std::vector<std::string> sim_args(const MosquittoBroker& broker, int vehicles, d
           report.string()};
 }
 
+// The collector holds as many distinct sequences as the stores made (then expect_every_record
+// says which are missing, if any).
+bool all_arrived(const nlohmann::json& report, RecordCollector& collector) {
+  std::uint64_t created = 0, got = 0;
+  const auto seen = collector.sequences();
+  for (const auto& s : report["stores"]) {
+    created += s["last_sequence"].get<std::uint64_t>();
+    const auto it = seen.find(s["store_id"].get<std::string>());
+    if (it != seen.end()) got += it->second.size();
+  }
+  return got >= created;
+}
+
 // Every store's sequences 1..last_sequence, as the collector saw them.
 void expect_every_record(const nlohmann::json& report, RecordCollector& collector) {
   const auto seen = collector.sequences();
@@ -168,18 +186,7 @@ TEST(FleetSimProcess, EveryVehicleConnectsAndEveryRecordArrives) {
   EXPECT_EQ(r["disconnects"], 0);
   EXPECT_EQ(r["failed_processes"], 0);
   ASSERT_EQ(r["stores"].size(), 300u);
-  ASSERT_TRUE(wait_until(
-      [&] {
-        std::uint64_t created = 0, got = 0;
-        const auto seen = collector.sequences();
-        for (const auto& s : r["stores"]) {
-          created += s["last_sequence"].get<std::uint64_t>();
-          const auto it = seen.find(s["store_id"].get<std::string>());
-          if (it != seen.end()) got += it->second.size();
-        }
-        return got >= created;
-      },
-      20s));
+  ASSERT_TRUE(wait_until([&] { return all_arrived(r, collector); }, 20s));
   expect_every_record(r, collector);
 }
 
@@ -218,9 +225,16 @@ TEST(FleetSimProcess, ResendsWhatWasNotAcknowledgedAfterTheBrokerRestarts) {
   EXPECT_EQ(r["unacknowledged"], 0) << sim.log();
   EXPECT_GE(r["disconnects"].get<int>(), 200) << sim.log();  // every session was lost once
   EXPECT_GT(r["resent"].get<int>(), 0) << sim.log();
-  // Not compared with the collector here: after this restart it misses about 1.5 % of the
-  // records (23 of 1,544) although the fleet-sim had every one acknowledged; not yet explained
-  // (the broker's or the collector's side): an open item of issue 25.
+  // Every record reaches the collector, whose session (and queue) the broker kept over the
+  // restart. It used to miss ~1.5 % here (22 of 1,544): its CONNECT carried no session expiry
+  // (see RecordCollector), so after the restart CONNACK said "session present 0" and what the
+  // broker had queued for it was gone. A vehicle back before the collector would get PUBACK
+  // 0x10 (mosquitto 2.0.11 routes nothing to a restored session until it reconnects); the
+  // fleet-sim sends such a record again after a back-off (`unrouted` in the report).
+  ASSERT_TRUE(wait_until([&] { return all_arrived(r, collector); }, 20s))
+      << "unrouted: " << r["unrouted"] << "\n"
+      << sim.log();
+  expect_every_record(r, collector);
 }
 
 TEST(FleetSimProcess, SigtermIsHonouredWhileTheBrokerAcknowledgesNothing) {
