@@ -214,7 +214,8 @@ void Shard::on_publish(mosquitto*, void* self, int mid, int rc, const mosquitto_
     return;
   }
   // 0x10 "No matching subscribers": taken and routed to nobody (mosquitto 2.0.11 answers it
-  // after a restart until the restored subscribers reconnect). A message with records is not
+  // after a restart until a restored member of a shared subscription, e.g. the ingest's
+  // $share/backend/..., has reconnected). A message with records is not
   // delivered: it is held and sent again after the client's back-off, as a gateway's outbox
   // should (the gateway's MQTT library hides the code: docs/uplink.md "Delivery guarantees");
   // a retained status or state without records is done (a later subscriber gets it anyway).

@@ -228,9 +228,10 @@ TEST(FleetSimProcess, ResendsWhatWasNotAcknowledgedAfterTheBrokerRestarts) {
   // Every record reaches the collector, whose session (and queue) the broker kept over the
   // restart. It used to miss ~1.5 % here (22 of 1,544): its CONNECT carried no session expiry
   // (see RecordCollector), so after the restart CONNACK said "session present 0" and what the
-  // broker had queued for it was gone. A vehicle back before the collector would get PUBACK
-  // 0x10 (mosquitto 2.0.11 routes nothing to a restored session until it reconnects); the
-  // fleet-sim sends such a record again after a back-off (`unrouted` in the report).
+  // broker had queued for it was gone. Not the broker's 0x10 after a restart: mosquitto 2.0.11
+  // serves a restored ordinary subscription like this one at once, only a restored shared one
+  // gets nothing until a member reconnects (ingest_broker_test.cc; the fleet-sim then sends the
+  // record again, `unrouted` in the report).
   ASSERT_TRUE(wait_until([&] { return all_arrived(r, collector); }, 20s))
       << "unrouted: " << r["unrouted"] << "\n"
       << sim.log();
