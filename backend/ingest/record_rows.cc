@@ -4,6 +4,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "backend/ingest/json_text.h"
+
 namespace fleetgw::ingest::rows {
 namespace {
 constexpr std::string_view kIgnore = "ON CONFLICT DO NOTHING";
@@ -249,21 +251,31 @@ void result_rows(const v1::Envelope& e, Decoded& d, RowBuilder& b) {
 
 void info_rows(const v1::Envelope& e, Decoded& d, RowBuilder& b) {
   Header{e}.add(b);
-  nlohmann::json nodes = nlohmann::json::array();
+  std::string nodes;
+  JsonWriter j(nodes);
+  j.begin_array();
   for (const v1::NodeInfo& n : e.info().nodes()) {
     for (std::string_view s : {n.node(), n.model(), n.serial(), n.hw_version(), n.fw_version()}) {
       if (s.size() > kMaxText || s.find('\0') != std::string_view::npos) {
         b.fail("bad_text", "info.nodes: a field too long or with a NUL byte");
       }
     }
-    nodes.push_back({{"node", n.node()},
-                     {"model", n.model()},
-                     {"serial", n.serial()},
-                     {"hw_version", n.hw_version()},
-                     {"fw_version", n.fw_version()}});
+    // Keys in nlohmann::json's (sorted) order: the text the ingest always wrote.
+    j.begin_object();
+    j.key("fw_version");
+    j.string(n.fw_version());
+    j.key("hw_version");
+    j.string(n.hw_version());
+    j.key("model");
+    j.string(n.model());
+    j.key("node");
+    j.string(n.node());
+    j.key("serial");
+    j.string(n.serial());
+    j.end_object();
   }
-  // Strings parsed by protobuf are valid UTF-8 (proto3), so dump() cannot throw here.
-  b.raw(nodes.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace));
+  j.end_array();
+  b.raw(nodes);
   d.records = 1;
 }
 
@@ -395,28 +407,54 @@ void state_rows(const v1::Envelope& e, RowBuilder& b) {
            fmt::format("state: {} locks, {} faults, {} alarms (at most {} each)", s.locks_size(),
                        s.faults_size(), s.active_alarms_size(), kMaxStateEntries));
   }
-  nlohmann::json locks = nlohmann::json::array();
+  // Written as JSON text directly (json_text.h), keys sorted as nlohmann::json wrote them;
+  // invalid UTF-8 (a non-proto3 sender) becomes U+FFFD: jsonb accepts only valid text.
+  std::string json;
+  json.reserve(64 + 96 * static_cast<std::size_t>(s.locks_size() + s.faults_size()));
+  JsonWriter j(json);
+  j.begin_array();
   for (const v1::VehicleLock& l : s.locks()) {
     check_entry_text(b, "state.locks.node", l.node());
     check_entry_text(b, "state.locks.kind", l.kind());
     check_entry_text(b, "state.locks.state_name", l.state_name());
-    locks.push_back({{"node", l.node()},
-                     {"kind", l.kind()},
-                     {"state", enum_name(&v1::LockState_Name<v1::LockState>, l.state())},
-                     {"state_name", l.state_name()}});
+    j.begin_object();
+    j.key("kind");
+    j.string(l.kind());
+    j.key("node");
+    j.string(l.node());
+    j.key("state");
+    const std::string& state = v1::LockState_Name(static_cast<v1::LockState>(l.state()));
+    if (state.empty()) {
+      j.string(std::to_string(l.state()));  // a state newer than this ingest, as a string
+    } else {
+      j.string(state);
+    }
+    j.key("state_name");
+    j.string(l.state_name());
+    j.end_object();
   }
-  nlohmann::json faults = nlohmann::json::array();
+  j.end_array();
+  b.raw(json);
+  json.clear();
+  JsonWriter jf(json);  // a new array: no comma before it
+  jf.begin_array();
   for (const v1::VehicleFault& f : s.faults()) {
     check_entry_text(b, "state.faults.node", f.node());
     check_entry_text(b, "state.faults.name", f.name());
     check_entry_text(b, "state.faults.severity", f.severity());
-    nlohmann::json fault = {{"node", f.node()}, {"name", f.name()}, {"severity", f.severity()}};
-    fault["code"] = f.has_code() ? nlohmann::json(f.code()) : nlohmann::json(nullptr);
-    faults.push_back(std::move(fault));
+    jf.begin_object();
+    jf.key("code");
+    f.has_code() ? jf.number(f.code()) : jf.null();
+    jf.key("name");
+    jf.string(f.name());
+    jf.key("node");
+    jf.string(f.node());
+    jf.key("severity");
+    jf.string(f.severity());
+    jf.end_object();
   }
-  // Invalid UTF-8 (a non-proto3 sender) becomes U+FFFD: jsonb accepts only valid text.
-  b.raw(locks.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace));
-  b.raw(faults.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace));
+  jf.end_array();
+  b.raw(json);
   std::vector<std::string> alarms;
   for (int a : s.active_alarms())
     alarms.push_back(enum_name(&v1::AlarmKind_Name<v1::AlarmKind>, a));

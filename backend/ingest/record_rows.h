@@ -84,7 +84,7 @@ class RowBuilder {
   }
   void null() {
     begin();
-    out_ += "\\N";
+    out_.append("\\N", 2);
     end();
   }
   // A value as it is (escaped for COPY): enum names, JSON, array literals, bytea hex.
@@ -138,7 +138,8 @@ class RowBuilder {
     begin();
     char digits[24];
     const auto r = std::to_chars(digits, digits + sizeof digits, v);
-    out_.append(digits, r.ptr);
+    // (pointer, length): append(first, last) goes through the slower replace().
+    out_.append(digits, static_cast<std::size_t>(r.ptr - digits));
     end();
   }
 

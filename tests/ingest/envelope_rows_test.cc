@@ -188,6 +188,27 @@ TEST(IngestRows, StateLocksAndFaultsAreJsonArraysWithEscapedText) {
   EXPECT_EQ(value(d, "faults"), "[]");
 }
 
+// The nodes of a device info as a JSON array (the text nlohmann::json wrote before the ingest
+// wrote it directly: keys sorted; quotes, backslashes and controls escaped).
+TEST(IngestRows, DeviceInfoNodesAreAJsonArrayWithEscapedText) {
+  v1::Envelope e = envelope(3);
+  v1::NodeInfo* n = e.mutable_info()->add_nodes();
+  n->set_node("mc");
+  n->set_model("M\\600 \"x\"");
+  n->set_serial("S\t1");
+  n->set_hw_version("h1");
+  n->set_fw_version("2.0");
+  e.mutable_info()->add_nodes()->set_node("iot");
+  Decoded d = decoded("fleet/v1/bike-1/info", e);
+  EXPECT_EQ(value(d, "nodes"),
+            R"([{"fw_version":"2.0","hw_version":"h1","model":"M\\600 \"x\"","node":"mc",)"
+            R"("serial":"S\t1"},{"fw_version":"","hw_version":"","model":"","node":"iot",)"
+            R"("serial":""}])");
+  e.mutable_info()->clear_nodes();
+  d = decoded("fleet/v1/bike-1/info", e);
+  EXPECT_EQ(value(d, "nodes"), "[]");
+}
+
 TEST(IngestRows, StatusKeepsThePublishRefusalFields) {
   v1::Envelope e = envelope(0);
   e.mutable_status()->set_publish_refusals(3);
