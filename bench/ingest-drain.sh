@@ -98,7 +98,7 @@ PSS_END=$(workers_pss_kb)
 stop_workers
 S=$(echo "($T1 - $T0) / 1000000000" | bc -l)
 # Since migration 11 a batch appends its sequence ranges and the worker merges them later, in a
-# compaction every 50,000 ranges or 30 s (after this drain, mostly): that merge is the drain's
+# compaction every 20,000 ranges or 30 s (after this drain, mostly): that merge is the drain's
 # cost too. Measured here over the ranges the drain appended (the backend's CPU around the one
 # statement) and added to the worker's side of both CPU ratios below. 0 for a worker without it.
 COMPACT_S=0
