@@ -21,6 +21,15 @@ struct MosquittoDeleter {
   void operator()(mosquitto* m) const { mosquitto_destroy(m); }
 };
 
+// Reconnecting soon and often: after a restart mosquitto 2.0.11 routes nothing to the restored
+// shared subscription until one of its members is connected again, and answers the vehicles'
+// publishes meanwhile with 0x10 "No matching subscribers" (dropped; a gateway on Paho C 1.3
+// cannot tell, docs/backend.md "Exactly once"). Vehicles retry 0.5-1 s after the loss and then
+// back off; a worker retries after 100 ms and at least every 500 ms, so it is back within half
+// a second of the broker. A refused connect to a broker that is down costs next to nothing.
+constexpr std::chrono::milliseconds kReconnectFirst{100};
+constexpr std::chrono::milliseconds kReconnectMax{500};
+
 struct MqttSessions::Session {
   std::size_t index = 0;
   std::string id;
@@ -46,7 +55,7 @@ struct MqttSessions::Session {
   std::string refused;
   Clock::time_point retry_at{};
   Clock::time_point next_misc{};
-  std::chrono::milliseconds backoff{1000};
+  std::chrono::milliseconds backoff = kReconnectFirst;
 };
 
 namespace {
@@ -134,7 +143,7 @@ void session_connected(mosquitto* m, void* obj, int rc, int flags, const mosquit
     return;
   }
   s.connected = true;
-  s.backoff = 1000ms;
+  s.backoff = kReconnectFirst;
   if (!s.ever_connected) s.resumed = (flags & 1) != 0;  // CONNACK "session present"
   s.ever_connected = true;
   if (s.leaving) {
@@ -177,7 +186,7 @@ void session_lost(mosquitto*, void* obj, int rc, const mosquitto_property*) {
   s.held = 0;
   s.generation = 0;
   s.retry_at = Clock::now() + s.backoff;
-  s.backoff = std::min<std::chrono::milliseconds>(s.backoff * 2, 30s);
+  s.backoff = std::min<std::chrono::milliseconds>(s.backoff * 2, kReconnectMax);
 }
 
 void session_subscribed(mosquitto*, void* obj, int, int count, const int* granted,
@@ -312,7 +321,7 @@ unsigned MqttSessions::poll(std::chrono::milliseconds timeout, std::span<const i
       if (!open(*s, error)) {
         spdlog::warn("ingest: {}; retrying", error);
         s->retry_at = now + s->backoff;
-        s->backoff = std::min<std::chrono::milliseconds>(s->backoff * 2, 30s);
+        s->backoff = std::min<std::chrono::milliseconds>(s->backoff * 2, kReconnectMax);
       }
       continue;
     }

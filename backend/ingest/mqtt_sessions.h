@@ -21,7 +21,7 @@
 //  * A session's output queue is written only while it holds no message: held(i) == 0, i.e.
 //    no message was received since the last acknowledge() (or since its connection was lost).
 //  * acknowledge(): the caller committed every message received so far; their PUBACKs go.
-//  * A lost connection is retried (1 s doubling to 30 s) with a new library object: nothing
+//  * A lost connection is retried (100 ms doubling to 500 ms) with a new library object: nothing
 //    queued on the lost connection (PUBACKs of messages still in the batch) is ever written;
 //    the broker delivers those messages again (DUP) on the new one: a redelivery, never a loss.
 //    (The reconnect's TCP connect blocks the loop, as the first one does.)
