@@ -27,6 +27,7 @@
 
 #include "backend/common/pg.h"
 #include "fleetgw/v1/envelope.pb.h"
+#include "tests/ingest/ingest_test_util.h"
 #include "tests/ingest/pg_fixture.h"
 #include "tests/support/mosquitto_fixture.h"
 #include "tests/support/process.h"
@@ -46,14 +47,7 @@ namespace fs = std::filesystem;
 namespace v1 = fleetgw::v1;
 
 std::string fault(const std::string& vehicle, std::uint64_t seq, const std::string& name) {
-  v1::Envelope e;
-  e.set_vehicle_id(vehicle);
-  e.set_store_id("store-1");
-  e.set_sequence(seq);
-  e.set_created_at_us(1'700'000'000'000'000);
-  e.mutable_fault()->set_node("mc");
-  e.mutable_fault()->set_name(name);
-  return e.SerializeAsString();
+  return fleetgw::testing::fault_envelope(vehicle, seq, name);
 }
 
 // `samples` samples numbered from first_seq; `minimal`: each sample carries its sequence only
@@ -150,12 +144,7 @@ class IngestBatch : public ::testing::Test {
     pub.disconnect()->wait();
   }
   std::int64_t pg_count(const std::string& sql) {
-    try {
-      PgConnection c(pg_->conninfo());
-      return c.exec(sql, "test query").int64(0, 0);
-    } catch (const fleetgw::PgError&) {
-      return -1;
-    }
+    return fleetgw::testing::count_or_minus_one(pg_->conninfo(), sql);
   }
   std::int64_t accounted(const std::string& vehicle) {
     return pg_count(

@@ -26,6 +26,7 @@
 
 #include "backend/common/pg.h"
 #include "fleetgw/v1/envelope.pb.h"
+#include "tests/ingest/ingest_test_util.h"
 #include "tests/ingest/pg_fixture.h"
 #include "tests/support/mosquitto_fixture.h"
 #include "tests/support/process.h"
@@ -34,7 +35,6 @@
 
 namespace {
 
-using fleetgw::PgConnection;
 using fleetgw::testing::ChildProcess;
 using fleetgw::testing::MosquittoBroker;
 using fleetgw::testing::PostgresCluster;
@@ -45,14 +45,7 @@ using namespace std::chrono_literals;
 constexpr const char* kVehicle = "leave-bike";
 
 std::string fault(std::uint64_t seq) {
-  fleetgw::v1::Envelope e;
-  e.set_vehicle_id(kVehicle);
-  e.set_store_id("store-1");
-  e.set_sequence(seq);
-  e.set_created_at_us(1'700'000'000'000'000);
-  e.mutable_fault()->set_node("mc");
-  e.mutable_fault()->set_name("overheat");
-  return e.SerializeAsString();
+  return fleetgw::testing::fault_envelope(kVehicle, seq);
 }
 
 // The number before `suffix` in the last line of `log` holding it (-1: none).
@@ -103,12 +96,7 @@ class IngestLeave : public ::testing::Test {
     }
   }
   std::int64_t pg_count(const std::string& sql) {
-    try {
-      PgConnection c(pg_->conninfo());
-      return c.exec(sql, "test query").int64(0, 0);
-    } catch (const fleetgw::PgError&) {
-      return -1;
-    }
+    return fleetgw::testing::count_or_minus_one(pg_->conninfo(), sql);
   }
   std::int64_t accounted() {
     return pg_count(
